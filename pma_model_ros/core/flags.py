@@ -1,0 +1,29 @@
+"""Per-sample status flags returned with every force and pressure value."""
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+
+
+class Flag(enum.IntFlag):
+    """Bit flags; a result array carries one uint16 of these per sample."""
+
+    OK = 0
+    INVALID_INPUT = 1          #: non-finite input or a length the geometry cannot take; value is NaN
+    LENGTH_OUT_OF_RANGE = 2    #: length outside the identified range or above L0
+    PRESSURE_OUT_OF_RANGE = 4  #: gauge pressure below 0 or above the muscle's max_pressure
+    CLIPPED = 8                #: the raw model pushes (F_raw < 0); served 0 N
+    SATURATED = 16             #: wanted force needs a pressure outside [0, max_pressure]; served the bound
+    BRANCH_UNKNOWN = 32        #: hysteresis model without a length-rate sign; served the branch mean
+
+
+def describe(flags: int) -> str:
+    """Readable ``A|B`` form of one flag word, ``OK`` for none."""
+    names = [f.name for f in Flag if f and flags & f]
+    return "|".join(names) if names else "OK"
+
+
+def combine(flags: np.ndarray) -> int:
+    """Bitwise OR of a flag array."""
+    return int(np.bitwise_or.reduce(np.asarray(flags, np.uint16).ravel(), initial=0))

@@ -1,0 +1,204 @@
+"""Static force models F(p, L) of pneumatic muscles.
+
+Every model here is a polynomial of degree <= 2 in the gauge pressure p at a
+fixed length L, so each is written once, as the coefficients
+
+    F_raw(p, L) = q2(L) p^2 + q1(L) p + q0(L)        [N], p in Pa gauge, L in m.
+
+That single form gives the forward force, the closed-form inverse
+(:mod:`pma_model_ros.core.inverse`) and the identification residuals.
+Equation numbers refer to Martens & Boblan, Actuators 2017 ("eq. N") and to
+Sárosi, "Modelling hysteresis in the force characteristic of the fluidic
+muscles" ("Sárosi eq. N").  Start points are the paper's Table 1.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Callable
+
+import numpy as np
+
+from . import muscle as geo
+from .muscle import MuscleSpec
+
+Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """Length range [m] a model was identified on; its validity domain in L."""
+
+    length_min: float
+    length_max: float
+
+    def __post_init__(self) -> None:
+        if not (0 < self.length_min < self.length_max):
+            raise ValueError(f"length range must satisfy 0 < min < max, got [{self.length_min}, {self.length_max}]")
+
+
+@dataclass(frozen=True)
+class Model:
+    """One static force model.
+
+    ``coefficients(theta, spec, domain, length, branch)`` returns (q2, q1, q0)
+    with F_raw = q2 p^2 + q1 p + q0.  ``branch`` is +1 (lengthening, upper
+    hysteresis branch), -1 (shortening, lower) or 0 (unknown); only hysteresis
+    models use it.  ``lower``/``upper`` are the physical parameter bounds used
+    by the ``best`` identification protocol.
+    """
+
+    name: str
+    equation: str
+    param_names: tuple[str, ...]
+    start: tuple[float, ...]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    coefficients: Callable[..., Coefficients]
+    hysteresis: bool = False
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    def check_params(self, theta: object) -> np.ndarray:
+        """Return ``theta`` as a float array, or raise ValueError naming the model."""
+        values = np.asarray(theta, dtype=float) if _is_number_list(theta) else None
+        if values is None or values.shape != (self.n_params,) or not np.all(np.isfinite(values)):
+            raise ValueError(f"model {self.name!r} needs {self.n_params} finite parameters "
+                             f"{list(self.param_names)}, got {theta!r}")
+        return values
+
+
+def _is_number_list(theta: object) -> bool:
+    items = theta.tolist() if isinstance(theta, np.ndarray) else theta
+    return isinstance(items, (list, tuple)) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in items)
+
+
+def _zeros(length: np.ndarray) -> np.ndarray:
+    return np.zeros_like(length)
+
+
+def _contraction(spec: MuscleSpec, length: np.ndarray) -> np.ndarray:
+    """Relative contraction kappa = (L0 - L) / L0 [-]."""
+    return (spec.nominal_length - length) / spec.nominal_length
+
+
+def _mckibben(theta, spec, domain, length, branch) -> Coefficients:
+    """McKibben / Schulte, eq. 17: F = -p dV/dL = p L_F^2 (3 cos^2 Theta - 1) / (4 pi n^2)."""
+    return _zeros(length), -geo.volume_slope(spec, length), _zeros(length)
+
+
+def _andrikopoulos(theta, spec, domain, length, branch) -> Coefficients:
+    """Andrikopoulos, eq. 18 (the Tondu-Lopez form, Sárosi eq. 2, with mu = c0, epsilon = c1).
+
+    F = p c0 (pi D0^2 / 4) [3 / tan^2 Theta0 (1 - c1 kappa)^2 - 1 / sin^2 Theta0].
+    """
+    c0, c1 = theta
+    th0 = spec.fiber_angle
+    shape = 3 / math.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / math.sin(th0) ** 2
+    return _zeros(length), c0 * math.pi * spec.inner_diameter**2 / 4 * shape, _zeros(length)
+
+
+def _sarosi_terms(theta, spec, length) -> tuple[np.ndarray, np.ndarray]:
+    c0, c1, c2, d0, d1, d2 = theta
+    kappa = _contraction(spec, length)
+    growth = np.exp(c2 * kappa)
+    return c0 * growth + d0 * kappa + d1, c1 * growth + d2
+
+
+def _sarosi(theta, spec, domain, length, branch) -> Coefficients:
+    """Sárosi, eq. 19 (identical to Sárosi eq. 3 in SI units).
+
+    F = (c0 p + c1) exp(c2 kappa) + p (d0 kappa + d1) + d2, kappa = (L0 - L) / L0.
+    """
+    q1, q0 = _sarosi_terms(theta, spec, length)
+    return _zeros(length), q1, q0
+
+
+def _sarosi_hysteresis(theta, spec, domain, length, branch) -> Coefficients:
+    """Sárosi eq. 3 with an upper (lengthening) and a lower (shortening) branch.
+
+    ``theta`` = 6 upper-branch parameters then 6 lower-branch parameters, each
+    in the SI form of eq. 19.  An unknown branch (0) gives the mean of both.
+    """
+    up1, up0 = _sarosi_terms(theta[:6], spec, length)
+    lo1, lo0 = _sarosi_terms(theta[6:], spec, length)
+    w_up = (1 + np.clip(np.asarray(branch, float), -1, 1)) / 2
+    return _zeros(length), w_up * up1 + (1 - w_up) * lo1, w_up * up0 + (1 - w_up) * lo0
+
+
+def _hildebrandt(theta, spec, domain, length, branch) -> Coefficients:
+    """Hildebrandt, eq. 20: F = p sum_{j<=2} c_j L^j - (sum_{j<=3} d_j L^j + d4 L^(2/3))."""
+    c0, c1, c2, d0, d1, d2, d3, d4 = theta
+    area = c0 + c1 * length + c2 * length**2
+    counter = d0 + d1 * length + d2 * length**2 + d3 * length**3 + d4 * np.cbrt(length) ** 2
+    return _zeros(length), area, -counter
+
+
+def _wickramatunge(theta, spec, domain, length, branch) -> Coefficients:
+    """Wickramatunge, eq. 21: F = (c3 p^2 + c2 p dL + c1 dL^2 + c0) dL, dL = L - min(L).
+
+    min(L) is the shortest length of the identified map (``domain.length_min``).
+    """
+    c0, c1, c2, c3 = theta
+    dl = length - domain.length_min
+    return c3 * dl, c2 * dl**2, (c1 * dl**2 + c0) * dl
+
+
+def _martens(theta, spec, domain, length, branch) -> Coefficients:
+    """Martens, eqs. 14-16: F = -p dV/dL + F_PE dD/dL - F_L.
+
+    E_RU(L) = c3 L^3 + c2 L^2 + c1 L + c0 [Pa] (eq. 15); the braid angle is
+    corrected to Theta0 + d0 [rad] (eq. 16); F_PE = E (D - D0)/D0 H0 L pi
+    (eqs. 11, 13) and F_L = E (L - L0)/L0 H0 pi D(L) (eqs. 10, 12).
+    """
+    c0, c1, c2, c3, d0 = theta
+    angle = spec.fiber_angle + d0
+    modulus = ((c3 * length + c2) * length + c1) * length + c0
+    dia = geo.diameter(spec, length, angle)
+    f_pe = modulus * (dia - spec.inner_diameter) / spec.inner_diameter * spec.membrane_thickness * length * math.pi
+    f_l = modulus * (length - spec.nominal_length) / spec.nominal_length * spec.membrane_thickness * math.pi * dia
+    q0 = f_pe * geo.diameter_slope(spec, length, angle) - f_l
+    return _zeros(length), -geo.volume_slope(spec, length, angle), q0
+
+
+_BIG = 1e12
+MODELS: dict[str, Model] = {m.name: m for m in (
+    Model("mckibben", "eq. 17", (), (), (), (), _mckibben),
+    Model("andrikopoulos", "eq. 18", ("c0", "c1"), (1e-5, 1e-5), (0.0, 0.0), (10.0, 10.0), _andrikopoulos),
+    Model("wickramatunge", "eq. 21", ("c0", "c1", "c2", "c3"), (1.0, 1.0, 1e-5, 1e-10),
+          (-_BIG,) * 4, (_BIG,) * 4, _wickramatunge),
+    Model("hildebrandt", "eq. 20", ("c0", "c1", "c2", "d0", "d1", "d2", "d3", "d4"),
+          (1e-5, 1e-5, 1e-5, 1.0, 1.0, 1.0, 1.0, 1.0), (-_BIG,) * 8, (_BIG,) * 8, _hildebrandt),
+    Model("sarosi", "eq. 19", ("c0", "c1", "c2", "d0", "d1", "d2"), (1e-5, 1.0, 1.0, 1e-5, 1e-5, 1.0),
+          (-_BIG, -_BIG, -100.0, -_BIG, -_BIG, -_BIG), (_BIG, _BIG, 100.0, _BIG, _BIG, _BIG), _sarosi),
+    Model("martens", "eqs. 14-16", ("c0", "c1", "c2", "c3", "d0"), (1e6, 1e6, 1e6, 1e6, 0.0),
+          (-_BIG,) * 4 + (-0.35,), (_BIG,) * 4 + (0.35,), _martens),
+    Model("sarosi_hysteresis", "Sárosi eq. 3, upper and lower branch",
+          tuple(f"{b}_{n}" for b in ("upper", "lower") for n in ("c0", "c1", "c2", "d0", "d1", "d2")),
+          (), (), (), _sarosi_hysteresis, hysteresis=True),
+)}
+# Tondu-Lopez (Sárosi eq. 2) is the same function as eq. 18: one implementation, two names.
+ALIASES = {"tondu_lopez": "andrikopoulos"}
+# The models of the paper's Table 3, in its column order.
+TABLE3_MODELS = ("mckibben", "andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens")
+
+
+def get_model(name: object) -> Model:
+    """Look a model up by name (case-insensitive, aliases allowed)."""
+    key = str(name).strip().lower()
+    key = ALIASES.get(key, key)
+    if key not in MODELS:
+        known = sorted(MODELS) + sorted(ALIASES)
+        raise ValueError(f"unknown model {name!r}; known models: {', '.join(known)}")
+    return MODELS[key]
+
+
+def force_raw(model: Model, theta: np.ndarray, spec: MuscleSpec, domain: Domain,
+              pressure: np.ndarray, length: np.ndarray, branch: np.ndarray | float = 0.0) -> np.ndarray:
+    """Unclipped model force F_raw(p, L) [N]; negative where the muscle would push."""
+    pressure, length = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
+    q2, q1, q0 = model.coefficients(theta, spec, domain, length, branch)
+    return (q2 * pressure + q1) * pressure + q0

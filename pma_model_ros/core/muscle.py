@@ -1,0 +1,110 @@
+"""Muscle specification and braid geometry (Martens & Boblan 2017, eqs. 1-4).
+
+All quantities are SI: lengths in m, angles in rad, pressures in Pa (gauge).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+
+@dataclass(frozen=True)
+class MuscleSpec:
+    """Geometry and rating of one pneumatic muscle.
+
+    Parameters
+    ----------
+    name : str
+        Catalogue name, e.g. ``"DMSP-10-250"``.
+    nominal_length : float
+        Initial (unpressurised, unstretched) length L0 [m].
+    inner_diameter : float
+        Initial inner diameter D0 [m].
+    membrane_thickness : float
+        Initial membrane thickness H0 [m].
+    fiber_angle : float
+        Initial braid angle Theta0 between fibre and muscle axis [rad].
+    max_pressure : float
+        Highest rated gauge pressure [Pa].
+    """
+
+    name: str
+    nominal_length: float
+    inner_diameter: float
+    membrane_thickness: float
+    fiber_angle: float
+    max_pressure: float
+
+    def __post_init__(self) -> None:
+        for field in ("nominal_length", "inner_diameter", "membrane_thickness", "max_pressure"):
+            value = getattr(self, field)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"muscle.{field} must be a positive finite number, got {value!r}")
+        if not (isinstance(self.fiber_angle, (int, float)) and 0 < self.fiber_angle < math.pi / 2):
+            raise ValueError(f"muscle.fiber_angle must be in (0, pi/2) rad, got {self.fiber_angle!r}")
+        if self.nominal_length > 10 or self.inner_diameter > 1:
+            raise ValueError("muscle dimensions must be in metres (nominal_length <= 10 m, inner_diameter <= 1 m)")
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError("muscle.name must be a non-empty string")
+
+    @classmethod
+    def from_mapping(cls, data: object) -> "MuscleSpec":
+        """Build a spec from a mapping with exactly the dataclass's keys."""
+        if not isinstance(data, dict):
+            raise ValueError(f"muscle spec must be a mapping, got {type(data).__name__}")
+        expected = set(cls.__dataclass_fields__)
+        missing, unknown = expected - set(data), set(data) - expected
+        if missing or unknown:
+            raise ValueError(f"muscle spec: missing keys {sorted(missing)}, unknown keys {sorted(unknown)}")
+        values = {k: data[k] if k == "name" else _as_float(k, data[k]) for k in expected}
+        return cls(**values)
+
+    def to_mapping(self) -> dict:
+        return asdict(self)
+
+
+def _as_float(key: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"muscle.{key} must be a number, got {value!r}")
+    return float(value)
+
+
+def fiber_length(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
+    """Constant fibre length L_Fiber = L0 / cos(Theta0) [m] (eq. 3)."""
+    theta = spec.fiber_angle if fiber_angle is None else fiber_angle
+    return spec.nominal_length / math.cos(theta)
+
+
+def turns(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
+    """Number of fibre turns n = L0 tan(Theta0) / (pi D0) [-] (eq. 3)."""
+    theta = spec.fiber_angle if fiber_angle is None else fiber_angle
+    return spec.nominal_length * math.tan(theta) / (math.pi * spec.inner_diameter)
+
+
+def diameter(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
+    """Inner diameter D(L) = sqrt(L_Fiber^2 - L^2) / (n pi) [m] (eq. 2)."""
+    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
+    return np.sqrt(lf**2 - np.asarray(length, float) ** 2) / (n * math.pi)
+
+
+def volume(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
+    """Cylinder volume V(L) = (L L_Fiber^2 - L^3) / (4 pi n^2) [m^3] (eqs. 1 and 4)."""
+    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
+    length = np.asarray(length, float)
+    return (length * lf**2 - length**3) / (4 * math.pi * n**2)
+
+
+def volume_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
+    """dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2], derivative of eq. 4."""
+    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
+    return (lf**2 - 3 * np.asarray(length, float) ** 2) / (4 * math.pi * n**2)
+
+
+def diameter_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
+    """dD/dL = -L / (n pi sqrt(L_Fiber^2 - L^2)) [-], derivative of eq. 2."""
+    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
+    length = np.asarray(length, float)
+    return -length / (n * math.pi * np.sqrt(lf**2 - length**2))

@@ -1,0 +1,92 @@
+"""ROS 2 parameter files of identified muscles (``ros__parameters`` YAML).
+
+Layout (every value SI)::
+
+    /**:
+      ros__parameters:
+        muscle: {name, nominal_length, inner_diameter, membrane_thickness, fiber_angle, max_pressure}
+        model: martens                 # the default model
+        length_range: [0.198, 0.25]    # identified length range [m]
+        models:
+          martens: {params: [...], objective: minimax, err: 4.2, rmse: .., r2: .., cv_err: 8.2}
+
+Node settings (``ambient_pressure``, ``joint_name``, ...) may sit beside these
+keys; this module reads only the muscle and its models.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from .force_map import load_yaml_mapping
+from .identification import ModelReport
+from .models import Domain, get_model
+from .muscle import MuscleSpec
+from .muscle_model import MuscleModel
+
+_ROUND = 12  # significant digits written; far below any fit's resolution
+#: Node settings written into generated files, beside the muscle (documented in the README).
+NODE_DEFAULTS = {"ambient_pressure": 101325.0, "max_input_age": 0.1}
+
+
+def _num(value: float) -> float:
+    return float(f"{value:.{_ROUND}g}")
+
+
+def model_entry(report: ModelReport) -> dict:
+    """The ``models.<name>`` mapping of one identified model."""
+    fit = report.shipped
+    entry = {"params": [_num(v) for v in fit.theta]} if fit.theta.size else {}
+    entry.update(objective=fit.objective, err=_num(fit.err), rmse=_num(fit.rmse), r2=_num(fit.r2),
+                 cv_err=_num(report.cv_err))
+    return entry
+
+
+def build_parameters(spec: MuscleSpec, default: str, domain: Domain, models: dict[str, dict]) -> dict:
+    """The full parameter-file mapping for one muscle."""
+    return {"/**": {"ros__parameters": {
+        "muscle": {k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()},
+        "model": default,
+        "length_range": [_num(domain.length_min), _num(domain.length_max)],
+        "models": models,
+        **NODE_DEFAULTS,
+        "joint_name": spec.name,
+        "frame_id": spec.name.lower().replace("-", "_"),
+    }}}
+
+
+def write_parameters(path: str | Path, parameters: dict, header: str) -> None:
+    text = yaml.safe_dump(parameters, sort_keys=False, default_flow_style=None, width=120)
+    Path(path).write_text("".join(f"# {line}\n" for line in header.splitlines()) + text, encoding="utf-8")
+
+
+def read_parameters(path: str | Path) -> dict:
+    """The ``ros__parameters`` mapping of a parameter file (the first node entry)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"parameter file not found: {path}") from None
+    data = load_yaml_mapping(text, str(path))
+    for entry in data.values():
+        if isinstance(entry, dict) and isinstance(entry.get("ros__parameters"), dict):
+            return entry["ros__parameters"]
+    raise ValueError(f"{path}: no '<node>: ros__parameters:' mapping found")
+
+
+def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
+    """Build the identified muscle from ``ros__parameters``; ``model`` overrides the default."""
+    spec = MuscleSpec.from_mapping(parameters.get("muscle"))
+    name = get_model(model if model is not None else parameters.get("model", "")).name
+    models = parameters.get("models")
+    if not isinstance(models, dict) or name not in models or not isinstance(models[name], dict):
+        raise ValueError(f"models.{name} is missing from the parameter file")
+    length_range = parameters.get("length_range")
+    if not (isinstance(length_range, list) and len(length_range) == 2):
+        raise ValueError(f"length_range must be [min, max] in m, got {length_range!r}")
+    try:
+        domain = Domain(*(float(v) for v in length_range))
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"length_range: {err}") from None
+    return MuscleModel(spec, get_model(name), models[name].get("params", []), domain)
