@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -28,6 +29,7 @@ class CliError(Exception):
     """A user error: printed as one line, exit code 2."""
 
 
+@functools.cache
 def identify_muscle(muscle: str) -> tuple[dict[str, ModelReport], str]:
     """All Table 3 models identified on a shipped map, and the CV-chosen default."""
     return identify_all(shipped_spec(muscle), shipped_force_map(muscle), tuple(get_model(m) for m in TABLE3_MODELS))

@@ -100,8 +100,9 @@ class MuscleModel:
             f_at_max = (q2 * p_max + q1) * p_max + q0
         p = np.where(reachable, p, np.where(f_at_max < target, p_max, 0.0))
         wants_pull = usable & (F > 0)
-        too_high = p > p_max
-        too_low = (p < 0) & wants_pull
+        slack = 1e-9 * p_max  # round-off at the bounds is not saturation
+        too_high = p > p_max + slack
+        too_low = (p < -slack) & wants_pull
         flags[usable & (~reachable | too_high | too_low)] |= np.uint16(Flag.SATURATED)
         p = np.clip(p, 0.0, p_max)
         return PressureResult(np.where(usable, p, np.nan), flags)

@@ -1,0 +1,78 @@
+"""The pma-model command line: outputs and one-line errors with exit code 2."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from conftest import CONFIGS, REPO
+from pma_model_ros.cli import main
+from pma_model_ros.core.force_map import shipped_force_map
+
+TABLE3_MODELS = {"mckibben", "andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens"}
+
+
+def test_reproduce_json(capsys):
+    assert main(["reproduce", "--json"]) == 0
+    table = json.loads(capsys.readouterr().out)["table3"]
+    assert set(table) == {"DMSP-10-250", "DMSP-20-300"}
+    for muscle, rows in table.items():
+        assert rows["default"] == "martens"
+        assert set(rows) - {"default"} == TABLE3_MODELS
+        for row in (rows[m] for m in TABLE3_MODELS):
+            assert set(row) == {"paper", "paper_protocol", "best", "cv"}
+            assert row["best"] <= row["paper"] + 0.05
+    assert table["DMSP-20-300"]["martens"]["paper_protocol"] == pytest.approx(2.35, abs=0.05)
+
+
+def test_force_and_pressure_round_trip(capsys):
+    cfg = str(CONFIGS["DMSP-10-250"])
+    assert main(["pressure", "--config", cfg, "--force", "200", "--length", "0.23"]) == 0
+    pressure = float(capsys.readouterr().out.split()[1])
+    assert 0 < pressure < 8e5
+    assert main(["force", "--config", cfg, "--pressure", str(pressure), "--length", "0.23"]) == 0
+    out = capsys.readouterr().out
+    assert float(out.split()[1]) == pytest.approx(200, rel=1e-5) and "flags OK" in out
+
+
+def test_fit_from_csv(tmp_path, capsys):
+    fmap = shipped_force_map("DMSP-20-300")
+    csv = tmp_path / "map.csv"
+    csv.write_text("pressure_pa,length_m,force_n\n" + "".join(
+        f"{p},{L},{F}\n" for p, L, F in zip(fmap.pressure, fmap.length, fmap.force)))
+    spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_20_300.yaml"
+    out = tmp_path / "fit.yaml"
+    assert main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "martens", "--out", str(out)]) == 0
+    assert "martens: err" in capsys.readouterr().out
+    assert main(["force", "--config", str(out), "--pressure", "450000", "--length", "0.25"]) == 0
+    assert float(capsys.readouterr().out.split()[1]) == pytest.approx(252.1, abs=0.03 * 1653.5)
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "not found"),
+    ("pressure,length,force\n1,2,3\n", "header"),
+    ("pressure_pa,length_m,force_n\n100000,0.25,abc\n", "not three numbers"),
+    ("pressure_pa,length_m,force_n\n100000,0.25,nan\n", "NaN"),
+    ("pressure_pa,length_m,force_n\n100000,250,10\n200000,230,5\n300000,250,30\n", "metres"),
+])
+def test_bad_csv_is_one_line_exit_2(tmp_path, capsys, content, message):
+    csv = tmp_path / "map.csv"
+    if content is not None:
+        csv.write_text(content)
+    spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_10_250.yaml"
+    code = main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "martens", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("args, message", [
+    (["force", "--pressure", "300000", "--length", "230"], "metres"),
+    (["force", "--pressure", "nan", "--length", "0.23"], "Pa"),
+    (["force", "--pressure", "300000", "--length", "0.23", "--model", "hill"], "unknown model"),
+    (["pressure", "--force", "200", "--length", "0.4"], "geometry"),
+])
+def test_bad_queries_exit_2_without_traceback(args, message):
+    cmd = [sys.executable, "-m", "pma_model_ros.cli", *args[:1], "--config", str(CONFIGS["DMSP-10-250"]), *args[1:]]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and message in proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1

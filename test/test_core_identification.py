@@ -1,0 +1,71 @@
+"""Identification: the paper's Table 3, our best fits, cross-validation, shipped configs."""
+import math
+
+import numpy as np
+import pytest
+
+from conftest import CONFIGS
+from pma_model_ros.cli import PAPER_TABLE3, identify_muscle, main
+from pma_model_ros.core.force_map import MAPPED_MUSCLES, shipped_force_map
+from pma_model_ros.core.param_file import read_parameters
+
+FITTED = ("andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens")
+
+
+@pytest.fixture(scope="module")
+def results():
+    return {m: identify_muscle(m) for m in MAPPED_MUSCLES}
+
+
+def test_paper_protocol_reproduces_table3(results):
+    misses = []
+    for muscle, (reports, _) in results.items():
+        for name, rep in reports.items():
+            if abs(rep.paper.err - PAPER_TABLE3[muscle][name]) > 0.05:
+                misses.append((muscle, name, round(rep.paper.err, 2)))
+    # One entry does not reproduce (README: fminsearch stops at MaxFunEvals mid-descent): 7.39 % vs 5.1 %.
+    assert misses == [("DMSP-10-250", "sarosi", 7.39)]
+
+
+def test_paper_protocol_finds_table2(results):
+    table2 = {"DMSP-10-250": [74.085e6, -689.20e6, 1.8370e9, -848.79e6],
+              "DMSP-20-300": [93.232e6, -715.29e6, 1.5483e9, -502.95e6]}
+    for muscle, expected in table2.items():
+        theta = results[muscle][0]["martens"].paper.theta
+        assert theta[:4] == pytest.approx(expected, rel=2e-4)
+    assert math.degrees(results["DMSP-20-300"][0]["martens"].paper.theta[4]) == pytest.approx(-4.18, abs=0.01)
+    # Table 2 prints -5.73 deg for the DMSP-10-250; the same fit lands at -5.87 deg (README).
+    assert math.degrees(results["DMSP-10-250"][0]["martens"].paper.theta[4]) == pytest.approx(-5.87, abs=0.01)
+
+
+def test_best_is_at_or_below_the_paper_for_every_fitted_model(results):
+    for muscle, (reports, _) in results.items():
+        for name in FITTED:
+            assert reports[name].best_err <= PAPER_TABLE3[muscle][name], (muscle, name)
+            for fit in reports[name].best.values():
+                assert fit.r2 > 0.9 and fit.rmse > 0
+
+
+def test_cross_validation_picks_the_default(results):
+    limits = {"DMSP-10-250": 9.0, "DMSP-20-300": 3.0}
+    for muscle, (reports, default) in results.items():
+        assert default == min(reports, key=lambda n: reports[n].cv_err)
+        assert reports[default].cv_err <= limits[muscle], (muscle, default, reports[default].cv_err)
+        folds = reports[default].cv[reports[default].shipped_objective]
+        assert len(folds) == shipped_force_map(muscle).lengths.size == {"DMSP-10-250": 5, "DMSP-20-300": 6}[muscle]
+
+
+@pytest.mark.parametrize("muscle", MAPPED_MUSCLES)
+def test_regenerated_config_matches_committed(results, muscle, tmp_path):
+    out = tmp_path / "regen.yaml"
+
+    assert main(["make-config", muscle, "--out", str(out)]) == 0
+    fresh, committed = read_parameters(out), read_parameters(CONFIGS[muscle])
+    assert fresh["model"] == committed["model"] and fresh["muscle"] == committed["muscle"]
+    assert fresh["length_range"] == committed["length_range"]
+    for name, entry in committed["models"].items():
+        new = fresh["models"][name]
+        assert new["objective"] == entry["objective"]
+        for key in ("err", "rmse", "r2", "cv_err"):
+            assert new[key] == pytest.approx(entry[key], rel=1e-4, abs=1e-3), (name, key)
+        assert np.allclose(new.get("params", []), entry.get("params", []), rtol=1e-4, atol=0), name

@@ -1,0 +1,90 @@
+"""Static force models against published numbers."""
+import math
+
+import numpy as np
+import pytest
+
+from pma_model_ros.core.flags import Flag
+from pma_model_ros.core.force_map import shipped_force_map, shipped_spec
+from pma_model_ros.core.identification import domain_of, max_error_percent
+from pma_model_ros.core.models import MODELS, force_raw, get_model
+from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis, to_si
+
+# Martens & Boblan 2017, Table 2 (as printed).
+TABLE2 = {"DMSP-10-250": [74.085e6, -689.20e6, 1.8370e9, -848.79e6, math.radians(-5.73)],
+          "DMSP-20-300": [93.232e6, -715.29e6, 1.5483e9, -502.95e6, math.radians(-4.18)]}
+
+
+def test_mckibben_reproduces_table3_without_fitting():
+    for muscle, paper in (("DMSP-10-250", 46.1), ("DMSP-20-300", 30.0)):
+        fmap, spec = shipped_force_map(muscle), shipped_spec(muscle)
+        f = force_raw(get_model("mckibben"), np.zeros(0), spec, domain_of(fmap), fmap.pressure, fmap.length)
+        pulled = fmap.force > 0
+        assert max_error_percent(fmap.force[pulled], f[pulled], fmap.max_force) == pytest.approx(paper, abs=0.05)
+
+
+def test_mckibben_matches_eq17_closed_form():
+    spec = shipped_spec("DMSP-20-300")
+    L, p = np.array([0.22, 0.26, 0.3]), 4e5
+    cos_t = L / (spec.nominal_length / math.cos(spec.fiber_angle))
+    n = spec.nominal_length * math.tan(spec.fiber_angle) / (math.pi * spec.inner_diameter)
+    expected = p * (spec.nominal_length / math.cos(spec.fiber_angle)) ** 2 * (3 * cos_t**2 - 1) / (4 * math.pi * n**2)
+    got = force_raw(get_model("mckibben"), np.zeros(0), spec, domain_of(shipped_force_map("DMSP-20-300")), p, L)
+    assert got == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("muscle, within", [("DMSP-10-250", 4.3), ("DMSP-20-300", 2.4)])
+def test_martens_with_table2_parameters_fits_the_map(muscle, within):
+    fmap, spec = shipped_force_map(muscle), shipped_spec(muscle)
+    f = force_raw(get_model("martens"), np.array(TABLE2[muscle]), spec, domain_of(fmap), fmap.pressure, fmap.length)
+    pulled = fmap.force > 0
+    assert max_error_percent(fmap.force[pulled], f[pulled], fmap.max_force) < within
+
+
+def test_andrikopoulos_with_unit_corrections_is_mckibben_at_l0():
+    # eq. 18 with c0 = c1 = 1 equals eq. 17 at L = L0 (Theta = Theta0).
+    spec, fmap = shipped_spec("DMSP-10-250"), shipped_force_map("DMSP-10-250")
+    args = (spec, domain_of(fmap), 5e5, spec.nominal_length)
+    assert force_raw(get_model("andrikopoulos"), np.array([1.0, 1.0]), *args) == pytest.approx(
+        force_raw(get_model("mckibben"), np.zeros(0), *args), rel=1e-12)
+
+
+def test_tondu_lopez_is_an_alias():
+    assert get_model("Tondu_Lopez") is MODELS["andrikopoulos"]
+    with pytest.raises(ValueError, match="unknown model"):
+        get_model("hill")
+
+
+def test_sarosi_si_conversion_matches_published_units():
+    published = [-13.05, 215.62, -0.35, -3.08, 100.49, -215.22]  # Table 2: p in bar, k in %
+    a1, a2, a3, a4, a5, a6 = published
+    spec, fmap = shipped_spec("DMSP-10-100"), shipped_force_map("DMSP-10-250")
+    got = {}
+    for p_bar, k_pct in ((6.0, 0.0), (3.0, 10.0), (6.0, 20.0)):
+        expected = (a1 * p_bar + a2) * math.exp(a3 * k_pct) + a4 * k_pct * p_bar + a5 * p_bar + a6
+        L = spec.nominal_length * (1 - k_pct / 100)
+        got[p_bar, k_pct] = force_raw(get_model("sarosi"), to_si(published), spec, domain_of(fmap), p_bar * 1e5, L)
+        assert got[p_bar, k_pct] == pytest.approx(expected, rel=1e-12)
+    # These units make physical sense: about 525 N at 6 bar and L0, near zero at 20 % contraction.
+    assert got[6.0, 0.0] == pytest.approx(525.0, abs=1.0)
+    assert 0 < got[6.0, 20.0] < 25
+
+
+def test_hysteresis_branches():
+    muscle = dmsp_10_100_hysteresis()
+    up, down, unknown = (muscle.force(6e5, 0.09, rate) for rate in (0.01, -0.01, None))
+    assert float(up.force) > float(unknown.force) > float(down.force) > 0
+    assert float(unknown.force) == pytest.approx((float(up.force) + float(down.force)) / 2)
+    assert unknown.flags == Flag.BRANCH_UNKNOWN and up.flags == down.flags == Flag.OK
+
+
+def test_physical_force_flags_and_clipping(martens_10_250):
+    res = martens_10_250.force(np.array([3e5, 1e5, -1e4, 9e5, 3e5, np.nan]),
+                               np.array([0.23, 0.2, 0.23, 0.23, 0.26, 0.23]))
+    assert np.all(res.force[:5] >= 0) and np.isnan(res.force[5])
+    assert res.flags[0] == Flag.OK
+    assert res.flags[1] & Flag.CLIPPED and res.force[1] == 0 and res.raw[1] < 0
+    assert res.flags[2] & Flag.PRESSURE_OUT_OF_RANGE
+    assert res.flags[3] & Flag.PRESSURE_OUT_OF_RANGE
+    assert res.flags[4] & Flag.LENGTH_OUT_OF_RANGE
+    assert res.flags[5] & Flag.INVALID_INPUT
