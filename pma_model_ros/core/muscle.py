@@ -54,7 +54,7 @@ class MuscleSpec:
     def from_mapping(cls, data: object) -> "MuscleSpec":
         """Build a spec from a mapping with exactly the dataclass's keys."""
         if not isinstance(data, dict):
-            raise ValueError(f"muscle spec must be a mapping, got {type(data).__name__}")
+            raise ValueError(f"muscle spec (key 'muscle') must be a mapping, got {type(data).__name__}")
         expected = set(cls.__dataclass_fields__)
         missing, unknown = expected - set(data), set(data) - expected
         if missing or unknown:
