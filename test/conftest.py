@@ -1,8 +1,16 @@
-"""Shared fixtures."""
+"""Shared fixtures: identified muscles; for the node tests the colcon install, node processes
+and a private rclpy context per test."""
+import os
 from pathlib import Path
+import subprocess
+import sys
+import time
+from typing import Callable
+import uuid
 
 import pytest
 
+from pma_model_ros import node_process
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 REPO = Path(__file__).resolve().parents[1]
@@ -13,3 +21,126 @@ CONFIGS = {"DMSP-10-250": REPO / "config" / "dmsp_10_250.yaml", "DMSP-20-300": R
 @pytest.fixture
 def martens_10_250():
     return muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "martens")
+
+
+COLCON = Path(sys.executable).parent / 'colcon'
+
+
+def explain(proc):
+    return f'exit {proc.returncode}\n--- stdout ---\n{proc.stdout}\n--- stderr ---\n{proc.stderr}'
+
+
+@pytest.fixture(scope='session')
+def colcon_install(tmp_path_factory):
+    """Run colcon once per session into a tmp dir; the install prefix, site-packages and a run env."""
+    assert COLCON.exists(), f'{COLCON} missing: run scripts/setup (installs colcon into .venv)'
+    tmp = tmp_path_factory.mktemp('colcon_nodes')
+    env = dict(os.environ, COLCON_HOME=str(tmp / 'colcon_home'))
+    proc = subprocess.run([str(c) for c in (COLCON, '--log-base', tmp / 'log', 'build',
+                                            '--base-paths', REPO, '--packages-select', 'pma_model_ros',
+                                            '--build-base', tmp / 'build', '--install-base', tmp / 'install')],
+                          env=env, cwd=tmp, timeout=600, capture_output=True, text=True)
+    assert proc.returncode == 0, 'colcon build failed: ' + explain(proc)
+    prefix = tmp / 'install' / 'pma_model_ros'
+    site = sorted(prefix.glob('lib/python3.*/site-packages'))
+    assert site, f'no lib/python3.*/site-packages under {prefix}'
+    run_env = dict(os.environ, PYTHONPATH=str(site[0]), AMENT_PREFIX_PATH=str(prefix))
+    return {'prefix': prefix, 'site': site[0], 'env': run_env, 'tmp': tmp}
+
+
+@pytest.fixture
+def namespace():
+    """A fresh ROS namespace, so tests never hear each other's nodes."""
+    return f'/t{uuid.uuid4().hex[:10]}'
+
+
+class Processes:
+    """Node processes of one test, their output in log files; all stopped at teardown."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.tmp = tmp
+        self.running: list[tuple[subprocess.Popen, Path]] = []
+
+    def start(self, cmd: list[str], env: dict | None = None, cwd: Path | None = None) -> subprocess.Popen:
+        log = self.tmp / f'node{len(self.running)}.log'
+        with open(log, 'w') as out:
+            proc = subprocess.Popen([str(c) for c in cmd], stdout=out, stderr=subprocess.STDOUT, text=True,
+                                    env=env, cwd=cwd)
+        self.running.append((proc, log))
+        return proc
+
+    def node(self, name: str, namespace: str, params_file: Path | None = None, **params) -> subprocess.Popen:
+        """Start a node of this package (``params`` as -p overrides; use '__' for '.' in names)."""
+        params = {k.replace('__', '.'): v for k, v in params.items()}
+        return self.start(node_process.command(name, namespace, params_file, params))
+
+    def output(self, proc: subprocess.Popen) -> str:
+        """Everything ``proc`` printed so far (for assertion messages)."""
+        log = next(log for p, log in self.running if p is proc)
+        return f'--- output of {proc.args[:4]}... (exit {proc.poll()}) ---\n{log.read_text()}'
+
+    def stop_all(self) -> None:
+        for proc, _ in self.running:
+            node_process.stop(proc, timeout=5.0)
+
+
+@pytest.fixture
+def processes(tmp_path):
+    procs = Processes(tmp_path)
+    yield procs
+    procs.stop_all()
+
+
+class Ros:
+    """A test node in its own rclpy context, with deadline-based spinning."""
+
+    def __init__(self, node, executor) -> None:
+        self.node, self.executor = node, executor
+
+    def spin_until(self, done: Callable[[], bool], timeout: float, what: str,
+                   every: Callable[[], None] | None = None, period: float = 0.1,
+                   diagnose: Callable[[], str] = str) -> None:
+        """Spin until ``done()``, calling ``every()`` each ``period`` [s]; after ``timeout`` [s] fail with
+        ``what`` and ``diagnose()`` (e.g. the nodes' output)."""
+        deadline = time.monotonic() + timeout
+        next_call = time.monotonic()
+        while not done():
+            now = time.monotonic()
+            if now > deadline:
+                pytest.fail(f'timed out after {timeout:g} s waiting for {what}\n{diagnose()}')
+            if every is not None and now >= next_call:
+                every()
+                next_call = now + period
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def now(self):
+        return self.node.get_clock().now()
+
+    def collect(self, msg_type, topic: str, qos=10) -> list:
+        """Subscribe ``topic``; the returned list fills with received messages."""
+        received: list = []
+        self.node.create_subscription(msg_type, topic, received.append, qos)
+        return received
+
+    def call(self, srv_type, name: str, request, timeout: float = 10.0):
+        """Call service ``name`` once it is available; its response."""
+        client = self.node.create_client(srv_type, name)
+        self.spin_until(client.service_is_ready, timeout, f'service {name}')
+        future = client.call_async(request)
+        self.spin_until(future.done, timeout, f'response of {name}')
+        return future.result()
+
+
+@pytest.fixture
+def ros():
+    rclpy = pytest.importorskip('rclpy')
+    from rclpy.executors import SingleThreadedExecutor
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    yield Ros(node, executor)
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=context)

@@ -1,0 +1,194 @@
+"""Force estimation from sensor streams, independent of ROS messages.
+
+One implementation of input validation, pairing of the newest pressure with
+the newest length, freshness, counters and the diagnostic level, shared by the
+model node and offline tools.  Every time is in seconds on one clock (ROS time
+in the node, bag time offline); ``now`` is passed in, never read here.
+"""
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+import enum
+import math
+
+from . import muscle as geo
+from .flags import Flag, describe
+from .muscle_model import MuscleModel
+
+#: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8 bar).
+ABSURD_PRESSURE = 5e6
+#: Flags that make an estimate or command WARN, with their diagnostic wording.
+WARN_FLAGS = {
+    Flag.SATURATED: "saturated",
+    Flag.LENGTH_OUT_OF_RANGE: "outside validity domain",
+    Flag.PRESSURE_OUT_OF_RANGE: "outside validity domain",
+    Flag.BRANCH_UNKNOWN: "hysteresis branch unknown",
+}
+SOURCES = ("pressure", "muscle_state", "force_command")
+
+
+class Level(enum.IntEnum):
+    """Diagnostic level; values equal diagnostic_msgs/DiagnosticStatus levels."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+
+
+@dataclass(frozen=True)
+class Config:
+    """What the estimator needs besides the inputs; swapped whole at runtime."""
+
+    model: MuscleModel
+    ambient_pressure: float = 101325.0  #: [Pa] absolute; gauge = absolute - ambient
+    max_input_age: float = 0.1          #: [s] inputs with |now - stamp| above this are stale
+
+
+@dataclass(frozen=True)
+class Sample:
+    value: float           #: absolute pressure [Pa] or length [m]
+    rate: float | None     #: length rate [m/s]; None if unknown
+    stamp: float           #: [s]
+    tag: object = None     #: the caller's own form of the stamp, handed back unchanged
+
+
+@dataclass(frozen=True)
+class Estimate:
+    force: float   #: tension [N], finite and >= 0
+    stamp: float   #: newest stamp of the two inputs [s]
+    flags: int     #: :class:`Flag` word
+    tag: object    #: ``tag`` of the newest input (e.g. its exact header stamp)
+
+
+@dataclass(frozen=True)
+class Command:
+    pressure: float  #: absolute pressure [Pa] giving the wanted tension at the current length
+    flags: int       #: :class:`Flag` word
+
+
+@dataclass(frozen=True)
+class Status:
+    level: Level
+    message: str
+    values: dict[str, str]
+
+
+class Estimator:
+    """Pairs the newest valid pressure and length; estimates force and inverts commands.
+
+    ``hold`` [s] is how long a rejected input (ERROR) or a warning flag (WARN)
+    keeps the diagnostic level up after it was seen.
+    """
+
+    def __init__(self, config: Config, hold: float = 1.0) -> None:
+        self.config = config
+        self.hold = hold
+        self.counts: Counter[str] = Counter()
+        self._pressure: Sample | None = None
+        self._length: Sample | None = None
+        self._last_reject: tuple[float, str] | None = None
+        self._warned: dict[str, float] = {}
+        self._report: tuple[float, Counter[str]] | None = None
+
+    def pressure(self, absolute: float, stamp: float, now: float, tag: object = None) -> Estimate | None:
+        """A pressure reading [Pa absolute] stamped ``stamp`` [s]; returns the new estimate, if any."""
+        self.counts["received pressure"] += 1
+        if not math.isfinite(absolute):
+            return self._invalid("pressure", f"pressure is {absolute} Pa", now)
+        if absolute < 0:
+            return self._invalid("pressure", f"negative absolute pressure {absolute:g} Pa", now)
+        if absolute > ABSURD_PRESSURE:
+            return self._invalid("pressure", f"absurd pressure {absolute:g} Pa (> {ABSURD_PRESSURE:g} Pa absolute)",
+                                 now)
+        self._pressure = Sample(absolute, None, stamp, tag)
+        return self._estimate(now)
+
+    def length(self, length: float, rate: float | None, stamp: float, now: float,
+               tag: object = None) -> Estimate | None:
+        """A length reading [m] with its rate [m/s] (None or NaN: unknown); returns the new estimate, if any."""
+        self.counts["received muscle_state"] += 1
+        limit = geo.fiber_length(self.config.model.spec)
+        if not (math.isfinite(length) and 0 < length < limit):
+            return self._invalid("muscle_state", f"length {length:g} m outside the geometry (0, {limit:.4g}) m", now)
+        known_rate = rate if rate is not None and math.isfinite(rate) else None
+        self._length = Sample(length, known_rate, stamp, tag)
+        return self._estimate(now)
+
+    def command(self, force: float, now: float) -> Command | None:
+        """A wanted tension [N]; returns the pressure command, or None without a fresh length."""
+        self.counts["received force_command"] += 1
+        if not math.isfinite(force):
+            return self._invalid("force_command", f"force command is {force} N", now)
+        cfg, length = self.config, self._length
+        if length is None or not self._fresh(length, now):
+            self.counts["commands without fresh length"] += 1
+            return None
+        result = cfg.model.pressure(force, length.value, length.rate)
+        flags = int(result.flags)
+        self._note(flags, now)
+        self.counts["pressure commands"] += 1
+        return Command(float(result.pressure) + cfg.ambient_pressure, flags)
+
+    def reject(self, source: str, reason: str, now: float) -> None:
+        """Count a message of ``source`` (one of :data:`SOURCES`) refused before it gave a value."""
+        self.counts[f"received {source}"] += 1
+        self._invalid(source, reason, now)
+
+    def level(self, now: float) -> tuple[Level, str]:
+        """Current diagnostic level and its one-line reason."""
+        if self._last_reject is not None and now - self._last_reject[0] < self.hold:
+            return Level.ERROR, f"invalid input: {self._last_reject[1]}"
+        for name, sample in (("pressure", self._pressure), ("muscle_state", self._length)):
+            if sample is None:
+                return Level.ERROR, f"no {name} received yet"
+            if not self._fresh(sample, now):
+                age = now - sample.stamp
+                when = f"{age:.3g} s old" if age > 0 else f"{-age:.3g} s in the future"
+                return Level.ERROR, (f"stale {name}: newest stamp is {when} "
+                                     f"(max_input_age {self.config.max_input_age:g} s)")
+        warnings = sorted({text for text, seen in self._warned.items() if now - seen < self.hold})
+        if warnings:
+            return Level.WARN, "; ".join(warnings)
+        return Level.OK, "estimating"
+
+    def status(self, now: float) -> Status:
+        """Level, reason, counters and message rates [Hz] since the previous call."""
+        level, message = self.level(now)
+        values = {key: str(n) for key, n in sorted(self.counts.items())}
+        if self._report is not None and now > self._report[0]:
+            since, before = self._report
+            for key in ("received pressure", "received muscle_state", "estimates"):
+                values[f"{key} rate [Hz]"] = f"{(self.counts[key] - before[key]) / (now - since):.1f}"
+        self._report = (now, Counter(self.counts))
+        values["model"] = self.config.model.model.name
+        return Status(level, message, values)
+
+    def _fresh(self, sample: Sample, now: float) -> bool:
+        return abs(now - sample.stamp) <= self.config.max_input_age
+
+    def _estimate(self, now: float) -> Estimate | None:
+        cfg, pressure, length = self.config, self._pressure, self._length
+        if pressure is None or length is None:
+            return None
+        if not (self._fresh(pressure, now) and self._fresh(length, now)):
+            self.counts["stale skipped"] += 1
+            return None
+        result = cfg.model.force(pressure.value - cfg.ambient_pressure, length.value, length.rate)
+        flags, force = int(result.flags), float(result.force)
+        if flags & Flag.INVALID_INPUT or not math.isfinite(force):
+            return self._invalid("muscle_state", f"no force at length {length.value:g} m ({describe(flags)})", now)
+        self._note(flags, now)
+        self.counts["estimates"] += 1
+        newest = max(pressure, length, key=lambda sample: sample.stamp)
+        return Estimate(force, newest.stamp, flags, newest.tag)
+
+    def _note(self, flags: int, now: float) -> None:
+        for flag, text in WARN_FLAGS.items():
+            if flags & flag:
+                self._warned[f"{text} ({flag.name})"] = now
+
+    def _invalid(self, source: str, reason: str, now: float) -> None:
+        self.counts[f"rejected {source}"] += 1
+        self._last_reject = (now, reason)
+        return None

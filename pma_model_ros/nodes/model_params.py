@@ -1,0 +1,115 @@
+"""Parameters of the model node: declarations with descriptors, and their validation.
+
+Every parameter is declared explicitly so that each carries a description,
+type and range.  The nested ``models.<name>.*`` entries of a parameter file are
+declared for every model this package knows (unset unless the file gives them);
+entries of unknown models are ignored, as rclpy ignores any undeclared override.
+``automatically_declare_parameters_from_overrides`` is not used: it would
+declare the fixed parameters without descriptors.
+"""
+from __future__ import annotations
+
+import array
+from dataclasses import dataclass
+import math
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..core.estimator import Config
+from ..core.models import MODELS, get_model
+from ..core.param_file import muscle_model
+
+DOUBLE, STRING, DOUBLES = Parameter.Type.DOUBLE, Parameter.Type.STRING, Parameter.Type.DOUBLE_ARRAY
+
+#: name: (type, description, (min, max) or None). Required: no default, must come from the file.
+REQUIRED = {
+    "muscle.name": (STRING, "catalogue name of the muscle, e.g. DMSP-10-250", None),
+    "muscle.nominal_length": (DOUBLE, "initial (unpressurised) length L0 [m]", (0.0, 10.0)),
+    "muscle.inner_diameter": (DOUBLE, "initial inner diameter D0 [m]", (0.0, 1.0)),
+    "muscle.membrane_thickness": (DOUBLE, "initial membrane thickness H0 [m]", (0.0, 1.0)),
+    "muscle.fiber_angle": (DOUBLE, "initial braid angle Theta0 to the muscle axis [rad]", (0.0, math.pi / 2)),
+    "muscle.max_pressure": (DOUBLE, "highest rated gauge pressure [Pa]", (0.0, 5e6)),
+    "model": (STRING, f"force model in use, one of models.*: {', '.join(MODELS)}", None),
+    "length_range": (DOUBLES, "[min, max] length the models were identified on [m]", None),
+}
+#: name: (default, description, (min, max) or None)
+OPTIONAL = {
+    "ambient_pressure": (101325.0, "ambient pressure [Pa absolute]; gauge = fluid_pressure - ambient_pressure",
+                         (0.0, 2e5)),
+    "max_input_age": (0.1, "inputs whose stamp differs from the node clock by more than this are stale [s]",
+                      (1e-3, 3600.0)),
+    "joint_name": ("", "JointState entry of this muscle in muscle_state (empty: muscle.name)", None),
+    "frame_id": ("", "header.frame_id of force_estimate (empty: joint_name)", None),
+}
+#: models.<name>.<entry>: identification results, read-only information.
+MODEL_INFO = {"objective": (STRING, "identification objective"),
+              "err": (DOUBLE, "max error on the map, eq. 23 [% of max force]"),
+              "rmse": (DOUBLE, "root mean square error on the map [N]"),
+              "r2": (DOUBLE, "coefficient of determination [-]"),
+              "cv_err": (DOUBLE, "worst leave-one-length-out error [% of max force]")}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Everything the node derives from its parameters; replaced whole on a change."""
+
+    config: Config
+    joint_name: str
+    frame_id: str
+
+
+def _descriptor(description: str, limits: tuple[float, float] | None = None,
+                read_only: bool = False) -> ParameterDescriptor:
+    ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
+    return ParameterDescriptor(description=description, floating_point_range=ranges, read_only=read_only)
+
+
+def declare(node: Node) -> None:
+    """Declare every model-node parameter on ``node`` (raises rclpy parameter exceptions on bad overrides)."""
+    for name, (kind, text, limits) in REQUIRED.items():
+        node.declare_parameter(name, kind, _descriptor(text, limits))
+    for name, (default, text, limits) in OPTIONAL.items():
+        node.declare_parameter(name, default, _descriptor(text, limits))
+    for model in MODELS.values():
+        node.declare_parameter(f"models.{model.name}.params", DOUBLES, _descriptor(
+            f"identified parameters {list(model.param_names)} of {model.name} ({model.equation}), SI units"))
+        for entry, (kind, text) in MODEL_INFO.items():
+            node.declare_parameter(f"models.{model.name}.{entry}", kind, _descriptor(text, read_only=True))
+
+
+def values(node: Node) -> dict[str, object]:
+    """The node's set parameters as ``{dotted name: plain Python value}``."""
+    return {name: plain(p.value) for name, p in node.get_parameters_by_prefix("").items() if p.value is not None}
+
+
+def settings(flat: dict[str, object]) -> Settings:
+    """Validate a would-be parameter set; ValueError names the offending parameter."""
+    missing = [name for name in REQUIRED if name not in flat]
+    if missing:
+        raise ValueError(f"parameter '{missing[0]}' is not set (missing from the parameter file?)")
+    try:
+        get_model(flat["model"])
+    except ValueError as err:
+        raise ValueError(f"parameter 'model': {err}") from None
+    model = muscle_model(_nest(flat))
+    joint = str(flat["joint_name"]) or model.spec.name
+    config = Config(model, float(flat["ambient_pressure"]), float(flat["max_input_age"]))
+    return Settings(config, joint, str(flat["frame_id"]) or joint)
+
+
+def plain(value: object) -> object:
+    """A parameter value with arrays as lists (what the core expects)."""
+    return list(value) if isinstance(value, (array.array, tuple)) else value
+
+
+def _nest(flat: dict[str, object]) -> dict:
+    nested: dict = {}
+    for name, value in flat.items():
+        *parents, leaf = name.split(".")
+        node = nested
+        for key in parents:
+            node = node.setdefault(key, {})
+        node[leaf] = value
+    return nested

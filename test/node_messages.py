@@ -1,0 +1,34 @@
+"""Message builders shared by the node tests."""
+from geometry_msgs.msg import WrenchStamped
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import FluidPressure, JointState
+
+AMBIENT = 101325.0      # [Pa], the config's ambient_pressure
+JOINT = 'DMSP-10-250'   # the config's joint_name
+#: Deep queues for the test's subscriptions: its executor takes one message per spin_once,
+#: so at a few hundred messages per second a shallow queue would drop some.
+SENSOR_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+RELIABLE_QOS = QoSProfile(depth=1000)
+
+
+def pressure(stamp, absolute: float) -> FluidPressure:
+    msg = FluidPressure(fluid_pressure=absolute)
+    msg.header.stamp = stamp
+    return msg
+
+
+def state(stamp, length: float, rate: float = 0.0, name: str = JOINT) -> JointState:
+    msg = JointState(name=[name], position=[length], velocity=[rate])
+    msg.header.stamp = stamp
+    return msg
+
+
+def force_command(force: float) -> WrenchStamped:
+    msg = WrenchStamped()
+    msg.wrench.force.x = force
+    return msg
+
+
+def stamp_key(msg) -> int:
+    """A header stamp in integer nanoseconds."""
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
