@@ -1,6 +1,6 @@
 """Packaging test: `colcon build` of this repo installs a proper ament_python package.
 
-Builds once (module-scoped) into a temporary directory -- build, install and log
+Uses the session's colcon build (test/conftest.py) in a temporary directory -- build, install and log
 bases all live outside the source tree -- then checks the install layout, the
 console scripts, the ament index and that the source tree got no build artifacts.
 """
@@ -11,23 +11,15 @@ from pathlib import Path
 
 import pytest
 
+from conftest import explain
+
 PKG = 'pma_model_ros'
 REPO = Path(__file__).resolve().parents[1]
-COLCON = Path(sys.executable).parent / 'colcon'
 EXECUTABLES = ['pma-model', 'model_node', 'simulator_node']
 CONFIGS = ['dmsp_10_250.yaml', 'dmsp_20_300.yaml', 'dmsp_10_100.yaml']
-# Names that must never appear (newly) in the source tree because of a build.
-ARTIFACT_NAMES = {'build', 'install', 'log', 'dist'}
-
-
-def _artifacts():
-    """Build-artifact-looking paths at the top of the repo and of the package."""
-    found = set()
-    for d in (REPO, REPO / PKG):
-        for p in d.iterdir():
-            if p.name in ARTIFACT_NAMES or p.name.endswith('.egg-info'):
-                found.add(p.relative_to(REPO).as_posix())
-    return found
+# Directories a build must never write into the source tree (the editable install's
+# *.egg-info from scripts/setup is expected and not a colcon artifact).
+ARTIFACT_NAMES = ('build', 'install', 'log', 'dist')
 
 
 def _run(cmd, env=None, timeout=120, cwd=None):
@@ -40,33 +32,15 @@ def _run_installed(cmd, build):
     return _run(cmd, env=build['env'], cwd=build['tmp'])
 
 
-def _explain(proc):
-    return f'exit {proc.returncode}\n--- stdout ---\n{proc.stdout}\n--- stderr ---\n{proc.stderr}'
-
-
-@pytest.fixture(scope='module')
-def build(tmp_path_factory):
-    """Run colcon once; return (install prefix of the package, env for running it)."""
-    assert COLCON.exists(), f'{COLCON} missing: run scripts/setup (installs colcon into .venv)'
-    tmp = tmp_path_factory.mktemp('colcon')
-    before = _artifacts()
-    env = dict(os.environ, COLCON_HOME=str(tmp / 'colcon_home'))
-    proc = _run([COLCON, '--log-base', tmp / 'log', 'build',
-                 '--base-paths', REPO, '--packages-select', PKG,
-                 '--build-base', tmp / 'build', '--install-base', tmp / 'install'],
-                env=env, cwd=tmp, timeout=600)
-    assert proc.returncode == 0, 'colcon build failed: ' + _explain(proc)
-    prefix = tmp / 'install' / PKG
-    site = sorted(prefix.glob('lib/python3.*/site-packages'))
-    assert site, f'no lib/python3.*/site-packages under {prefix}'
-    run_env = dict(os.environ, PYTHONPATH=str(site[0]), AMENT_PREFIX_PATH=str(prefix))
-    return {'prefix': prefix, 'site': site[0], 'env': run_env, 'tmp': tmp,
-            'new_artifacts': _artifacts() - before}
+@pytest.fixture
+def build(colcon_install):
+    """The session's colcon install (test/conftest.py): prefix, site-packages, run env, tmp dir."""
+    return colcon_install
 
 
 def test_source_tree_stays_clean(build):
-    assert not build['new_artifacts'], \
-        f'colcon build wrote artifacts into the source tree: {sorted(build["new_artifacts"])}'
+    found = [d for d in ARTIFACT_NAMES if (REPO / d).exists() or (REPO / PKG / d).exists()]
+    assert not found, f'colcon build wrote into the source tree: {found}'
 
 
 def test_ament_index_marker(build):
@@ -101,14 +75,14 @@ def test_executable_installed(build, exe):
 
 def test_installed_package_is_importable(build):
     proc = _run_installed([sys.executable, '-c', f'import {PKG}; print({PKG}.__file__)'], build)
-    assert proc.returncode == 0, _explain(proc)
+    assert proc.returncode == 0, explain(proc)
     assert Path(proc.stdout.strip()).is_relative_to(build['site']), \
         f'imported {proc.stdout.strip()}, not the colcon-installed copy'
 
 
 def test_pma_model_help(build):
     proc = _run_installed([build['prefix'] / 'lib' / PKG / 'pma-model', '--help'], build)
-    assert proc.returncode == 0, f'pma-model --help failed: {_explain(proc)}'
+    assert proc.returncode == 0, f'pma-model --help failed: {explain(proc)}'
     assert 'usage' in proc.stdout.lower()
 
 
@@ -116,5 +90,5 @@ def test_ament_index_finds_share_directory(build):
     code = ('from ament_index_python.packages import get_package_share_directory as g; '
             f'print(g("{PKG}"))')
     proc = _run_installed([sys.executable, '-c', code], build)
-    assert proc.returncode == 0, _explain(proc)
+    assert proc.returncode == 0, explain(proc)
     assert Path(proc.stdout.strip()) == build['prefix'] / 'share' / PKG

@@ -13,9 +13,7 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
-import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
@@ -25,7 +23,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from ..core.estimator import Estimate, Estimator, Level
 from . import model_params
 from .ros_time import now_seconds, seconds
-from .startup import StartupError, fail, init
+from .startup import StartupError, run
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
 
@@ -136,19 +134,7 @@ def joint_problem(msg: JointState, joint: str) -> str:
 
 
 def main(args: list[str] | None = None) -> int:
-    try:
-        init(args)
-        node = ModelNode()
-    except StartupError as err:
-        return fail("model_node", err)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run("model_node", ModelNode, args)
 
 
 if __name__ == "__main__":

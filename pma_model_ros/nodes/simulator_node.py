@@ -15,9 +15,7 @@ import sys
 from geometry_msgs.msg import WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-import rclpy
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
@@ -25,7 +23,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from ..core.force_map import MAPPED_MUSCLES, shipped_force_map
 from ..core.ground_truth import GroundTruth
 from .ros_time import now_seconds
-from .startup import StartupError, fail, init
+from .startup import StartupError, run
 
 TRAJECTORIES = ("constant", "sine", "sweep")
 #: name: (default, description, (min, max) or None)
@@ -144,19 +142,7 @@ class SimulatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    try:
-        init(args)
-        node = SimulatorNode()
-    except StartupError as err:
-        return fail("simulator_node", err)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run("simulator_node", SimulatorNode, args)
 
 
 if __name__ == "__main__":

@@ -2,8 +2,11 @@
 from __future__ import annotations
 
 import re
+from typing import Callable
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.logging import LoggingSeverity, get_logger_level, set_logger_level
 
@@ -34,3 +37,20 @@ def fail(node_name: str, err: Exception) -> int:
     rclpy.logging.get_logger(node_name).fatal(f"invalid parameters: {err}")
     rclpy.try_shutdown()
     return 1
+
+
+def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -> int:
+    """Init, build the node, spin until Ctrl-C or shutdown (the Jazzy idiom); the exit code."""
+    try:
+        init(args)
+        node = make_node()
+    except StartupError as err:
+        return fail(node_name, err)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
