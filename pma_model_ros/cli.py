@@ -14,7 +14,7 @@ from .core.flags import Flag, describe
 from .core.force_map import MAPPED_MUSCLES, read_force_map_csv, read_spec_yaml, shipped_force_map, shipped_spec
 from .core.identification import OBJECTIVES, ModelReport, domain_of, fit_best, identify_all
 from .core.models import TABLE3_MODELS, get_model
-from .core.param_file import build_parameters, model_entry, muscle_model, read_parameters, write_parameters
+from .core.param_file import build_parameters, fit_entry, model_entry, muscle_model, read_parameters, write_parameters
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
 PAPER_TABLE3 = {
@@ -94,9 +94,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
     fmap = read_force_map_csv(args.data)
     model = get_model(args.model)
     fit = fit_best(model, spec, fmap, args.objective)
-    entry = {"params": [float(v) for v in fit.theta]} if fit.theta.size else {}
-    entry.update(objective=fit.objective, err=fit.err, rmse=fit.rmse, r2=fit.r2)
-    write_parameters(args.out, build_parameters(spec, model.name, fit.domain, {model.name: entry}),
+    write_parameters(args.out, build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
                      f"{spec.name} identified from {args.data} by `pma-model fit` ({fit.objective}).")
     print(f"{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}  -> {args.out}")
 

@@ -96,16 +96,25 @@ def _paper_theta(model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain)
 def fit_best(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares",
              seed: int = 0) -> Fit:
     """The ``best`` protocol on the whole map with the clipped model (module docstring)."""
-    if objective not in OBJECTIVES:
-        raise ValueError(f"unknown objective {objective!r}; choose one of {OBJECTIVES}")
+    return fit_best_all(model, spec, fmap, (objective,), seed)[objective]
+
+
+def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
+                 seed: int = 0) -> dict[str, Fit]:
+    """:func:`fit_best` for several objectives; the least-squares multi-start runs once for all."""
+    unknown = set(objectives) - set(OBJECTIVES)
+    if unknown:
+        raise ValueError(f"unknown objective {sorted(unknown)}; choose from {OBJECTIVES}")
     domain = domain_of(fmap)
-    theta = _best_theta(model, spec, fmap, domain, objective, seed)
-    return _fit_record(model, "best", objective, theta, spec, domain, fmap, np.ones(fmap.force.size, bool), True)
+    thetas = _best_thetas(model, spec, fmap, domain, objectives, seed)
+    everywhere = np.ones(fmap.force.size, bool)
+    return {obj: _fit_record(model, "best", obj, thetas[obj], spec, domain, fmap, everywhere, True)
+            for obj in objectives}
 
 
-def _best_theta(model, spec, fmap, domain, objective, seed) -> np.ndarray:
+def _best_thetas(model, spec, fmap, domain, objectives, seed) -> dict[str, np.ndarray]:
     if model.n_params == 0:
-        return np.zeros(0)
+        return {obj: np.zeros(0) for obj in objectives}
     lower, upper = np.array(model.lower), np.array(model.upper)
     start = np.array(model.start, float)
     scale = np.where(start != 0, np.abs(start), 1.0)
@@ -129,9 +138,11 @@ def _best_theta(model, spec, fmap, domain, objective, seed) -> np.ndarray:
         cost = float(np.sum(result.fun**2))
         if np.isfinite(cost):
             candidates.append((cost, result.x))
-    if objective == "minimax":
-        candidates = [_minimax(residuals, theta, lower, upper) for _, theta in _ties(candidates, start, scale)]
-    return _ties(candidates, start, scale)[0][1]
+    tied = _ties(candidates, start, scale)
+    thetas = {"least_squares": tied[0][1]}
+    if "minimax" in objectives:
+        thetas["minimax"] = _ties([_minimax(residuals, theta, lower, upper) for _, theta in tied], start, scale)[0][1]
+    return thetas
 
 
 def _ties(candidates: list, start: np.ndarray, scale: np.ndarray) -> list:
@@ -167,19 +178,19 @@ def _minimax(residuals, theta0: np.ndarray, lower: np.ndarray, upper: np.ndarray
     return worst(best) ** 2, best * scale
 
 
-def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares") -> np.ndarray:
+def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap,
+                   objectives: tuple[str, ...] = OBJECTIVES) -> dict[str, np.ndarray]:
     """Leave-one-length-out: eq. 23 on each held-out length, normalised by the whole map's max force [%].
 
-    Returns one error per measured length, in the order of ``fmap.lengths``.
+    Returns, per objective, one error per measured length in the order of ``fmap.lengths``.
     """
-    errors = []
+    errors: dict[str, list[float]] = {obj: [] for obj in objectives}
     for held_out in fmap.lengths:
         test = fmap.length == held_out
-        train = fmap.subset(~test)
-        fit = fit_best(model, spec, train, objective)
-        predicted = physical_force(model, fit.theta, spec, fit.domain, fmap.pressure[test], fmap.length[test])
-        errors.append(max_error_percent(fmap.force[test], predicted, fmap.max_force))
-    return np.array(errors)
+        for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives).items():
+            predicted = physical_force(model, fit.theta, spec, fit.domain, fmap.pressure[test], fmap.length[test])
+            errors[obj].append(max_error_percent(fmap.force[test], predicted, fmap.max_force))
+    return {obj: np.array(errs) for obj, errs in errors.items()}
 
 
 @dataclass(frozen=True)
@@ -214,8 +225,8 @@ def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...]) ->
     """
     reports = {}
     for model in models:
-        best = {obj: fit_best(model, spec, fmap, obj) for obj in OBJECTIVES}
-        cv = {obj: cross_validate(model, spec, fmap, obj) for obj in OBJECTIVES}
+        best = fit_best_all(model, spec, fmap)
+        cv = cross_validate(model, spec, fmap)
         shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
         reports[model.name] = ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
     default = min(reports, key=lambda name: reports[name].cv_err)

@@ -20,7 +20,7 @@ from pathlib import Path
 import yaml
 
 from .force_map import load_yaml_mapping
-from .identification import ModelReport
+from .identification import Fit, ModelReport
 from .models import Domain, get_model
 from .muscle import MuscleSpec
 from .muscle_model import MuscleModel
@@ -34,13 +34,16 @@ def _num(value: float) -> float:
     return float(f"{value:.{_ROUND}g}")
 
 
-def model_entry(report: ModelReport) -> dict:
-    """The ``models.<name>`` mapping of one identified model."""
-    fit = report.shipped
+def fit_entry(fit: Fit) -> dict:
+    """The ``models.<name>`` mapping of one fit: params (if any), objective, err, rmse, r2."""
     entry = {"params": [_num(v) for v in fit.theta]} if fit.theta.size else {}
-    entry.update(objective=fit.objective, err=_num(fit.err), rmse=_num(fit.rmse), r2=_num(fit.r2),
-                 cv_err=_num(report.cv_err))
+    entry.update(objective=fit.objective, err=_num(fit.err), rmse=_num(fit.rmse), r2=_num(fit.r2))
     return entry
+
+
+def model_entry(report: ModelReport) -> dict:
+    """:func:`fit_entry` of the shipped fit plus its worst held-out error ``cv_err``."""
+    return fit_entry(report.shipped) | {"cv_err": _num(report.cv_err)}
 
 
 def build_parameters(spec: MuscleSpec, default: str, domain: Domain, models: dict[str, dict]) -> dict:
