@@ -23,9 +23,10 @@ def command(node: str, namespace: str, params_file: str | Path | None = None,
     return cmd
 
 
-def start(cmd: list[str], log: IO[str]) -> subprocess.Popen:
+def start(cmd: list[str], log: IO[str], env: dict[str, str] | None = None,
+          cwd: str | Path | None = None) -> subprocess.Popen:
     """Start ``cmd`` with stdout and stderr going to ``log``."""
-    return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, text=True)
+    return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, text=True, env=env, cwd=cwd)
 
 
 def stop(process: subprocess.Popen, timeout: float = 10.0) -> int:

@@ -64,8 +64,7 @@ class Processes:
     def start(self, cmd: list[str], env: dict | None = None, cwd: Path | None = None) -> subprocess.Popen:
         log = self.tmp / f'node{len(self.running)}.log'
         with open(log, 'w') as out:
-            proc = subprocess.Popen([str(c) for c in cmd], stdout=out, stderr=subprocess.STDOUT, text=True,
-                                    env=env, cwd=cwd)
+            proc = node_process.start([str(c) for c in cmd], out, env=env, cwd=cwd)
         self.running.append((proc, log))
         return proc
 
@@ -133,7 +132,7 @@ class Ros:
 
 @pytest.fixture
 def ros():
-    rclpy = pytest.importorskip('rclpy')
+    import rclpy   # here, not at the top: the core tests must not need rclpy
     from rclpy.executors import SingleThreadedExecutor
     context = rclpy.Context()
     rclpy.init(context=context)

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import enum
 import math
 
-from . import muscle as geo
 from .flags import Flag, describe
 from .muscle_model import MuscleModel
 
@@ -25,7 +24,6 @@ WARN_FLAGS = {
     Flag.PRESSURE_OUT_OF_RANGE: "outside validity domain",
     Flag.BRANCH_UNKNOWN: "hysteresis branch unknown",
 }
-SOURCES = ("pressure", "muscle_state", "force_command")
 
 
 class Level(enum.IntEnum):
@@ -108,7 +106,7 @@ class Estimator:
                tag: object = None) -> Estimate | None:
         """A length reading [m] with its rate [m/s] (None or NaN: unknown); returns the new estimate, if any."""
         self.counts["received muscle_state"] += 1
-        limit = geo.fiber_length(self.config.model.spec)
+        limit = self.config.model.max_length
         if not (math.isfinite(length) and 0 < length < limit):
             return self._invalid("muscle_state", f"length {length:g} m outside the geometry (0, {limit:.4g}) m", now)
         known_rate = rate if rate is not None and math.isfinite(rate) else None
@@ -131,7 +129,7 @@ class Estimator:
         return Command(float(result.pressure) + cfg.ambient_pressure, flags)
 
     def reject(self, source: str, reason: str, now: float) -> None:
-        """Count a message of ``source`` (one of :data:`SOURCES`) refused before it gave a value."""
+        """Count a message of ``source`` (``pressure``, ``muscle_state`` or ``force_command``) refused before it gave a value."""
         self.counts[f"received {source}"] += 1
         self._invalid(source, reason, now)
 

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import enum
 
-import numpy as np
-
 
 class Flag(enum.IntFlag):
     """Bit flags; a result array carries one uint16 of these per sample."""
@@ -23,7 +21,3 @@ def describe(flags: int) -> str:
     names = [f.name for f in Flag if f and flags & f]
     return "|".join(names) if names else "OK"
 
-
-def combine(flags: np.ndarray) -> int:
-    """Bitwise OR of a flag array."""
-    return int(np.bitwise_or.reduce(np.asarray(flags, np.uint16).ravel(), initial=0))

@@ -6,6 +6,7 @@ vectorised over numpy arrays and both returning per-sample :class:`Flag` words.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -41,9 +42,14 @@ class MuscleModel:
     def __post_init__(self) -> None:
         object.__setattr__(self, "theta", self.model.check_params(self.theta))
 
+    @cached_property
+    def max_length(self) -> float:
+        """Longest length the geometry can take, the fibre length L0 / cos(Theta0) [m] (eq. 3)."""
+        return geo.fiber_length(self.spec)
+
     def _length_flags(self, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(usable mask, flags) for lengths: geometry needs 0 < L < L_Fiber."""
-        usable = np.isfinite(length) & (length > 0) & (length < geo.fiber_length(self.spec))
+        """(usable mask, flags) for lengths: geometry needs 0 < L < max_length."""
+        usable = np.isfinite(length) & (length > 0) & (length < self.max_length)
         flags = np.where(usable, 0, Flag.INVALID_INPUT).astype(np.uint16)
         outside = usable & ((length < self.domain.length_min) | (length > self.domain.length_max)
                             | (length > self.spec.nominal_length))
