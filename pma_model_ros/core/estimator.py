@@ -11,6 +11,7 @@ from collections import Counter
 from dataclasses import dataclass
 import enum
 import math
+from typing import Sequence
 
 from .flags import Flag, describe
 from .muscle_model import MuscleModel
@@ -24,6 +25,19 @@ WARN_FLAGS = {
     Flag.PRESSURE_OUT_OF_RANGE: "outside validity domain",
     Flag.BRANCH_UNKNOWN: "hysteresis branch unknown",
 }
+
+
+def joint_problem(names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
+                  joint: str) -> str:
+    """Why a JointState's arrays give no length of ``joint`` ('' if they do)."""
+    if not len(names) or not len(positions):
+        return "empty name or position array"
+    if len(positions) != len(names) or (len(velocities) and len(velocities) != len(names)):
+        return (f"mismatched arrays: {len(names)} names, {len(positions)} positions, "
+                f"{len(velocities)} velocities")
+    if joint not in names:
+        return f"joint '{joint}' not in {list(names)}"
+    return ""
 
 
 class Level(enum.IntEnum):
@@ -112,6 +126,16 @@ class Estimator:
         known_rate = rate if rate is not None and math.isfinite(rate) else None
         self._length = Sample(length, known_rate, stamp, tag)
         return self._estimate(now)
+
+    def joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
+                    joint: str, stamp: float, now: float, tag: object = None) -> Estimate | None:
+        """A JointState's arrays: the entry ``joint`` gives length [m] (position) and rate [m/s] (velocity)."""
+        problem = joint_problem(names, positions, velocities, joint)
+        if problem:
+            self.reject("muscle_state", problem, now)
+            return None
+        i = list(names).index(joint)
+        return self.length(positions[i], velocities[i] if len(velocities) else None, stamp, now, tag)
 
     def command(self, force: float, now: float) -> Command | None:
         """A wanted tension [N]; returns the pressure command, or None without a fresh length."""

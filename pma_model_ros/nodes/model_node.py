@@ -75,15 +75,9 @@ class ModelNode(Node):
 
     def _on_state(self, msg: JointState) -> None:
         now = now_seconds(self)
-        joint = self._settings.joint_name
-        problem = joint_problem(msg, joint)
-        if problem:
-            self._estimator.reject("muscle_state", problem, now)
-        else:
-            i = list(msg.name).index(joint)
-            rate = msg.velocity[i] if msg.velocity else None
-            self._publish_estimate(self._estimator.length(msg.position[i], rate, seconds(msg.header.stamp), now,
-                                                          msg.header.stamp))
+        self._publish_estimate(self._estimator.joint_state(msg.name, msg.position, msg.velocity,
+                                                           self._settings.joint_name, seconds(msg.header.stamp),
+                                                           now, msg.header.stamp))
         self._check_level(now)
 
     def _on_command(self, msg: WrenchStamped) -> None:
@@ -119,18 +113,6 @@ class ModelNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in status.values.items()])])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
-
-
-def joint_problem(msg: JointState, joint: str) -> str:
-    """Why ``msg`` gives no length of ``joint`` ('' if it does)."""
-    if not msg.name or not msg.position:
-        return "empty name or position array"
-    if len(msg.position) != len(msg.name) or (msg.velocity and len(msg.velocity) != len(msg.name)):
-        return (f"mismatched arrays: {len(msg.name)} names, {len(msg.position)} positions, "
-                f"{len(msg.velocity)} velocities")
-    if joint not in msg.name:
-        return f"joint '{joint}' not in {list(msg.name)}"
-    return ""
 
 
 def main(args: list[str] | None = None) -> int:
