@@ -18,10 +18,10 @@ def est(martens_10_250):
 
 def test_estimate_needs_both_inputs_and_pairs_the_newest(est, martens_10_250):
     assert est.pressure(AMBIENT + P, stamp=10.0, now=10.0) is None
-    e = est.length(L, 0.0, stamp=10.01, now=10.01, tag="stamp-b")
+    e = est.estimate(est.length(L, 0.0, stamp=10.01, now=10.01, tag="stamp-b"), 10.01)
     assert e.force == pytest.approx(float(martens_10_250.force(P, L).force))
     assert (e.stamp, e.tag) == (10.01, "stamp-b")
-    e = est.pressure(AMBIENT + 2 * P, stamp=10.02, now=10.02, tag="stamp-c")
+    e = est.estimate(est.pressure(AMBIENT + 2 * P, stamp=10.02, now=10.02, tag="stamp-c"), 10.02)
     assert e.force == pytest.approx(float(martens_10_250.force(2 * P, L).force))
     assert (e.stamp, e.tag) == (10.02, "stamp-c")
     assert est.counts["estimates"] == 2
@@ -40,15 +40,15 @@ def test_stale_input_gives_no_estimate_and_error(est):
 @pytest.mark.parametrize("absolute, words", [(math.nan, "nan"), (-1.0, "negative"), (6e6, "absurd"),
                                               (math.inf, "inf")])
 def test_bad_pressure_rejected(est, absolute, words):
-    est.length(L, 0.0, stamp=1.0, now=1.0)
-    est.pressure(AMBIENT + P, stamp=1.0, now=1.0)
+    est.estimate(est.length(L, 0.0, stamp=1.0, now=1.0), 1.0)
+    est.estimate(est.pressure(AMBIENT + P, stamp=1.0, now=1.0), 1.0)
     assert est.pressure(absolute, stamp=1.01, now=1.01) is None
     assert est.counts["rejected pressure"] == 1
     level, message = est.level(1.01)
     assert level == Level.ERROR and words in message.lower()
     assert est.level(2.5)[0] == Level.ERROR            # inputs stale by then
-    est.pressure(AMBIENT + P, stamp=2.5, now=2.5)
-    est.length(L, 0.0, stamp=2.5, now=2.5)
+    est.estimate(est.pressure(AMBIENT + P, stamp=2.5, now=2.5), 2.5)
+    est.estimate(est.length(L, 0.0, stamp=2.5, now=2.5), 2.5)
     assert est.level(2.5) == (Level.OK, "estimating")  # the rejection no longer holds
 
 
@@ -67,7 +67,7 @@ def test_message_level_rejection_counts(est):
 
 def test_estimates_are_never_nan_and_nonnegative(est):
     est.pressure(AMBIENT, stamp=1.0, now=1.0)                 # 0 Pa gauge: slack muscle
-    e = est.length(0.2, 0.0, stamp=1.0, now=1.0)
+    e = est.estimate(est.length(0.2, 0.0, stamp=1.0, now=1.0), 1.0)
     assert e.force == 0.0 and e.flags & Flag.CLIPPED
 
 
@@ -75,14 +75,14 @@ def test_warning_for_outside_domain_and_unknown_branch():
     from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
     est = Estimator(Config(dmsp_10_100_hysteresis(), AMBIENT, 0.1))
     est.pressure(AMBIENT + 3e5, stamp=1.0, now=1.0)
-    e = est.length(0.09, None, stamp=1.0, now=1.0)
+    e = est.estimate(est.length(0.09, None, stamp=1.0, now=1.0), 1.0)
     assert e.flags & Flag.BRANCH_UNKNOWN
     level, message = est.level(1.0)
     assert level == Level.WARN and "hysteresis branch unknown" in message
-    est.length(0.09, 0.01, stamp=2.05, now=2.05)
-    est.pressure(AMBIENT + 3e5, stamp=2.1, now=2.1)
+    est.estimate(est.length(0.09, 0.01, stamp=2.05, now=2.05), 2.05)
+    est.estimate(est.pressure(AMBIENT + 3e5, stamp=2.1, now=2.1), 2.1)
     assert est.level(2.1)[0] == Level.OK                      # warning held for 1 s only
-    est.pressure(AMBIENT + 9e5, stamp=2.12, now=2.12)
+    est.estimate(est.pressure(AMBIENT + 9e5, stamp=2.12, now=2.12), 2.12)
     level, message = est.level(2.12)
     assert level == Level.WARN and "outside validity domain" in message
 
@@ -103,9 +103,9 @@ def test_config_swap_and_status(est, martens_10_250):
     from pma_model_ros.core.param_file import muscle_model, read_parameters
     from conftest import CONFIGS
     est.pressure(AMBIENT + P, stamp=1.0, now=1.0)
-    first = est.length(L, 0.0, stamp=1.0, now=1.0).force
+    first = est.estimate(est.length(L, 0.0, stamp=1.0, now=1.0), 1.0).force
     est.config = Config(muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "sarosi"), AMBIENT, 0.1)
-    second = est.length(L, 0.0, stamp=1.01, now=1.01).force
+    second = est.estimate(est.length(L, 0.0, stamp=1.01, now=1.01), 1.01).force
     assert first != second
     est.status(1.0)
     status = est.status(2.0)

@@ -4,6 +4,11 @@ One implementation of input validation, pairing of the newest pressure with
 the newest length, freshness, counters and the diagnostic level, shared by the
 model node and offline tools.  Every time is in seconds on one clock (ROS time
 in the node, bag time offline); ``now`` is passed in, never read here.
+
+An input that completes a fresh pair returns a :class:`Pair`; the force of a
+pair is computed apart from the decisions (:meth:`Estimator.evaluate`, or one
+vectorised call over many pairs of many muscles or of a whole recording) and
+handed back to :meth:`Estimator.accept`, which makes the :class:`Estimate`.
 """
 from __future__ import annotations
 
@@ -66,6 +71,17 @@ class Sample:
 
 
 @dataclass(frozen=True)
+class Pair:
+    """The newest valid pressure and length, both fresh: what one estimate is computed from."""
+
+    gauge: float          #: gauge pressure [Pa]
+    length: float         #: [m]
+    rate: float | None    #: length rate [m/s]; None if unknown
+    stamp: float          #: newest stamp of the two inputs [s]
+    tag: object           #: ``tag`` of the newest input
+
+
+@dataclass(frozen=True)
 class Estimate:
     force: float   #: tension [N], finite and >= 0
     stamp: float   #: newest stamp of the two inputs [s]
@@ -103,8 +119,8 @@ class Estimator:
         self._warned: dict[str, float] = {}
         self._report: tuple[float, Counter[str]] | None = None
 
-    def pressure(self, absolute: float, stamp: float, now: float, tag: object = None) -> Estimate | None:
-        """A pressure reading [Pa absolute] stamped ``stamp`` [s]; returns the new estimate, if any."""
+    def pressure(self, absolute: float, stamp: float, now: float, tag: object = None) -> Pair | None:
+        """A pressure reading [Pa absolute] stamped ``stamp`` [s]; the pair to estimate from, if any."""
         self.counts["received pressure"] += 1
         if not math.isfinite(absolute):
             return self._invalid("pressure", f"pressure is {absolute} Pa", now)
@@ -114,21 +130,21 @@ class Estimator:
             return self._invalid("pressure", f"absurd pressure {absolute:g} Pa (> {ABSURD_PRESSURE:g} Pa absolute)",
                                  now)
         self._pressure = Sample(absolute, None, stamp, tag)
-        return self._estimate(now)
+        return self._pair(now)
 
     def length(self, length: float, rate: float | None, stamp: float, now: float,
-               tag: object = None) -> Estimate | None:
-        """A length reading [m] with its rate [m/s] (None or NaN: unknown); returns the new estimate, if any."""
+               tag: object = None) -> Pair | None:
+        """A length reading [m] with its rate [m/s] (None or NaN: unknown); the pair to estimate from, if any."""
         self.counts["received muscle_state"] += 1
         limit = self.config.model.max_length
         if not (math.isfinite(length) and 0 < length < limit):
             return self._invalid("muscle_state", f"length {length:g} m outside the geometry (0, {limit:.4g}) m", now)
         known_rate = rate if rate is not None and math.isfinite(rate) else None
         self._length = Sample(length, known_rate, stamp, tag)
-        return self._estimate(now)
+        return self._pair(now)
 
     def joint_state(self, names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
-                    joint: str, stamp: float, now: float, tag: object = None) -> Estimate | None:
+                    joint: str, stamp: float, now: float, tag: object = None) -> Pair | None:
         """A JointState's arrays: the entry ``joint`` gives length [m] (position) and rate [m/s] (velocity)."""
         problem = joint_problem(names, positions, velocities, joint)
         if problem:
@@ -189,21 +205,32 @@ class Estimator:
     def _fresh(self, sample: Sample, now: float) -> bool:
         return abs(now - sample.stamp) <= self.config.max_input_age
 
-    def _estimate(self, now: float) -> Estimate | None:
+    def _pair(self, now: float) -> Pair | None:
         cfg, pressure, length = self.config, self._pressure, self._length
         if pressure is None or length is None:
             return None
         if not (self._fresh(pressure, now) and self._fresh(length, now)):
             self.counts["stale skipped"] += 1
             return None
-        result = cfg.model.force(pressure.value - cfg.ambient_pressure, length.value, length.rate)
-        flags, force = int(result.flags), float(result.force)
+        newest = max(pressure, length, key=lambda sample: sample.stamp)
+        return Pair(pressure.value - cfg.ambient_pressure, length.value, length.rate, newest.stamp, newest.tag)
+
+    def evaluate(self, pair: Pair) -> tuple[float, int]:
+        """Force [N] and :class:`Flag` word of one pair (scalar; batch callers use the model directly)."""
+        result = self.config.model.force(pair.gauge, pair.length, pair.rate)
+        return float(result.force), int(result.flags)
+
+    def accept(self, pair: Pair, force: float, flags: int, now: float) -> Estimate | None:
+        """The estimate of ``pair`` from its evaluated force [N] and flags; None (and ERROR) if unusable."""
         if flags & Flag.INVALID_INPUT or not math.isfinite(force):
-            return self._invalid("muscle_state", f"no force at length {length.value:g} m ({describe(flags)})", now)
+            return self._invalid("muscle_state", f"no force at length {pair.length:g} m ({describe(flags)})", now)
         self._note(flags, now)
         self.counts["estimates"] += 1
-        newest = max(pressure, length, key=lambda sample: sample.stamp)
-        return Estimate(force, newest.stamp, flags, newest.tag)
+        return Estimate(force, pair.stamp, flags, pair.tag)
+
+    def estimate(self, pair: Pair | None, now: float) -> Estimate | None:
+        """:meth:`evaluate` then :meth:`accept` one pair (None passes through)."""
+        return None if pair is None else self.accept(pair, *self.evaluate(pair), now)
 
     def _note(self, flags: int, now: float) -> None:
         for flag, text in WARN_FLAGS.items():

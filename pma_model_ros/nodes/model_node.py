@@ -69,15 +69,15 @@ class ModelNode(Node):
 
     def _on_pressure(self, msg: FluidPressure) -> None:
         now = now_seconds(self)
-        self._publish_estimate(self._estimator.pressure(msg.fluid_pressure, seconds(msg.header.stamp), now,
-                                                        msg.header.stamp))
+        pair = self._estimator.pressure(msg.fluid_pressure, seconds(msg.header.stamp), now, msg.header.stamp)
+        self._publish_estimate(self._estimator.estimate(pair, now))
         self._check_level(now)
 
     def _on_state(self, msg: JointState) -> None:
         now = now_seconds(self)
-        self._publish_estimate(self._estimator.joint_state(msg.name, msg.position, msg.velocity,
-                                                           self._settings.joint_name, seconds(msg.header.stamp),
-                                                           now, msg.header.stamp))
+        pair = self._estimator.joint_state(msg.name, msg.position, msg.velocity, self._settings.joint_name,
+                                           seconds(msg.header.stamp), now, msg.header.stamp)
+        self._publish_estimate(self._estimator.estimate(pair, now))
         self._check_level(now)
 
     def _on_command(self, msg: WrenchStamped) -> None:
