@@ -15,10 +15,12 @@ keys; this module reads only the muscle and its models.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
+from .estimator import Config
 from .force_map import load_yaml_mapping
 from .identification import Fit, ModelReport
 from .models import Domain, get_model
@@ -28,6 +30,15 @@ from .muscle_model import MuscleModel
 _ROUND = 12  # significant digits written; far below any fit's resolution
 #: Node settings written into generated files, beside the muscle (documented in the README).
 NODE_DEFAULTS = {"ambient_pressure": 101325.0, "max_input_age": 0.1}
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """What the model node (and the offline tools acting as it) derive from ``ros__parameters``."""
+
+    config: Config
+    joint_name: str   #: JointState entry of the muscle
+    frame_id: str     #: header.frame_id of the estimates
 
 
 def _num(value: float) -> float:
@@ -93,3 +104,15 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     except (TypeError, ValueError) as err:
         raise ValueError(f"length_range: {err}") from None
     return MuscleModel(spec, get_model(name), models[name].get("params", []), domain)
+
+
+def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
+    """The model node's settings from ``ros__parameters`` (nested); absent node settings take their defaults."""
+    muscle = muscle_model(parameters, model)
+    values = NODE_DEFAULTS | {k: parameters[k] for k in NODE_DEFAULTS if k in parameters}
+    try:
+        config = Config(muscle, float(values["ambient_pressure"]), float(values["max_input_age"]))
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"ambient_pressure/max_input_age must be numbers: {err}") from None
+    joint = str(parameters.get("joint_name") or muscle.spec.name)
+    return NodeSettings(config, joint, str(parameters.get("frame_id") or joint))

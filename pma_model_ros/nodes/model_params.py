@@ -10,16 +10,14 @@ declare the fixed parameters without descriptors.
 from __future__ import annotations
 
 import array
-from dataclasses import dataclass
 import math
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..core.estimator import Config
 from ..core.models import MODELS, get_model
-from ..core.param_file import muscle_model
+from ..core.param_file import NodeSettings, node_settings
 
 DOUBLE, STRING, DOUBLES = Parameter.Type.DOUBLE, Parameter.Type.STRING, Parameter.Type.DOUBLE_ARRAY
 
@@ -51,15 +49,6 @@ MODEL_INFO = {"objective": (STRING, "identification objective"),
               "cv_err": (DOUBLE, "worst leave-one-length-out error [% of max force]")}
 
 
-@dataclass(frozen=True)
-class Settings:
-    """Everything the node derives from its parameters; replaced whole on a change."""
-
-    config: Config
-    joint_name: str
-    frame_id: str
-
-
 def _descriptor(description: str, limits: tuple[float, float] | None = None,
                 read_only: bool = False) -> ParameterDescriptor:
     ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
@@ -84,7 +73,7 @@ def values(node: Node) -> dict[str, object]:
     return {name: plain(p.value) for name, p in node.get_parameters_by_prefix("").items() if p.value is not None}
 
 
-def settings(flat: dict[str, object]) -> Settings:
+def settings(flat: dict[str, object]) -> NodeSettings:
     """Validate a would-be parameter set; ValueError names the offending parameter."""
     missing = [name for name in REQUIRED if name not in flat]
     if missing:
@@ -93,10 +82,7 @@ def settings(flat: dict[str, object]) -> Settings:
         get_model(flat["model"])
     except ValueError as err:
         raise ValueError(f"parameter 'model': {err}") from None
-    model = muscle_model(_nest(flat))
-    joint = str(flat["joint_name"]) or model.spec.name
-    config = Config(model, float(flat["ambient_pressure"]), float(flat["max_input_age"]))
-    return Settings(config, joint, str(flat["frame_id"]) or joint)
+    return node_settings(_nest(flat))
 
 
 def plain(value: object) -> object:
