@@ -12,6 +12,7 @@ from importlib import resources
 import io
 import math
 from pathlib import Path
+import stat
 
 import numpy as np
 import yaml
@@ -19,6 +20,8 @@ import yaml
 from .muscle import MuscleSpec
 
 COLUMNS = ("pressure_pa", "length_m", "force_n")
+#: Largest user file read [bytes]: far above any force map or parameter file, far below a memory problem.
+MAX_FILE_BYTES = 16 * 1024 * 1024
 SHIPPED_MUSCLES = {"DMSP-10-250": "dmsp_10_250", "DMSP-20-300": "dmsp_20_300", "DMSP-10-100": "dmsp_10_100"}
 #: Muscles with a shipped measured force map (Martens & Boblan 2017, Tables A2 and A1).
 MAPPED_MUSCLES = ("DMSP-10-250", "DMSP-20-300")
@@ -64,14 +67,34 @@ class ForceMap:
         return ForceMap(self.pressure[mask], self.length[mask], self.force[mask])
 
 
-def read_force_map_csv(path: str | Path) -> ForceMap:
-    """Read a force map CSV (columns pressure_pa, length_m, force_n)."""
+def read_user_file(path: str | Path, what: str) -> str:
+    """The UTF-8 text of the one regular file a user named (no search path, no includes).
+
+    ValueError for a missing path, a directory, device or FIFO, a file over
+    :data:`MAX_FILE_BYTES`, or bytes that are not UTF-8.
+    """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        info = path.stat()
     except FileNotFoundError:
-        raise ValueError(f"force map file not found: {path}") from None
-    return _parse_csv(text, str(path))
+        raise ValueError(f"{what} not found: {path}") from None
+    except OSError as err:
+        raise ValueError(f"{what} {path}: {err.strerror}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise ValueError(f"{what} {path} is not a regular file")
+    if info.st_size > MAX_FILE_BYTES:
+        raise ValueError(f"{what} {path} is {info.st_size} bytes, over the {MAX_FILE_BYTES}-byte limit")
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{what} {path} is not UTF-8 text") from None
+    except OSError as err:
+        raise ValueError(f"{what} {path}: {err.strerror}") from None
+
+
+def read_force_map_csv(path: str | Path) -> ForceMap:
+    """Read a force map CSV (columns pressure_pa, length_m, force_n)."""
+    return _parse_csv(read_user_file(path, "force map file"), str(path))
 
 
 def _parse_csv(text: str, source: str) -> ForceMap:
@@ -133,12 +156,7 @@ def shipped_spec(muscle: str) -> MuscleSpec:
 
 def read_spec_yaml(path: str | Path) -> MuscleSpec:
     """Read a user's muscle spec YAML (keys of :class:`MuscleSpec`, SI units)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"muscle spec file not found: {path}") from None
-    data = load_yaml_mapping(text, str(path))
+    data = load_yaml_mapping(read_user_file(path, "muscle spec file"), str(path))
     try:
         return MuscleSpec.from_mapping(data.get("muscle", data))
     except ValueError as err:

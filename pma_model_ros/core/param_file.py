@@ -21,7 +21,7 @@ from pathlib import Path
 import yaml
 
 from .estimator import Config
-from .force_map import load_yaml_mapping
+from .force_map import load_yaml_mapping, read_user_file
 from .identification import Fit, ModelReport
 from .models import Domain, get_model
 from .muscle import MuscleSpec
@@ -77,12 +77,7 @@ def write_parameters(path: str | Path, parameters: dict, header: str) -> None:
 
 def read_parameters(path: str | Path) -> dict:
     """The ``ros__parameters`` mapping of a parameter file (the first node entry)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"parameter file not found: {path}") from None
-    data = load_yaml_mapping(text, str(path))
+    data = load_yaml_mapping(read_user_file(path, "parameter file"), str(path))
     for entry in data.values():
         if isinstance(entry, dict) and isinstance(entry.get("ros__parameters"), dict):
             return entry["ros__parameters"]
