@@ -76,3 +76,12 @@ def test_bad_queries_exit_2_without_traceback(args, message):
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and message in proc.stderr
     assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("path, message", [("/dev/zero", "not a regular file"), ("/tmp", "not a regular file"),
+                                           ("/no/such/file.yaml", "not found")])
+def test_config_must_be_the_named_regular_file(capsys, path, message):
+    """A device, a directory or a missing path is refused before any byte is read."""
+    assert main(["force", "--config", path, "--pressure", "300000", "--length", "0.23"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
