@@ -5,10 +5,12 @@ import argparse
 import functools
 import json
 import math
+from pathlib import Path
 import sys
 from typing import Sequence
 
 
+from .bags.commands import add_bag_commands, add_fit_bag_options, bag_force_map
 from .core import sarosi
 from .core.flags import Flag, describe
 from .core.force_map import MAPPED_MUSCLES, read_force_map_csv, read_spec_yaml, shipped_force_map, shipped_spec
@@ -91,11 +93,11 @@ def cmd_make_config(args: argparse.Namespace) -> None:
 
 def cmd_fit(args: argparse.Namespace) -> None:
     spec = read_spec_yaml(args.muscle)
-    fmap = read_force_map_csv(args.data)
+    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
     model = get_model(args.model)
     fit = fit_best(model, spec, fmap, args.objective)
     write_parameters(args.out, build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
-                     f"{spec.name} identified from {args.data} by `pma-model fit` ({fit.objective}).")
+                     f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` ({fit.objective}).")
     print(f"{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}  -> {args.out}")
 
 
@@ -130,6 +132,43 @@ def cmd_pressure(args: argparse.Namespace) -> None:
     print(f"pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}")
 
 
+#: Figures of ``pma-model plot`` and what each needs; ``all`` makes every one whose input is given.
+PLOTS = {"force-map": "--config", "error-map": "--config", "models": None, "timeseries": "--bag"}
+
+
+def cmd_plot(args: argparse.Namespace) -> None:
+    try:
+        from . import figures
+    except ImportError as err:
+        raise CliError(f"plot needs matplotlib and rosbags (requirements-dev.txt): {err}") from None
+    wanted = list(PLOTS) if args.figure == "all" else [args.figure]
+    given = {"--config": args.config, "--bag": args.bag}
+    for name in [n for n in wanted if PLOTS[n] and not given[PLOTS[n]]]:
+        if args.figure != "all":
+            raise CliError(f"plot {name} needs {PLOTS[name]}")
+        print(f"skipped {name}: no {PLOTS[name]}")
+        wanted.remove(name)
+    written = []
+    for config in args.config or ():
+        model = muscle_model(read_parameters(config), args.model)
+        fmap = shipped_force_map(model.spec.name)
+        stem = f"{model.spec.name.lower().replace('-', '_')}_{model.model.name}"
+        for name, draw in (("force-map", figures.force_map_figure), ("error-map", figures.error_map_figure)):
+            if name in wanted:
+                file_stem = f"{name.replace('-', '_')}_{stem}"
+                written += figures.save(draw(fmap, model), args.out_dir, file_stem, args.format)
+    if "timeseries" in wanted:
+        name = Path(args.bag).stem
+        series = figures.read_force_series(args.bag, args.namespace)
+        written += figures.save(figures.timeseries_figure(*series, f"{name}: estimated vs measured force"),
+                                args.out_dir, f"timeseries_{name}", args.format)
+    if "models" in wanted:
+        table = table3({m: identify_muscle(m) for m in MAPPED_MUSCLES})["table3"]
+        written += figures.save(figures.models_figure(table), args.out_dir, "models", args.format)
+    for path in written:
+        print(f"wrote {path}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pma-model", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -140,13 +179,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("muscle", choices=(*MAPPED_MUSCLES, "DMSP-10-100"))
     p.add_argument("--out", required=True, help="output YAML path")
     p.set_defaults(func=cmd_make_config)
-    p = sub.add_parser("fit", help="identify a model from a force map CSV (pressure_pa,length_m,force_n)")
-    p.add_argument("--data", required=True, help="force map CSV")
+    p = sub.add_parser("fit", help="identify a model from a force map CSV (pressure_pa,length_m,force_n) or a bag")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--data", help="force map CSV")
+    source.add_argument("--bag", help="rosbag2 recording of pressure, length and measured force")
     p.add_argument("--muscle", required=True, help="muscle spec YAML (SI units)")
     p.add_argument("--model", required=True, help="model name, e.g. martens")
     p.add_argument("--objective", choices=OBJECTIVES, default="least_squares")
     p.add_argument("--out", required=True, help="output ROS parameter YAML")
+    add_fit_bag_options(p)
     p.set_defaults(func=cmd_fit)
+    add_bag_commands(sub)
     for name, quantity, unit, func in (("force", "pressure", "Pa gauge", cmd_force),
                                        ("pressure", "force", "N", cmd_pressure)):
         p = sub.add_parser(name, help=f"{name} from {quantity} [{unit}] and length [m]")
@@ -157,6 +200,15 @@ def build_parser() -> argparse.ArgumentParser:
                        help="length rate [m/s]; its sign picks the hysteresis branch")
         p.add_argument("--model", default=None, help="override the file's default model")
         p.set_defaults(func=func)
+    p = sub.add_parser("plot", help="figures: force map, error map, model comparison, bag time series")
+    p.add_argument("figure", choices=(*PLOTS, "all"))
+    p.add_argument("--config", nargs="+", help="parameter file(s) of mapped muscles, for force-map and error-map")
+    p.add_argument("--model", default=None, help="override the files' default model")
+    p.add_argument("--bag", help="bag with <ns>/force and <ns>/force_estimate (pma-model bag estimate), for timeseries")
+    p.add_argument("--namespace", default=None, help="of the muscle's topics in --bag (default: the only one)")
+    p.add_argument("--out-dir", type=Path, default=Path("."), help="directory to write into (default: .)")
+    p.add_argument("--format", nargs="+", choices=("png", "svg"), default=("png", "svg"))
+    p.set_defaults(func=cmd_plot)
     return parser
 
 

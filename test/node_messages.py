@@ -32,3 +32,13 @@ def force_command(force: float) -> WrenchStamped:
 def stamp_key(msg) -> int:
     """A header stamp in integer nanoseconds."""
     return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+def model_statuses(diagnostics: list, namespace: str) -> list:
+    """The DiagnosticStatus entries of the model_node in ``namespace``, oldest first."""
+    return [s for d in diagnostics for s in d.status if s.name.startswith(f'{namespace}/model_node')]
+
+
+def status_values(status) -> dict[str, str]:
+    """A DiagnosticStatus's key/value pairs as a dict."""
+    return {kv.key: kv.value for kv in status.values}

@@ -9,6 +9,7 @@ An input that completes a fresh pair returns a :class:`Pair`; the force of a
 pair is computed apart from the decisions (:meth:`Estimator.evaluate`, or one
 vectorised call over many pairs of many muscles or of a whole recording) and
 handed back to :meth:`Estimator.accept`, which makes the :class:`Estimate`.
+The per-message records are NamedTuples: an offline pass makes millions of them.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from collections import Counter
 from dataclasses import dataclass
 import enum
 import math
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 from .flags import Flag, describe
 from .muscle_model import MuscleModel
@@ -30,6 +31,9 @@ WARN_FLAGS = {
     Flag.PRESSURE_OUT_OF_RANGE: "outside validity domain",
     Flag.BRANCH_UNKNOWN: "hysteresis branch unknown",
 }
+_WARN_BITS = tuple((int(flag), f"{text} ({flag.name})") for flag, text in WARN_FLAGS.items())
+_WARN_MASK = sum(bit for bit, _ in _WARN_BITS)
+_INVALID = int(Flag.INVALID_INPUT)
 
 
 def joint_problem(names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
@@ -43,6 +47,24 @@ def joint_problem(names: Sequence[str], positions: Sequence[float], velocities: 
     if joint not in names:
         return f"joint '{joint}' not in {list(names)}"
     return ""
+
+
+def pressure_problem(absolute: float) -> str:
+    """Why an absolute pressure [Pa] is no reading ('' if it is one)."""
+    if not math.isfinite(absolute):
+        return f"pressure is {absolute} Pa"
+    if absolute < 0:
+        return f"negative absolute pressure {absolute:g} Pa"
+    if absolute > ABSURD_PRESSURE:
+        return f"absurd pressure {absolute:g} Pa (> {ABSURD_PRESSURE:g} Pa absolute)"
+    return ""
+
+
+def length_problem(length: float, limit: float) -> str:
+    """Why a length [m] is no reading of a muscle whose geometry allows (0, ``limit``) m ('' if it is one)."""
+    if math.isfinite(length) and 0 < length < limit:
+        return ""
+    return f"length {length:g} m outside the geometry (0, {limit:.4g}) m"
 
 
 class Level(enum.IntEnum):
@@ -62,16 +84,14 @@ class Config:
     max_input_age: float = 0.1          #: [s] inputs with |now - stamp| above this are stale
 
 
-@dataclass(frozen=True)
-class Sample:
+class Sample(NamedTuple):
     value: float           #: absolute pressure [Pa] or length [m]
     rate: float | None     #: length rate [m/s]; None if unknown
     stamp: float           #: [s]
     tag: object = None     #: the caller's own form of the stamp, handed back unchanged
 
 
-@dataclass(frozen=True)
-class Pair:
+class Pair(NamedTuple):
     """The newest valid pressure and length, both fresh: what one estimate is computed from."""
 
     gauge: float          #: gauge pressure [Pa]
@@ -81,16 +101,14 @@ class Pair:
     tag: object           #: ``tag`` of the newest input
 
 
-@dataclass(frozen=True)
-class Estimate:
+class Estimate(NamedTuple):
     force: float   #: tension [N], finite and >= 0
     stamp: float   #: newest stamp of the two inputs [s]
     flags: int     #: :class:`Flag` word
     tag: object    #: ``tag`` of the newest input (e.g. its exact header stamp)
 
 
-@dataclass(frozen=True)
-class Command:
+class Command(NamedTuple):
     pressure: float  #: absolute pressure [Pa] giving the wanted tension at the current length
     flags: int       #: :class:`Flag` word
 
@@ -118,17 +136,14 @@ class Estimator:
         self._last_reject: tuple[float, str] | None = None
         self._warned: dict[str, float] = {}
         self._report: tuple[float, Counter[str]] | None = None
+        self._reported_level: Level | None = None
 
     def pressure(self, absolute: float, stamp: float, now: float, tag: object = None) -> Pair | None:
         """A pressure reading [Pa absolute] stamped ``stamp`` [s]; the pair to estimate from, if any."""
         self.counts["received pressure"] += 1
-        if not math.isfinite(absolute):
-            return self._invalid("pressure", f"pressure is {absolute} Pa", now)
-        if absolute < 0:
-            return self._invalid("pressure", f"negative absolute pressure {absolute:g} Pa", now)
-        if absolute > ABSURD_PRESSURE:
-            return self._invalid("pressure", f"absurd pressure {absolute:g} Pa (> {ABSURD_PRESSURE:g} Pa absolute)",
-                                 now)
+        problem = pressure_problem(absolute)
+        if problem:
+            return self._invalid("pressure", problem, now)
         self._pressure = Sample(absolute, None, stamp, tag)
         return self._pair(now)
 
@@ -136,9 +151,9 @@ class Estimator:
                tag: object = None) -> Pair | None:
         """A length reading [m] with its rate [m/s] (None or NaN: unknown); the pair to estimate from, if any."""
         self.counts["received muscle_state"] += 1
-        limit = self.config.model.max_length
-        if not (math.isfinite(length) and 0 < length < limit):
-            return self._invalid("muscle_state", f"length {length:g} m outside the geometry (0, {limit:.4g}) m", now)
+        problem = length_problem(length, self.config.model.max_length)
+        if problem:
+            return self._invalid("muscle_state", problem, now)
         known_rate = rate if rate is not None and math.isfinite(rate) else None
         self._length = Sample(length, known_rate, stamp, tag)
         return self._pair(now)
@@ -185,9 +200,10 @@ class Estimator:
                 when = f"{age:.3g} s old" if age > 0 else f"{-age:.3g} s in the future"
                 return Level.ERROR, (f"stale {name}: newest stamp is {when} "
                                      f"(max_input_age {self.config.max_input_age:g} s)")
-        warnings = sorted({text for text, seen in self._warned.items() if now - seen < self.hold})
-        if warnings:
-            return Level.WARN, "; ".join(warnings)
+        if self._warned:
+            warnings = sorted({text for text, seen in self._warned.items() if now - seen < self.hold})
+            if warnings:
+                return Level.WARN, "; ".join(warnings)
         return Level.OK, "estimating"
 
     def status(self, now: float) -> Status:
@@ -199,8 +215,13 @@ class Estimator:
             for key in ("received pressure", "received muscle_state", "estimates"):
                 values[f"{key} rate [Hz]"] = f"{(self.counts[key] - before[key]) / (now - since):.1f}"
         self._report = (now, Counter(self.counts))
+        self._reported_level = level
         values["model"] = self.config.model.model.name
         return Status(level, message, values)
+
+    def status_due(self, now: float) -> bool:
+        """Whether the level differs from the last :meth:`status` (or there was none): report it on change."""
+        return self.level(now)[0] != self._reported_level
 
     def _fresh(self, sample: Sample, now: float) -> bool:
         return abs(now - sample.stamp) <= self.config.max_input_age
@@ -209,10 +230,11 @@ class Estimator:
         cfg, pressure, length = self.config, self._pressure, self._length
         if pressure is None or length is None:
             return None
-        if not (self._fresh(pressure, now) and self._fresh(length, now)):
+        age = self.config.max_input_age
+        if not (abs(now - pressure.stamp) <= age and abs(now - length.stamp) <= age):   # both fresh
             self.counts["stale skipped"] += 1
             return None
-        newest = max(pressure, length, key=lambda sample: sample.stamp)
+        newest = length if length.stamp > pressure.stamp else pressure
         return Pair(pressure.value - cfg.ambient_pressure, length.value, length.rate, newest.stamp, newest.tag)
 
     def evaluate(self, pair: Pair) -> tuple[float, int]:
@@ -222,7 +244,7 @@ class Estimator:
 
     def accept(self, pair: Pair, force: float, flags: int, now: float) -> Estimate | None:
         """The estimate of ``pair`` from its evaluated force [N] and flags; None (and ERROR) if unusable."""
-        if flags & Flag.INVALID_INPUT or not math.isfinite(force):
+        if flags & _INVALID or not math.isfinite(force):
             return self._invalid("muscle_state", f"no force at length {pair.length:g} m ({describe(flags)})", now)
         self._note(flags, now)
         self.counts["estimates"] += 1
@@ -233,9 +255,10 @@ class Estimator:
         return None if pair is None else self.accept(pair, *self.evaluate(pair), now)
 
     def _note(self, flags: int, now: float) -> None:
-        for flag, text in WARN_FLAGS.items():
-            if flags & flag:
-                self._warned[f"{text} ({flag.name})"] = now
+        if flags & _WARN_MASK:
+            for bit, text in _WARN_BITS:
+                if flags & bit:
+                    self._warned[text] = now
 
     def _invalid(self, source: str, reason: str, now: float) -> None:
         self.counts[f"rejected {source}"] += 1
