@@ -45,7 +45,9 @@ class Model:
     with F_raw = q2 p^2 + q1 p + q0.  ``branch`` is +1 (lengthening, upper
     hysteresis branch), -1 (shortening, lower) or 0 (unknown); only hysteresis
     models use it.  ``lower``/``upper`` are the physical parameter bounds used
-    by the ``best`` identification protocol.
+    by the ``best`` identification protocol.  For many muscles at once, ``theta``
+    may be (n_params, n), and the spec's and domain's numbers arrays of n; the
+    coefficients broadcast elementwise (:mod:`pma_model_ros.core.muscle_bank`).
     """
 
     name: str
@@ -63,7 +65,10 @@ class Model:
 
     def check_params(self, theta: object) -> np.ndarray:
         """Return ``theta`` as a float array, or raise ValueError naming the model."""
-        values = np.asarray(theta, dtype=float) if _is_number_list(theta) else None
+        try:
+            values = np.asarray(theta, dtype=float) if _is_number_list(theta) else None
+        except OverflowError:   # an int beyond float range, as YAML reads 400 digits
+            values = None
         if values is None or values.shape != (self.n_params,) or not np.all(np.isfinite(values)):
             raise ValueError(f"model {self.name!r} needs {self.n_params} finite parameters "
                              f"{list(self.param_names)}, got {theta!r}")
@@ -97,7 +102,7 @@ def _andrikopoulos(theta, spec, domain, length, branch) -> Coefficients:
     """
     c0, c1 = theta
     th0 = spec.fiber_angle
-    shape = 3 / math.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / math.sin(th0) ** 2
+    shape = 3 / np.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / np.sin(th0) ** 2
     return _zeros(length), c0 * math.pi * spec.inner_diameter**2 / 4 * shape, _zeros(length)
 
 

@@ -1,11 +1,14 @@
 """Muscle specification and braid geometry (Martens & Boblan 2017, eqs. 1-4).
 
 All quantities are SI: lengths in m, angles in rad, pressures in Pa (gauge).
+The geometry functions take a :class:`MuscleSpec` or any object with its numeric
+fields as arrays (one entry per muscle, see :mod:`pma_model_ros.core.muscle_bank`).
 """
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 import math
+import sys
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -41,7 +44,7 @@ class MuscleSpec:
     def __post_init__(self) -> None:
         for field in ("nominal_length", "inner_diameter", "membrane_thickness", "max_pressure"):
             value = getattr(self, field)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if not (isinstance(value, (int, float)) and 0 < value < _FLOAT_MAX):
                 raise ValueError(f"muscle.{field} must be a positive finite number, got {value!r}")
         if not (isinstance(self.fiber_angle, (int, float)) and 0 < self.fiber_angle < math.pi / 2):
             raise ValueError(f"muscle.fiber_angle must be in (0, pi/2) rad, got {self.fiber_angle!r}")
@@ -66,22 +69,28 @@ class MuscleSpec:
         return asdict(self)
 
 
+_FLOAT_MAX = sys.float_info.max  # an int above it (YAML reads 400 digits as int) is no float
+
+
 def _as_float(key: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"muscle.{key} must be a number, got {value!r}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:
+        raise ValueError(f"muscle.{key} is too large for a float") from None
 
 
 def fiber_length(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
     """Constant fibre length L_Fiber = L0 / cos(Theta0) [m] (eq. 3)."""
     theta = spec.fiber_angle if fiber_angle is None else fiber_angle
-    return spec.nominal_length / math.cos(theta)
+    return spec.nominal_length / np.cos(theta)
 
 
 def turns(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
     """Number of fibre turns n = L0 tan(Theta0) / (pi D0) [-] (eq. 3)."""
     theta = spec.fiber_angle if fiber_angle is None else fiber_angle
-    return spec.nominal_length * math.tan(theta) / (math.pi * spec.inner_diameter)
+    return spec.nominal_length * np.tan(theta) / (math.pi * spec.inner_diameter)
 
 
 def diameter(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:

@@ -2,6 +2,9 @@
 
 Forward force (physical value, clipped at 0 N) and the inverse pressure, both
 vectorised over numpy arrays and both returning per-sample :class:`Flag` words.
+They are written once, in :class:`Evaluator`, for one muscle
+(:class:`MuscleModel`) and for a group of muscles sharing a model whose
+numbers are arrays (:mod:`pma_model_ros.core.muscle_bank`).
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from .muscle import MuscleSpec
 @dataclass(frozen=True)
 class ForceResult:
     force: np.ndarray      #: physical tension [N], >= 0; NaN only where INVALID_INPUT
-    raw: np.ndarray        #: unclipped model value [N]
+    raw: np.ndarray        #: model value [N] at the operating point, before clipping at 0 N
     flags: np.ndarray      #: uint16 Flag words
 
 
@@ -30,22 +33,18 @@ class PressureResult:
     flags: np.ndarray      #: uint16 Flag words
 
 
-@dataclass(frozen=True)
-class MuscleModel:
-    """A muscle with one identified static force model."""
+class Evaluator:
+    """Force and inverse of ``model`` with ``theta``, ``spec``, ``domain`` and ``max_length``.
+
+    For one muscle these are scalars (:class:`MuscleModel`); for a group of n
+    muscles sharing one model they are arrays over the last input axis.
+    """
 
     spec: MuscleSpec
     model: Model
     theta: np.ndarray
     domain: Domain
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "theta", self.model.check_params(self.theta))
-
-    @cached_property
-    def max_length(self) -> float:
-        """Longest length the geometry can take, the fibre length L0 / cos(Theta0) [m] (eq. 3)."""
-        return geo.fiber_length(self.spec)
+    max_length: float
 
     def _length_flags(self, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(usable mask, flags) for lengths: geometry needs 0 < L < max_length."""
@@ -56,6 +55,11 @@ class MuscleModel:
         flags[outside] |= np.uint16(Flag.LENGTH_OUT_OF_RANGE)
         return usable, flags
 
+    def _operating_length(self, length: np.ndarray, usable: np.ndarray) -> np.ndarray:
+        """Length [m] the model is evaluated at: held inside the identified range, never extrapolated."""
+        top = np.minimum(self.domain.length_max, self.spec.nominal_length)
+        return np.where(usable, np.clip(length, self.domain.length_min, top), top)
+
     def _branch(self, length_rate: ArrayLike | None, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Hysteresis branch (+1 lengthening, -1 shortening, 0 unknown) and its flags."""
         rate = np.zeros(shape) if length_rate is None else np.broadcast_to(np.asarray(length_rate, float), shape)
@@ -64,7 +68,12 @@ class MuscleModel:
         return branch, np.where(unknown, Flag.BRANCH_UNKNOWN, 0).astype(np.uint16)
 
     def force(self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> ForceResult:
-        """Tension [N] at gauge pressure [Pa] and length [m]; ``length_rate`` [m/s] picks the hysteresis branch."""
+        """Tension [N] at gauge pressure [Pa] and length [m]; ``length_rate`` [m/s] picks the hysteresis branch.
+
+        Never extrapolated: outside the identified length range (LENGTH_OUT_OF_RANGE)
+        or the rated pressures (PRESSURE_OUT_OF_RANGE) the force is the model's
+        at the nearest point of the domain, so it stays within the muscle's own bounds.
+        """
         p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
         usable, flags = self._length_flags(L)
         usable &= np.isfinite(p)
@@ -72,9 +81,10 @@ class MuscleModel:
         flags |= branch_flags
         flags[~usable] |= np.uint16(Flag.INVALID_INPUT)
         flags[usable & ((p < 0) | (p > self.spec.max_pressure))] |= np.uint16(Flag.PRESSURE_OUT_OF_RANGE)
-        safe_L = np.where(usable, L, self.domain.length_max)
+        p_op = np.where(usable, np.clip(p, 0.0, self.spec.max_pressure), 0.0)
         with np.errstate(invalid="ignore", over="ignore"):
-            raw = force_raw(self.model, self.theta, self.spec, self.domain, np.where(usable, p, 0.0), safe_L, branch)
+            raw = force_raw(self.model, self.theta, self.spec, self.domain, p_op, self._operating_length(L, usable),
+                            branch)
         raw = np.where(usable, raw, np.nan)
         flags[usable & (raw < 0)] |= np.uint16(Flag.CLIPPED)
         return ForceResult(np.where(usable, np.maximum(raw, 0.0), np.nan), raw, flags)
@@ -93,7 +103,7 @@ class MuscleModel:
         branch, branch_flags = self._branch(length_rate, F.shape)
         flags |= branch_flags
         flags[~usable] |= np.uint16(Flag.INVALID_INPUT)
-        safe_L = np.where(usable, L, self.domain.length_max)
+        safe_L = self._operating_length(L, usable)
         target = np.where(usable, np.maximum(F, 0.0), 0.0)
         p_max = self.spec.max_pressure
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -112,3 +122,21 @@ class MuscleModel:
         flags[usable & (~reachable | too_high | too_low)] |= np.uint16(Flag.SATURATED)
         p = np.clip(p, 0.0, p_max)
         return PressureResult(np.where(usable, p, np.nan), flags)
+
+
+@dataclass(frozen=True)
+class MuscleModel(Evaluator):
+    """A muscle with one identified static force model."""
+
+    spec: MuscleSpec
+    model: Model
+    theta: np.ndarray
+    domain: Domain
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "theta", self.model.check_params(self.theta))
+
+    @cached_property
+    def max_length(self) -> float:
+        """Longest length the geometry can take, the fibre length L0 / cos(Theta0) [m] (eq. 3)."""
+        return float(geo.fiber_length(self.spec))

@@ -6,11 +6,17 @@ declared for every model this package knows (unset unless the file gives them);
 entries of unknown models are ignored, as rclpy ignores any undeclared override.
 ``automatically_declare_parameters_from_overrides`` is not used: it would
 declare the fixed parameters without descriptors.
+
+One node serves one muscle (the parameters at the top level, as in
+``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per
+name with the same parameters under ``<name>.`` (``config/example_multi_muscle.yaml``);
+``ambient_pressure`` and ``max_input_age`` stay node-wide.
 """
 from __future__ import annotations
 
 import array
 import math
+import re
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
@@ -20,6 +26,7 @@ from ..core.models import MODELS, get_model
 from ..core.param_file import NodeSettings, node_settings
 
 DOUBLE, STRING, DOUBLES = Parameter.Type.DOUBLE, Parameter.Type.STRING, Parameter.Type.DOUBLE_ARRAY
+STRINGS = Parameter.Type.STRING_ARRAY
 
 #: name: (type, description, (min, max) or None). Required: no default, must come from the file.
 REQUIRED = {
@@ -32,15 +39,24 @@ REQUIRED = {
     "model": (STRING, f"force model in use, one of models.*: {', '.join(MODELS)}", None),
     "length_range": (DOUBLES, "[min, max] length the models were identified on [m]", None),
 }
-#: name: (default, description, (min, max) or None)
+#: name: (default, description, (min, max) or None); node-wide.
 OPTIONAL = {
     "ambient_pressure": (101325.0, "ambient pressure [Pa absolute]; gauge = fluid_pressure - ambient_pressure",
                          (0.0, 2e5)),
     "max_input_age": (0.1, "inputs whose stamp differs from the node clock by more than this are stale [s]",
                       (1e-3, 3600.0)),
-    "joint_name": ("", "JointState entry of this muscle in muscle_state (empty: muscle.name)", None),
-    "frame_id": ("", "header.frame_id of force_estimate (empty: joint_name)", None),
 }
+#: name: (default, description); per muscle (under ``<name>.`` with ``muscles``).
+NAMING = {
+    "joint_name": ("", "JointState entry of this muscle (empty: muscle.name; with `muscles`: the muscle's name)"),
+    "frame_id": ("", "header.frame_id of force_estimate (empty: joint_name)"),
+}
+#: Multi-muscle parameters, fixed at start-up.
+MUSCLES = "muscles"
+INPUT_MODE = "input_mode"
+INPUT_MODES = {"per_muscle": "topics <name>/pressure, <name>/muscle_state -> <name>/force_estimate",
+               "combined": "JointStates muscle_pressures, muscle_states -> JointState force_estimates"}
+_MUSCLE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 #: models.<name>.<entry>: identification results, read-only information.
 MODEL_INFO = {"objective": (STRING, "identification objective"),
               "err": (DOUBLE, "max error on the map, eq. 23 [% of max force]"),
@@ -55,17 +71,44 @@ def _descriptor(description: str, limits: tuple[float, float] | None = None,
     return ParameterDescriptor(description=description, floating_point_range=ranges, read_only=read_only)
 
 
-def declare(node: Node) -> None:
-    """Declare every model-node parameter on ``node`` (raises rclpy parameter exceptions on bad overrides)."""
-    for name, (kind, text, limits) in REQUIRED.items():
-        node.declare_parameter(name, kind, _descriptor(text, limits))
+def declare(node: Node) -> tuple[list[str], str]:
+    """Declare every model-node parameter on ``node``; the muscle names ([] for one muscle) and input mode.
+
+    Raises rclpy parameter exceptions on bad overrides, ValueError on a bad ``muscles`` list or mode.
+    """
+    names = list(node.declare_parameter(MUSCLES, STRINGS, _descriptor(
+        "names of the muscles this node serves, each with its parameters under '<name>.' "
+        "(unset: one muscle, parameters at the top level)", read_only=True)).value or [])
+    mode = node.declare_parameter(INPUT_MODE, "per_muscle", _descriptor(
+        "with `muscles`: " + "; ".join(f"{k}: {v}" for k, v in INPUT_MODES.items()), read_only=True)).value
+    _check_names(names, mode)
     for name, (default, text, limits) in OPTIONAL.items():
         node.declare_parameter(name, default, _descriptor(text, limits))
+    for prefix in [f"{name}." for name in names] or [""]:
+        _declare_muscle(node, prefix)
+    return names, mode
+
+
+def _declare_muscle(node: Node, prefix: str) -> None:
+    for name, (kind, text, limits) in REQUIRED.items():
+        node.declare_parameter(prefix + name, kind, _descriptor(text, limits))
+    for name, (default, text) in NAMING.items():
+        node.declare_parameter(prefix + name, default, _descriptor(text))
     for model in MODELS.values():
-        node.declare_parameter(f"models.{model.name}.params", DOUBLES, _descriptor(
+        node.declare_parameter(f"{prefix}models.{model.name}.params", DOUBLES, _descriptor(
             f"identified parameters {list(model.param_names)} of {model.name} ({model.equation}), SI units"))
         for entry, (kind, text) in MODEL_INFO.items():
-            node.declare_parameter(f"models.{model.name}.{entry}", kind, _descriptor(text, read_only=True))
+            node.declare_parameter(f"{prefix}models.{model.name}.{entry}", kind, _descriptor(text, read_only=True))
+
+
+def _check_names(names: list[str], mode: str) -> None:
+    if mode not in INPUT_MODES:
+        raise ValueError(f"parameter '{INPUT_MODE}': unknown mode {mode!r}; one of {', '.join(INPUT_MODES)}")
+    bad = [n for n in names if not _MUSCLE_NAME.fullmatch(n)]
+    if bad:
+        raise ValueError(f"parameter '{MUSCLES}': {bad[0]!r} is not a name (letters, digits, '_'; a letter first)")
+    if len(set(names)) != len(names):
+        raise ValueError(f"parameter '{MUSCLES}': duplicate names in {names}")
 
 
 def values(node: Node) -> dict[str, object]:
@@ -74,7 +117,7 @@ def values(node: Node) -> dict[str, object]:
 
 
 def settings(flat: dict[str, object]) -> NodeSettings:
-    """Validate a would-be parameter set; ValueError names the offending parameter."""
+    """Validate a would-be one-muscle parameter set; ValueError names the offending parameter."""
     missing = [name for name in REQUIRED if name not in flat]
     if missing:
         raise ValueError(f"parameter '{missing[0]}' is not set (missing from the parameter file?)")
@@ -83,6 +126,32 @@ def settings(flat: dict[str, object]) -> NodeSettings:
     except ValueError as err:
         raise ValueError(f"parameter 'model': {err}") from None
     return node_settings(_nest(flat))
+
+
+def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings]:
+    """Settings of every muscle of a would-be parameter set (one without ``names``).
+
+    Muscle ``<name>`` reads the parameters under ``<name>.`` plus the node-wide ones;
+    its joint name defaults to ``<name>``.  ValueError names the muscle and parameter.
+    """
+    if not names:
+        return [settings(flat)]
+    common = {key: flat[key] for key in OPTIONAL if key in flat}
+    by_muscle: dict[str, dict[str, object]] = {name: {} for name in names}
+    for key, value in flat.items():
+        head, _, rest = key.partition(".")
+        if head in by_muscle:
+            by_muscle[head][rest] = value
+    result = []
+    for name, own in by_muscle.items():
+        try:
+            result.append(settings(common | own | {"joint_name": own.get("joint_name") or name}))
+        except ValueError as err:
+            raise ValueError(f"muscle '{name}': {err}") from None
+    joints = [s.joint_name for s in result]
+    if len(set(joints)) != len(joints):
+        raise ValueError(f"two muscles share a joint_name: {joints}")
+    return result
 
 
 def plain(value: object) -> object:

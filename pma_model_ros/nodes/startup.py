@@ -1,14 +1,29 @@
-"""Start-up of the nodes: a bad parameter file or value ends the process with one clear line."""
+"""Start-up of the nodes: a bad parameter file or value ends the process with one clear line.
+
+Every node spins on the executor named by its read-only ROS parameter ``executor``:
+``single`` (rclpy's SingleThreadedExecutor, the default) or ``events``
+(``rclpy.experimental.EventsExecutor``); docs/performance-nodes.md compares them.
+"""
 from __future__ import annotations
 
 import re
 from typing import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.logging import LoggingSeverity, get_logger_level, set_logger_level
+
+
+#: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
+#: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and SIGTERM).
+SPIN_TIMEOUT = 0.5
+#: Values of the ``executor`` parameter.
+EXECUTORS: dict[str, Callable[..., Executor]] = {"single": SingleThreadedExecutor, "events": EventsExecutor}
 
 
 class StartupError(Exception):
@@ -39,18 +54,37 @@ def fail(node_name: str, err: Exception) -> int:
     return 1
 
 
+def executor(node: Node) -> Executor:
+    """The executor named by ``node``'s parameter ``executor`` (declared here, read-only)."""
+    name = node.declare_parameter("executor", "single", ParameterDescriptor(
+        description=f"rclpy executor spinning this node: {' or '.join(EXECUTORS)}", read_only=True)).value
+    if name not in EXECUTORS:
+        raise StartupError(f"parameter 'executor': unknown executor {name!r}; one of {', '.join(EXECUTORS)}")
+    return EXECUTORS[name](context=node.context)
+
+
 def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -> int:
     """Init, build the node, spin until Ctrl-C or shutdown (the Jazzy idiom); the exit code."""
+    node = None
     try:
         init(args)
         node = make_node()
-    except StartupError as err:
+        spinner = executor(node)
+    except (StartupError, ParameterException) as err:   # also rclpy's own use_sim_time, declared by Node()
+        if node is not None:
+            node.destroy_node()
         return fail(node_name, err)
     try:
-        rclpy.spin(node)
+        spinner.add_node(node)
+        while node.context.ok():
+            spinner.spin_once(timeout_sec=SPIN_TIMEOUT)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:   # a signal shut the context down while the executor built its wait set
+        if node.context.ok():
+            raise
     finally:
+        spinner.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
