@@ -143,3 +143,21 @@ def ros():
     executor.shutdown()
     node.destroy_node()
     rclpy.shutdown(context=context)
+
+
+@pytest.fixture(scope='module')
+def module_ros(tmp_path_factory):
+    """``ros`` and ``processes`` shared by one module's tests: one node process serves many cases."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    procs = Processes(tmp_path_factory.mktemp('module_nodes'))
+    yield Ros(node, executor), procs
+    procs.stop_all()
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown(context=context)

@@ -88,3 +88,16 @@ def test_physical_force_flags_and_clipping(martens_10_250):
     assert res.flags[3] & Flag.PRESSURE_OUT_OF_RANGE
     assert res.flags[4] & Flag.LENGTH_OUT_OF_RANGE
     assert res.flags[5] & Flag.INVALID_INPUT
+
+
+def test_force_is_held_at_the_domain_edge_never_extrapolated(martens_10_250):
+    """Outside length_range or the rated pressure the model is evaluated at the nearest domain point, flagged."""
+    m, p_max = martens_10_250, martens_10_250.spec.max_pressure
+    low, high = m.domain.length_min, m.domain.length_max
+    for length, edge in ((0.26, high), (0.28, high), (0.19, low)):      # 0.28 m: Martens itself has no value
+        out, inside = m.force(3e5, length), m.force(3e5, edge)
+        assert float(out.force) == float(inside.force) and np.isfinite(out.raw)
+        assert out.flags & Flag.LENGTH_OUT_OF_RANGE and not inside.flags & Flag.LENGTH_OUT_OF_RANGE
+    out, rated = m.force(2e6, 0.24), m.force(p_max, 0.24)
+    assert float(out.force) == float(rated.force) and out.flags & Flag.PRESSURE_OUT_OF_RANGE
+    assert float(m.force(-5e4, 0.25).force) == float(m.force(0.0, 0.25).force)

@@ -83,6 +83,13 @@ class Config:
     ambient_pressure: float = 101325.0  #: [Pa] absolute; gauge = absolute - ambient
     max_input_age: float = 0.1          #: [s] inputs with |now - stamp| above this are stale
 
+    def __post_init__(self) -> None:
+        if not 0 <= self.ambient_pressure < ABSURD_PRESSURE:
+            raise ValueError(f"ambient_pressure must be in [0, {ABSURD_PRESSURE:g}) Pa absolute, "
+                             f"got {self.ambient_pressure:g}")
+        if not 0 < self.max_input_age < math.inf:
+            raise ValueError(f"max_input_age must be > 0 s, got {self.max_input_age:g}")
+
 
 class Sample(NamedTuple):
     value: float           #: absolute pressure [Pa] or length [m]

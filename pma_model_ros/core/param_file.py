@@ -96,7 +96,7 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
         raise ValueError(f"length_range must be [min, max] in m, got {length_range!r}")
     try:
         domain = Domain(*(float(v) for v in length_range))
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f"length_range: {err}") from None
     return MuscleModel(spec, get_model(name), models[name].get("params", []), domain)
 
@@ -106,8 +106,9 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
     muscle = muscle_model(parameters, model)
     values = NODE_DEFAULTS | {k: parameters[k] for k in NODE_DEFAULTS if k in parameters}
     try:
-        config = Config(muscle, float(values["ambient_pressure"]), float(values["max_input_age"]))
-    except (TypeError, ValueError) as err:
+        ambient, max_age = float(values["ambient_pressure"]), float(values["max_input_age"])
+    except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f"ambient_pressure/max_input_age must be numbers: {err}") from None
+    config = Config(muscle, ambient, max_age)
     joint = str(parameters.get("joint_name") or muscle.spec.name)
     return NodeSettings(config, joint, str(parameters.get("frame_id") or joint))
