@@ -1,4 +1,4 @@
-"""pma-model: reproduce the paper, identify muscles, evaluate force and pressure."""
+"""pma-model: reproduce the paper, identify muscles, evaluate force and pressure, process bags, plot."""
 from __future__ import annotations
 
 import argparse
