@@ -122,12 +122,17 @@ class Ros:
         return received
 
     def call(self, srv_type, name: str, request, timeout: float = 10.0):
-        """Call service ``name`` once it is available; its response."""
+        """Call service ``name`` once it is available; its response.
+
+        The request goes again every second without an answer: right after discovery the server may
+        not have matched the client's response reader yet, and DDS then drops the response.
+        """
         client = self.node.create_client(srv_type, name)
         self.spin_until(client.service_is_ready, timeout, f'service {name}')
-        future = client.call_async(request)
-        self.spin_until(future.done, timeout, f'response of {name}')
-        return future.result()
+        futures: list = []
+        self.spin_until(lambda: any(f.done() for f in futures), timeout, f'response of {name}',
+                        every=lambda: futures.append(client.call_async(request)), period=1.0)
+        return next(f for f in futures if f.done()).result()
 
 
 @pytest.fixture

@@ -42,7 +42,7 @@ def test_replay_into_the_node_equals_offline_estimate(ros, processes, namespace,
                    diagnose=lambda: processes.output(node))
     player = processes.start([sys.executable, "-m", "pma_model_ros.cli", "bag", "play", str(bag), "--clock",
                               "--topics", f"{namespace}/pressure", f"{namespace}/muscle_state",
-                              "--wait-for-subscribers", "20", "--delay", "0.5"])
+                              "--wait-for-subscribers", "20", "--delay", "2"])   # both ends matched
     ros.spin_until(lambda: player.poll() is not None and len(estimates) >= len(offline), 60,
                    f"{len(offline)} estimates of the replay",
                    diagnose=lambda: f"got {len(estimates)}\n" + processes.output(player) + processes.output(node))
