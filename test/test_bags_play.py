@@ -49,8 +49,14 @@ def test_replay_into_the_node_equals_offline_estimate(ros, processes, namespace,
     assert player.returncode == 0, processes.output(player)
     replayed = [(stamp_key(e), e.wrench.force.x) for e in estimates]
     assert [s for s, _ in replayed] == [s for s, _ in offline]
-    for (stamp, live), (_, off) in zip(replayed, offline):
-        assert live == pytest.approx(off, rel=1e-12, abs=1e-9), stamp   # scalar vs vectorised numpy: ulps
+    # DDS orders messages per topic, not across topics: a tick's pressure and muscle_state may reach the
+    # node in the other order than recorded. Then the first of that stamp's two estimates pairs the other
+    # input with the previous tick's; the estimate of the complete pair (the last of the stamp) is the same.
+    same = [live == pytest.approx(off, rel=1e-12, abs=1e-9)   # scalar vs vectorised numpy: ulps
+            for (_, live), (_, off) in zip(replayed, offline)]
+    last = {stamp: i for i, (stamp, _) in enumerate(offline)}
+    assert all(same[i] for i in last.values()), [offline[i][0] for i in last.values() if not same[i]]
+    assert same.count(False) <= len(same) // 100, f"{same.count(False)} of {len(same)} estimates differ"
 
 
 def test_simulator_records_what_it_publishes(ros, processes, namespace, tmp_path):
