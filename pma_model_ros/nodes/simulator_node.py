@@ -87,15 +87,14 @@ class SimulatorNode(Node):
                 writer, topics = self._recorder
                 writer.write_raw(topics[pub], now.nanoseconds, serialize_message(msg))
 
-    def destroy_node(self) -> None:
-        """Finish the recording (renamed to its path only now; dropped if it holds nothing), destroy the node."""
+    def finish_recording(self) -> None:
+        """Finish the recording (renamed to its path only now; dropped if it holds nothing)."""
         if self._recorder is not None:
             writer, self._recorder = self._recorder[0], None
             if self._ticks:
                 writer.close()
             else:
                 writer.abort()
-        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
@@ -106,7 +105,16 @@ def main(args: list[str] | None = None) -> int:
                                                                         "else mcap)")
     argv = sys.argv if args is None else args
     options = parser.parse_args(remove_ros_args(argv)[1:])
-    return run("simulator_node", lambda: SimulatorNode(options.record, options.storage), argv)
+    nodes: list[SimulatorNode] = []
+
+    def make() -> SimulatorNode:
+        nodes.append(SimulatorNode(options.record, options.storage))
+        return nodes[-1]
+
+    code = run("simulator_node", make, argv)
+    for node in nodes:   # after rclpy has shut down (closing the sqlite3 bag beside rclpy's shutdown crashed)
+        node.finish_recording()
+    return code
 
 
 if __name__ == "__main__":
