@@ -20,6 +20,7 @@ from .bag_io import BagError, connections_of, messages, open_bag
 
 _SENSOR_TOPICS = ("pressure", "muscle_state")
 _FLUSH_TIMEOUT = 2.0   # [s] to wait for reliable subscribers' acks at the end
+_LINGER = 1.0  # [s] the player stays after its last message (best effort has no acknowledgement)
 
 
 def _message_class(msgtype: str) -> type:
@@ -76,7 +77,9 @@ def play(bag, rate: float = 1.0, clock: float | None = None, topics: Collection[
             routes = {c.id: publishers[remaps.get(c.topic, c.topic)] for c in connections}
             clock_pub = node.create_publisher(Clock, "/clock", 1) if clock else None
             _wait_for_subscribers(publishers, wait_for_subscribers)
-            return _publish(messages(reader, connections), routes, clock_pub, clock, rate, delay, reader.start_time)
+            count = _publish(messages(reader, connections), routes, clock_pub, clock, rate, delay, reader.start_time)
+            time.sleep(_LINGER)   # best-effort samples still in flight reach their readers before the publishers go
+            return count
         except (KeyboardInterrupt, ExternalShutdownException):
             return 0
         finally:
