@@ -34,7 +34,7 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.estimator import WARN_FLAGS, Estimate, Estimator, Level, Pair, joint_problem
+from ..core.estimator import WARN_FLAGS, Estimate, Estimator, Pair, joint_problem
 from ..core.muscle_bank import MuscleBank
 from ..core.param_file import NodeSettings
 from . import model_params
@@ -81,7 +81,6 @@ class ModelNode(Node):
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
         self._estimators = [Estimator(s.config, hold=DIAGNOSTIC_PERIOD) for s in self._settings]
-        self._levels: list[Level | None] = [None] * len(self._settings)
         self._use(self._settings)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
@@ -198,7 +197,7 @@ class ModelNode(Node):
                     in zip(self._estimators, pairs, result.force.tolist(), result.flags.tolist())]
         if any(e is not None for e in accepted):
             self._states_pub.publish(self._estimates(accepted, result.force))
-        if any(self._estimators[k].level(now)[0] != self._levels[k] for k, (estimate, flags)
+        if any(self._estimators[k].status_due(now) for k, (estimate, flags)
                in enumerate(zip(accepted, result.flags.tolist())) if estimate is None or flags & WARN_MASK):
             self._publish_status(now)
 
@@ -216,7 +215,7 @@ class ModelNode(Node):
             elif (command := estimator.command(forces[names.index(s.joint_name)], now)) is not None:
                 out.name.append(s.joint_name)
                 out.position.append(command.pressure)
-            changed |= estimator.level(now)[0] != self._levels[k]
+            changed |= estimator.status_due(now)
         if out.name:
             out.header.stamp = self.get_clock().now().to_msg()
             self._commands_pub.publish(out)
@@ -237,7 +236,7 @@ class ModelNode(Node):
     # diagnostics: one status per muscle in one array
 
     def _check_level(self, k: int, now: float) -> None:
-        if self._estimators[k].level(now)[0] != self._levels[k]:
+        if self._estimators[k].status_due(now):
             self._publish_status(now)
 
     def _publish_status(self, now: float) -> None:
@@ -245,7 +244,6 @@ class ModelNode(Node):
         statuses = []
         for k, (estimator, s) in enumerate(zip(self._estimators, self._settings)):
             status = estimator.status(now)
-            self._levels[k] = status.level
             statuses.append(DiagnosticStatus(
                 level=bytes([status.level]), name=f"{node}: {s.joint_name}", message=status.message,
                 hardware_id=s.config.model.spec.name,
