@@ -233,8 +233,9 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
         node = Pinger("/unused", muscles, rclpy.get_default_context())   # builds the input messages
         model = ModelNode()
         first, second = node.messages(0)
-        handlers = (partial(model._on_pressure, 0), partial(model._on_state, 0)) if muscles == 1 else \
-            (model._on_pressures, model._on_states)
+        topics = model.topics
+        handlers = (partial(topics._on_pressure, 0), partial(topics._on_state, 0)) if muscles == 1 else \
+            (topics._on_pressures, topics._on_states)
         start = time.process_time()
         for _ in range(cycles):
             first.header.stamp = second.header.stamp = model.get_clock().now().to_msg()
@@ -246,7 +247,7 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
             g, L = np.full(muscles, 300e3), np.full(muscles, 0.23)
             start = time.process_time()
             for _ in range(cycles):
-                model._bank.force(g, L, None)
+                model.engine.bank.force(g, L, None)
             bank = (time.process_time() - start) / cycles
         model.destroy_node()
         node.destroy_node()

@@ -1,6 +1,6 @@
 """The bad-input matrix of docs/reliability.md: one row per bad input, over the core and over the live node.
 
-Message rows go through :class:`Estimator` (what model_node and the offline tools run) and through one
+Message rows go through :class:`Engine` (what model_node and the offline tools run) and through one
 live model_node process; parameter-file rows through ``param_file`` (the offline tools' reader) and
 through model_node start-up.  The row ids are the ids of the docs table (checked below).
 """
@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 from conftest import CONFIGS, REPO, Processes, Ros
 from node_messages import AMBIENT, JOINT, RELIABLE_QOS, model_statuses, stamp_key, status_values
 from pma_model_ros import node_process
-from pma_model_ros.core.estimator import Estimator, Level
+from pma_model_ros.core.engine import Engine, Level
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import node_settings, read_parameters
 
@@ -133,32 +133,31 @@ def good_force(model: MuscleModel) -> float:
 
 # --- over the core -----------------------------------------------------------------------------------------
 
-def feed(est: Estimator, msg: Msg, now: float) -> tuple[float, float] | None:
+def feed(est: Engine, msg: Msg, now: float) -> tuple[float, float] | None:
     """``msg`` into ``est`` at ``now`` [s]: its output (estimate [N] or command gauge [Pa], stamp [s]), or None."""
     stamp = 0.0 if msg.age is None else now - msg.age
     if msg.topic == 'force_command':
-        cmd = est.command(msg.value, now)
-        return None if cmd is None else (cmd.pressure - AMBIENT, now)
+        pressure = est.command(0, msg.value, now)
+        return None if pressure is None else (pressure - AMBIENT, now)
     if msg.topic == 'pressure':
-        pair = est.pressure(msg.value, stamp, now)
+        force = est.pressure(0, msg.value, stamp, now)
     else:
-        pair = est.joint_state(msg.names, msg.positions, msg.velocities, JOINT, stamp, now)
-    out = est.estimate(pair, now)
-    return None if out is None else (out.force, out.stamp)
+        force = est.joint_state(0, msg.names, msg.positions, msg.velocities, JOINT, stamp, now)
+    return None if force is None else (force, est.stamp)
 
 
 @pytest.mark.parametrize('row', MESSAGES)
 def test_core(row):
     msg, expect = MESSAGES[row]
     settings = node_settings(read_parameters(CONFIG))
-    est, now = Estimator(settings.config, hold=1.0), 100.0
+    est, now = Engine([settings.config], hold=1.0), 100.0
     for good in expect.context:
         feed(est, good, now)
-    before = est.counts[expect.counter]
+    before = est.counts(0).get(expect.counter, 0)
     out = feed(est, msg, now)
-    level, message = est.level(now)
+    level, message = est.level(0, now)
     assert level == expect.level and re.search(expect.pattern, message), message
-    assert est.counts[expect.counter] == before + 1, est.counts
+    assert est.counts(0)[expect.counter] == before + 1, est.counts(0)
     if expect.output is None:
         assert out is None
     else:

@@ -14,7 +14,7 @@ from pma_model_ros.bags.bag_io import (FLUID_PRESSURE, JOINT_STATE, SENSOR_DATA,
                                        BagWriter, read)
 from pma_model_ros.bags.estimate import WrenchStampedCdr, estimate_bag
 from pma_model_ros.bags.synthetic import START_NS, record_simulation
-from pma_model_ros.core.estimator import Estimator
+from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.param_file import node_settings, read_parameters
 
 T = TYPESTORE.types
@@ -50,24 +50,22 @@ def eventful_bag(path, storage):
 
 
 def node_reference(bag):
-    """What model_node's callbacks make of the bag, message by message (scalar evaluation, no vectorising)."""
-    est = Estimator(SETTINGS.config, hold=1.0)
+    """What model_node's callbacks make of the bag, message by message (the engine's one-muscle calls)."""
+    est = Engine([SETTINGS.config], hold=1.0)
     estimates, commands = [], []
     for topic, time_ns, msg in read(bag):
         now, stamp = time_ns * 1e-9, msg.header.stamp
+        force = None
         if topic.endswith("/pressure"):
-            pair = est.pressure(msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+            force = est.pressure(0, msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp)
         elif topic.endswith("/muscle_state"):
-            pair = est.joint_state(msg.name, msg.position, msg.velocity, JOINT, stamp.sec + stamp.nanosec * 1e-9,
-                                   now, stamp)
-        else:
-            pair, command = None, est.command(msg.wrench.force.x, now)
-            if command is not None:
-                commands.append((time_ns, command.pressure))
-        estimate = est.estimate(pair, now)
-        if estimate is not None:
-            estimates.append((time_ns, estimate.tag.sec * 10**9 + estimate.tag.nanosec, estimate.force))
-    return estimates, commands, est.counts
+            force = est.joint_state(0, msg.name, msg.position, msg.velocity, JOINT,
+                                    stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+        elif (pressure := est.command(0, msg.wrench.force.x, now)) is not None:
+            commands.append((time_ns, pressure))
+        if force is not None:
+            estimates.append((time_ns, est.tag.sec * 10**9 + est.tag.nanosec, force))
+    return estimates, commands, est.counts(0)
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
@@ -83,7 +81,7 @@ def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
     assert len(expected) > 500 and got == expected                        # same pairs, stamps, forces (exact)
     assert {m.header.frame_id for _, m in out[f"{NS}/force_estimate"]} == {SETTINGS.frame_id}
     assert [(t, m.fluid_pressure) for t, m in out[f"{NS}/pressure_command"]] == commands and len(commands) == 30
-    assert summary.counts == dict(counts)
+    assert summary.counts == counts
     assert counts["rejected pressure"] == 1 and counts["rejected muscle_state"] == 1 and counts["stale skipped"] >= 1
     # the originals, unchanged
     originals = {topic: [(t, m) for t, m in msgs] for topic, msgs in out.items() if "force_" not in topic

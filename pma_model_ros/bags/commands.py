@@ -19,7 +19,9 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
                             description="Replays a recording's <ns>/pressure, <ns>/muscle_state (and "
                                         "<ns>/force_command) through model_node's logic and writes a new bag: "
                                         "the original messages plus <ns>/force_estimate, <ns>/pressure_command "
-                                        "and /diagnostics (docs/bags.md).")
+                                        "and /diagnostics (docs/bags.md). A parameter file with `muscles:` "
+                                        "reads each muscle's topics under <ns>/<name>/, or the combined "
+                                        "JointStates, as model_node does.")
     p.add_argument("bag", help="input bag (directory, or .mcap / .db3 file)")
     p.add_argument("--config", required=True, help="model_node parameter file, e.g. config/dmsp_10_250.yaml")
     p.add_argument("--out", required=True, help="output bag directory (must not exist)")
@@ -46,11 +48,13 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_bag_estimate(args: argparse.Namespace) -> None:
-    from ..core.param_file import node_settings, read_parameters
+    from ..core.param_file import all_node_settings, read_parameters
     from .estimate import estimate_bag
-    settings = node_settings(read_parameters(args.config), args.model)
-    summary = estimate_bag(args.bag, settings, args.out, storage=args.storage, namespace=args.namespace,
-                           csv=args.csv)
+    parameters = read_parameters(args.config)
+    settings = all_node_settings(parameters, args.model)
+    summary = estimate_bag(args.bag, settings, args.out, names=parameters.get("muscles") or [],
+                           combined=parameters.get("input_mode") == "combined", storage=args.storage,
+                           namespace=args.namespace, csv=args.csv)
     rejected = sum(n for key, n in summary.counts.items() if key.startswith("rejected"))
     print(f"{summary.namespace}: {summary.messages} messages read; wrote {summary.estimates} force_estimate, "
           f"{summary.commands} pressure_command, {summary.diagnostics} /diagnostics ({rejected} inputs rejected) "

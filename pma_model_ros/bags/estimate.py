@@ -1,29 +1,32 @@
 """Offline force estimation: what ``model_node`` would publish for a recording, written to a new bag.
 
-The recording's ``<ns>/pressure`` (FluidPressure), ``<ns>/muscle_state`` (JointState) and,
-if present, ``<ns>/force_command`` (WrenchStamped) messages drive one
-:class:`~pma_model_ros.core.estimator.Estimator` in log-time order, through the same
-calls as the node's callbacks, with "now" = the message's log time (what the node's
-clock reads when the bag is played with ``--clock`` into a node with ``use_sim_time``).
+The recording's input topics drive one :class:`~pma_model_ros.core.engine.Engine` in log-time
+order, through the same calls as the node's callbacks, with "now" = the message's log time (what
+the node's clock reads when the bag is played with ``--clock`` into a node with ``use_sim_time``).
+The topics are those of the parameter file's muscles, under the recording's namespace:
+
+* one muscle: ``<ns>/pressure`` (FluidPressure), ``<ns>/muscle_state`` (JointState) and, if
+  recorded, ``<ns>/force_command`` (WrenchStamped); with ``muscles:`` and ``input_mode: per_muscle``
+  the same under ``<ns>/<name>/``;
+* ``input_mode: combined``: ``<ns>/muscle_pressures``, ``<ns>/muscle_states``, ``<ns>/force_commands``
+  (JointStates of every muscle).
+
 So the output holds, beside every original message (copied as recorded):
 
-* ``<ns>/force_estimate`` (WrenchStamped): stamp = the newer input's header stamp,
-  ``frame_id`` and force.x = tension [N], at the log time of the input that completed it;
-* ``<ns>/pressure_command`` (FluidPressure, absolute Pa) for each usable force command,
-  stamped with its log time;
-* ``/diagnostics``: the node's status every second of bag time and on each level change.
+* ``force_estimate`` per muscle (WrenchStamped: stamp = the newer input's header stamp, ``frame_id``,
+  force.x = tension [N]), or one ``force_estimates`` JointState (combined), at the log time of the
+  input that completed it;
+* ``pressure_command`` (FluidPressure, absolute Pa), or ``pressure_commands`` (JointState), for each
+  usable force command, stamped with its log time;
+* ``/diagnostics``: the node's status of every muscle every second of bag time and on each level change.
 
-Topics of these names already in the recording are replaced (``/diagnostics`` is kept
-and merged).  The force of the candidate pair at each message (newest valid pressure
-and length) is evaluated in one vectorised call per chunk; the estimator, message by
-message, makes every decision and must form that same pair.
+Topics of these names already in the recording are replaced (``/diagnostics`` is kept and merged).
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
 import csv as csv_module
 from dataclasses import dataclass, field
-import math
 import os
 from pathlib import Path
 import struct
@@ -36,38 +39,44 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
-from ..core.estimator import Estimator, joint_problem, length_problem, pressure_problem
+from ..core.engine import Engine, JointIndex
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
 from .bag_io import (DIAGNOSTIC_ARRAY, FLUID_PRESSURE, JOINT_STATE, RELIABLE, TYPESTORE, WRENCH_STAMPED, BagError,
                      BagWriter, connections_of, deserialize, messages, open_bag, storage_of, topic)
-#: The node's input topics (relative names) and their types.
+#: The node's input topics of one muscle (relative names) and their types.
 INPUTS = {"pressure": FLUID_PRESSURE, "muscle_state": JOINT_STATE, "force_command": WRENCH_STAMPED}
-#: The node's output topics (relative names) written here.
+#: The node's input topics in combined mode, all JointStates.
+COMBINED_INPUTS = ("muscle_pressures", "muscle_states", "force_commands")
+#: The node's output topics (relative names) written here: per muscle, and in combined mode.
 OUTPUTS = ("force_estimate", "pressure_command")
+COMBINED_OUTPUTS = ("force_estimates", "pressure_commands")
 DIAGNOSTICS = "/diagnostics"
 DIAGNOSTIC_PERIOD_NS = 1_000_000_000   # model_node's status timer [ns]
-CHUNK = 20_000                         # messages read, evaluated and written per step
+CHUNK = 20_000                         # messages read and written per step
 _PRESSURE, _STATE, _COMMAND = range(3)
-CSV_COLUMNS = ("log_time_ns", "stamp_s", "pressure_pa", "length_m", "length_rate_mps", "force_n", "flags")
+CSV_COLUMNS = ("log_time_ns", "stamp_s", "pressure_pa", "length_m", "length_rate_mps", "force_n", "flags", "joint")
 
 T = TYPESTORE.types
 Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
 
 
-def muscle_namespace(reader: Reader, namespace: str | None = None) -> str:
-    """The namespace whose ``pressure`` and ``muscle_state`` topics the recording holds.
+def muscle_namespace(reader: Reader, namespace: str | None = None, first: str = "pressure",
+                     second: str = "muscle_state") -> str:
+    """The namespace whose ``first`` and ``second`` topics (relative names) the recording holds.
 
     ``namespace`` if given; else the only one found (a BagError if none or several).
     """
     if namespace is not None:
         return "/" + namespace.strip("/")
     have = {c.topic for c in reader.connections}
-    found = sorted({t.removesuffix("/pressure") or "/" for t in have
-                    if t.endswith("/pressure") and topic(t.removesuffix("/pressure") or "/", "muscle_state") in have})
+    suffix = f"/{first}"
+    found = sorted({t.removesuffix(suffix) or "/" for t in have
+                    if t.endswith(suffix) and topic(t.removesuffix(suffix) or "/", second) in have})
     if len(found) != 1:
         what = f"several muscles ({', '.join(found)}); choose one with --namespace" if found else \
-            f"no <namespace>/pressure and <namespace>/muscle_state topics (topics: {', '.join(sorted(have)) or 'none'})"
+            (f"no <namespace>/{first} and <namespace>/{second} topics "
+             f"(topics: {', '.join(sorted(have)) or 'none'})")
         raise BagError(f"{reader.path}: {what}")
     return found[0]
 
@@ -96,22 +105,26 @@ class Summary:
 
     namespace: str
     messages: int = 0       #: messages read (all topics)
-    estimates: int = 0      #: force_estimate messages written
-    commands: int = 0       #: pressure_command messages written
+    estimates: int = 0      #: force estimates written (one per muscle estimated)
+    commands: int = 0       #: pressure commands written (one per muscle commanded)
     diagnostics: int = 0    #: /diagnostics messages written
-    counts: dict[str, int] = field(default_factory=dict)   #: the estimator's counters at the end
+    counts: dict[str, int] = field(default_factory=dict)   #: the engine's counters at the end, summed over muscles
 
 
 class _OfflineNode:
     """The model node's callbacks over a recording, writing what it would publish."""
 
-    def __init__(self, settings: NodeSettings, namespace: str, reader: Reader, writer: BagWriter,
-                 rows: csv_module.writer | None) -> None:
-        names = {role: topic(namespace, name) for role, name in zip((_PRESSURE, _STATE, _COMMAND), INPUTS)}
-        wanted = [t for t in names.values() if t in {c.topic for c in reader.connections}]
-        connections_of(reader, wanted, {topic(namespace, n): typ for n, typ in INPUTS.items()})
-        self.roles = {c.id: role for c in reader.connections for role, name in names.items() if c.topic == name}
-        replaced = {topic(namespace, name) for name in OUTPUTS}
+    def __init__(self, settings: list[NodeSettings], names: list[str], combined: bool, namespace: str,
+                 reader: Reader, writer: BagWriter, rows: csv_module.writer | None) -> None:
+        inputs = {topic(namespace, name): (role, -1) for role, name in enumerate(COMBINED_INPUTS)} if combined else {
+            topic(namespace, f"{prefix}{name}"): (role, k)
+            for k, prefix in enumerate([f"{n}/" for n in names] or [""]) for role, name in enumerate(INPUTS)}
+        types = {t: JOINT_STATE if combined else list(INPUTS.values())[role] for t, (role, _) in inputs.items()}
+        present = {c.topic for c in reader.connections}
+        connections_of(reader, [t for t in inputs if t in present], types)
+        self.roles = {c.id: inputs[c.topic] for c in reader.connections if c.topic in inputs}
+        replaced = {topic(namespace, name) for name in COMBINED_OUTPUTS} if combined else {
+            topic(namespace, f"{prefix}{name}") for prefix in [f"{n}/" for n in names] or [""] for name in OUTPUTS}
         self.copies: dict[int, Connection] = {}
         self._diagnostics = None
         for c in reader.connections:
@@ -122,121 +135,136 @@ class _OfflineNode:
                 self._diagnostics = self.copies[c.id]
         if self._diagnostics is None:
             self._diagnostics = writer.topic(DIAGNOSTICS, DIAGNOSTIC_ARRAY, [RELIABLE])
-        self._estimates = writer.topic(topic(namespace, "force_estimate"), WRENCH_STAMPED, [RELIABLE])
-        self._commands = (writer.topic(topic(namespace, "pressure_command"), FLUID_PRESSURE, [RELIABLE])
-                          if names[_COMMAND] in wanted else None)
-        self.settings, self.writer, self.rows = settings, writer, rows
-        self.estimator = Estimator(settings.config, hold=DIAGNOSTIC_PERIOD_NS * 1e-9)
+        has_commands = any(role == _COMMAND for role, _ in self.roles.values())
+        if combined:
+            self._estimates = [writer.topic(topic(namespace, "force_estimates"), JOINT_STATE, [RELIABLE])]
+            self._commands = [writer.topic(topic(namespace, "pressure_commands"), JOINT_STATE, [RELIABLE])]
+        else:
+            prefixes = [f"{n}/" for n in names] or [""]
+            self._estimates = [writer.topic(topic(namespace, f"{p}force_estimate"), WRENCH_STAMPED, [RELIABLE])
+                               for p in prefixes]
+            self._commands = [writer.topic(topic(namespace, f"{p}pressure_command"), FLUID_PRESSURE, [RELIABLE])
+                              for p in prefixes] if has_commands else []
+        self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
+        self.engine = Engine([s.config for s in settings], hold=DIAGNOSTIC_PERIOD_NS * 1e-9)
+        self.joints = [s.joint_name for s in settings]
+        self._index = {role: JointIndex(self.joints) for role in (_PRESSURE, _STATE)}
         self.summary = Summary(namespace)
-        self._name = f"{namespace.rstrip('/')}/model_node: {settings.joint_name}"
-        self._wrench = WrenchStampedCdr(settings.frame_id)
-        self._carry = (math.nan, math.nan, math.nan)   # newest valid (absolute pressure, length, rate) so far
+        self._names = [f"{namespace.rstrip('/')}/model_node: {joint}" for joint in self.joints]
+        self._wrenches = [WrenchStampedCdr(s.frame_id) for s in settings]
         self._next_status_ns: int | None = None
-
-    def _parse(self, chunk: list[tuple[Connection, int, bytes]]) -> tuple[list, list[int], np.ndarray, np.ndarray]:
-        """Deserialized inputs (None for other topics), and per message: role (-1: other), usable, value, rate."""
-        joint, limit, roles_of = self.settings.joint_name, self.settings.config.model.max_length, self.roles
-        parsed, roles, values = [], [], []
-        none = (math.nan, math.nan, False)
-        for connection, _, data in chunk:
-            role = roles_of.get(connection.id, -1)
-            roles.append(role)
-            if role < 0:
-                parsed.append(None)
-                values.append(none)
-                continue
-            msg = deserialize(data, connection)
-            parsed.append(msg)
-            if role == _PRESSURE:
-                values.append((msg.fluid_pressure, math.nan, not pressure_problem(msg.fluid_pressure)))
-            elif role == _STATE and not joint_problem(msg.name, msg.position, msg.velocity, joint):
-                i = msg.name.index(joint)
-                length = float(msg.position[i])
-                values.append((length, msg.velocity[i] if len(msg.velocity) else math.nan,
-                               not length_problem(length, limit)))
-            else:
-                values.append(none)
-        value, rate, usable = np.array(values, float).T if values else np.empty((3, 0))
-        return parsed, roles, usable.astype(bool), np.column_stack([value, rate])
-
-    def _candidates(self, role_list: list[int], usable: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Per message: gauge pressure [Pa], length [m], rate [m/s], force [N] and flags of the newest usable
-        pressure and length (NaN where there is none), forces evaluated in one call."""
-        roles = np.array(role_list, int)
-        n = roles.size
-        index = np.arange(1, n + 1)
-        table = np.vstack([[self._carry[0], math.nan], [self._carry[1], self._carry[2]], values])
-        newest_p = np.maximum.accumulate(np.where(usable & (roles == _PRESSURE), index + 1, 0))
-        newest_l = np.maximum.accumulate(np.where(usable & (roles == _STATE), index + 1, 1))
-        absolute, (length, rate) = table[newest_p, 0], table[newest_l].T
-        self._carry = (absolute[-1], length[-1], rate[-1]) if n else self._carry
-        gauge = absolute - self.settings.config.ambient_pressure
-        force, flags = np.full(n, math.nan), np.zeros(n, np.uint16)
-        todo = usable & np.isfinite(gauge) & np.isfinite(length)
-        if todo.any():
-            result = self.settings.config.model.force(gauge[todo], length[todo], rate[todo])
-            force[todo], flags[todo] = result.force, result.flags
-        return gauge, length, rate, force, flags
 
     def process(self, chunk: list[tuple[Connection, int, bytes]]) -> None:
         """One chunk of the recording, in log-time order."""
-        parsed, roles, usable, values = self._parse(chunk)
-        gauge, length, rate, force, flags = (a.tolist() for a in self._candidates(roles, usable, values))
-        est, write, copies, joint = self.estimator, self.writer.write_raw, self.copies, self.settings.joint_name
-        estimates, wrench, rows, summary = self._estimates, self._wrench, self.rows, self.summary
+        engine, write, copies, roles, joints = self.engine, self.writer.write_raw, self.copies, self.roles, self.joints
         if self._next_status_ns is None and chunk:
             self._next_status_ns = chunk[0][1] + DIAGNOSTIC_PERIOD_NS
         next_status = self._next_status_ns
-        for i, (connection, time_ns, data) in enumerate(chunk):
+        for connection, time_ns, data in chunk:
             while time_ns >= next_status:   # the node's status timer
                 self._status(next_status)
                 next_status += DIAGNOSTIC_PERIOD_NS
             copy = copies.get(connection.id)
             if copy is not None:
                 write(copy, time_ns, data)
-            role = roles[i]
-            if role < 0:
+            role, k = roles.get(connection.id, (None, 0))
+            if role is None:
                 continue
-            msg, now = parsed[i], time_ns * 1e-9
-            stamp = msg.header.stamp
-            if role == _PRESSURE:
-                pair = est.pressure(msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+            msg, now = deserialize(data, connection), time_ns * 1e-9
+            tag = msg.header.stamp
+            stamp = tag.sec + tag.nanosec * 1e-9
+            if self.combined:
+                self._combined(role, msg, stamp, now, time_ns)
+                k = None
+            elif role == _PRESSURE:
+                self._estimate(k, engine.pressure(k, msg.fluid_pressure, stamp, now, tag), time_ns)
             elif role == _STATE:
-                pair = est.joint_state(msg.name, msg.position, msg.velocity, joint,
-                                       stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+                self._estimate(k, engine.joint_state(k, msg.name, msg.position, msg.velocity, joints[k], stamp, now,
+                                                     tag), time_ns)
             else:
-                pair = None
-                self._command(est.command(msg.wrench.force.x, now), time_ns)
-            if pair is not None:
-                if pair.gauge != gauge[i] or pair.length != length[i]:
-                    raise AssertionError(f"estimator paired {pair}, vectorised candidate {gauge[i]}, {length[i]}")
-                estimate = est.accept(pair, force[i], flags[i], now)
-                if estimate is not None:
-                    tag = estimate.tag
-                    write(estimates, time_ns, wrench(tag.sec, tag.nanosec, estimate.force))
-                    summary.estimates += 1
-                    if rows is not None:
-                        rows.writerow((time_ns, f"{tag.sec}.{tag.nanosec:09d}", pair.gauge, float(pair.length),
-                                       rate[i], estimate.force, describe(estimate.flags)))
-            if est.status_due(now):
+                self._command(k, engine.command(k, msg.wrench.force.x, now), time_ns)
+            if engine.status_due(now, k):
                 self._status(time_ns)
         self._next_status_ns = next_status
         self.summary.messages += len(chunk)
 
-    def _command(self, command, time_ns: int) -> None:
-        if command is None or self._commands is None:
+    def _estimate(self, k: int, force: float | None, time_ns: int) -> None:
+        if force is None:
             return
-        header = Header(Time(time_ns // 10**9, time_ns % 10**9), self.settings.frame_id)
-        self.writer.write(self._commands, time_ns, T[FLUID_PRESSURE](header, command.pressure, 0.0))
+        tag = self.engine.tag
+        self.writer.write_raw(self._estimates[k], time_ns, self._wrenches[k](tag.sec, tag.nanosec, force))
+        self.summary.estimates += 1
+        self._row(k, time_ns, tag, force, self.engine.flags)
+
+    def _row(self, k: int, time_ns: int, tag, force: float, flags: int) -> None:
+        if self.rows is not None:
+            gauge, length, rate = self.engine.inputs(k)
+            self.rows.writerow((time_ns, f"{tag.sec}.{tag.nanosec:09d}", gauge, length, rate, force,
+                                describe(flags), self.joints[k]))
+
+    def _command(self, k: int, pressure: float | None, time_ns: int) -> None:
+        if pressure is None or not self._commands:
+            return
+        header = Header(Time(time_ns // 10**9, time_ns % 10**9), self.settings[k].frame_id)
+        self.writer.write(self._commands[k], time_ns, T[FLUID_PRESSURE](header, pressure, 0.0))
         self.summary.commands += 1
 
+    def _combined(self, role: int, msg, stamp: float, now: float, time_ns: int) -> None:
+        """One combined JointState: every muscle's pressure or length in one vectorised call, or commands."""
+        engine, joints = self.engine, self.joints
+        if role == _COMMAND:
+            names, forces = list(msg.name), msg.effort
+            problem = "" if len(forces) == len(names) else \
+                f"mismatched arrays: {len(names)} names, {len(forces)} efforts"
+            out_names, out_pressures = [], []
+            for k, joint in enumerate(joints):
+                if joint not in names:
+                    continue
+                if problem:
+                    engine.reject(k, "force_command", problem, now)
+                elif (pressure := engine.command(k, float(forces[names.index(joint)]), now)) is not None:
+                    out_names.append(joint)
+                    out_pressures.append(pressure)
+            if out_names:
+                header = Header(Time(time_ns // 10**9, time_ns % 10**9), "")
+                empty = np.zeros(0)
+                self.writer.write(self._commands[0], time_ns, T[JOINT_STATE](
+                    header, out_names, np.array(out_pressures), empty, empty))
+                self.summary.commands += len(out_names)
+            return
+        values, rates = msg.position, msg.velocity if role == _STATE else ()
+        take, present, problems = self._index[role].of(list(msg.name), values, rates)
+        source = "pressure" if role == _PRESSURE else "muscle_state"
+        if present is not None:
+            for k, problem in zip(np.flatnonzero(~present).tolist(), problems):
+                engine.reject(k, source, problem, now)
+        column = np.asarray(values, float)[take] if present is None or present.any() else np.zeros(len(take))
+        if role == _PRESSURE:
+            estimated = engine.pressures(column, stamp, now, msg.header.stamp, present)
+        else:
+            rate = np.asarray(rates, float)[take] if len(rates) and len(rates) == len(values) else None
+            estimated = engine.lengths(column, rate, stamp, now, msg.header.stamp, present)
+        if not estimated.any():
+            return
+        tag = engine.newest_tag(estimated)
+        header = Header(Time(tag.sec, tag.nanosec), "")
+        empty = np.zeros(0)
+        self.writer.write(self._estimates[0], time_ns, T[JOINT_STATE](
+            header, [j for j, e in zip(joints, estimated.tolist()) if e], empty, empty, engine.forces[estimated]))
+        self.summary.estimates += int(estimated.sum())
+        for k in np.flatnonzero(estimated).tolist():
+            self._row(k, time_ns, tag, float(engine.forces[k]), int(engine.flags[k]))
+
     def _status(self, time_ns: int) -> None:
-        status = self.estimator.status(time_ns * 1e-9)
+        now = time_ns * 1e-9
         KeyValue, DiagnosticStatus = T["diagnostic_msgs/msg/KeyValue"], T["diagnostic_msgs/msg/DiagnosticStatus"]
-        entry = DiagnosticStatus(int(status.level), self._name, status.message, self.settings.config.model.spec.name,
-                                 [KeyValue(k, v) for k, v in status.values.items()])
+        entries = []
+        for k, (name, s) in enumerate(zip(self._names, self.settings)):
+            status = self.engine.status(k, now)
+            entries.append(DiagnosticStatus(int(status.level), name, status.message, s.config.model.spec.name,
+                                            [KeyValue(key, value) for key, value in status.values.items()]))
         header = Header(Time(time_ns // 10**9, time_ns % 10**9), "")
-        self.writer.write(self._diagnostics, time_ns, T[DIAGNOSTIC_ARRAY](header, [entry]))
+        self.writer.write(self._diagnostics, time_ns, T[DIAGNOSTIC_ARRAY](header, entries))
         self.summary.diagnostics += 1
 
 
@@ -287,18 +315,25 @@ class _Progress:
             self.stream.flush()
 
 
-def estimate_bag(bag: str | Path, settings: NodeSettings, out: str | Path, *, storage: str | None = None,
+def estimate_bag(bag: str | Path, settings: NodeSettings | list[NodeSettings], out: str | Path, *,
+                 names: list[str] | None = None, combined: bool = False, storage: str | None = None,
                  namespace: str | None = None, csv: str | Path | None = None, progress: bool = True) -> Summary:
     """Write ``out``: the recording ``bag`` plus what the model node with ``settings`` would publish.
 
-    ``storage``: of ``out`` (default: the input's); ``namespace``: of the muscle's topics
-    (default: the only one in the bag); ``csv``: also write the estimates there
-    (:data:`CSV_COLUMNS`; gauge pressure, flags by name).  Raises BagError (nothing written) on bad input.
+    ``settings``: one muscle's, or every muscle's of a ``muscles:`` file, with their ``names`` and
+    ``combined`` for ``input_mode: combined``; ``storage``: of ``out`` (default: the input's);
+    ``namespace``: of the muscles' topics (default: the only one in the bag); ``csv``: also write the
+    estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name).  Raises BagError (nothing
+    written) on bad input.
     """
+    settings = [settings] if isinstance(settings, NodeSettings) else list(settings)
+    names = list(names or [])
+    first, second = ("muscle_pressures", "muscle_states") if combined else \
+        ((f"{names[0]}/pressure", f"{names[0]}/muscle_state") if names else ("pressure", "muscle_state"))
     with open_bag(bag) as reader:
-        ns = muscle_namespace(reader, namespace)
+        ns = muscle_namespace(reader, namespace, first, second)
         with BagWriter(out, storage or storage_of(bag)) as writer, _csv_rows(csv) as rows:
-            node = _OfflineNode(settings, ns, reader, writer, rows)
+            node = _OfflineNode(settings, names, combined, ns, reader, writer, rows)
             bar = _Progress(reader.message_count) if progress else None
             for chunk in _chunks(messages(reader, reader.connections), CHUNK):
                 node.process(chunk)
@@ -306,5 +341,9 @@ def estimate_bag(bag: str | Path, settings: NodeSettings, out: str | Path, *, st
                     bar.update(node.summary.messages)
             if bar:
                 bar.update(node.summary.messages, final=True)
-    node.summary.counts = dict(node.estimator.counts)
+    totals: dict[str, int] = {}
+    for k in range(len(settings)):
+        for key, n in node.engine.counts(k).items():
+            totals[key] = totals.get(key, 0) + n
+    node.summary.counts = totals
     return node.summary

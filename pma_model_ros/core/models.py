@@ -19,6 +19,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import elementwise as ew
 from . import muscle as geo
 from .muscle import MuscleSpec
 
@@ -82,7 +83,7 @@ def _is_number_list(theta: object) -> bool:
 
 
 def _zeros(length: np.ndarray) -> np.ndarray:
-    return np.zeros_like(length)
+    return ew.zeros_like(length)
 
 
 def _contraction(spec: MuscleSpec, length: np.ndarray) -> np.ndarray:
@@ -102,14 +103,14 @@ def _andrikopoulos(theta, spec, domain, length, branch) -> Coefficients:
     """
     c0, c1 = theta
     th0 = spec.fiber_angle
-    shape = 3 / np.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / np.sin(th0) ** 2
+    shape = 3 / ew.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / ew.sin(th0) ** 2
     return _zeros(length), c0 * math.pi * spec.inner_diameter**2 / 4 * shape, _zeros(length)
 
 
 def _sarosi_terms(theta, spec, length) -> tuple[np.ndarray, np.ndarray]:
     c0, c1, c2, d0, d1, d2 = theta
     kappa = _contraction(spec, length)
-    growth = np.exp(c2 * kappa)
+    growth = ew.exp(c2 * kappa)
     return c0 * growth + d0 * kappa + d1, c1 * growth + d2
 
 
@@ -130,7 +131,7 @@ def _sarosi_hysteresis(theta, spec, domain, length, branch) -> Coefficients:
     """
     up1, up0 = _sarosi_terms(theta[:6], spec, length)
     lo1, lo0 = _sarosi_terms(theta[6:], spec, length)
-    w_up = (1 + np.clip(np.asarray(branch, float), -1, 1)) / 2
+    w_up = (1 + ew.clip(ew.asarray(branch), -1.0, 1.0)) / 2
     return _zeros(length), w_up * up1 + (1 - w_up) * lo1, w_up * up0 + (1 - w_up) * lo0
 
 
@@ -138,7 +139,7 @@ def _hildebrandt(theta, spec, domain, length, branch) -> Coefficients:
     """Hildebrandt, eq. 20: F = p sum_{j<=2} c_j L^j - (sum_{j<=3} d_j L^j + d4 L^(2/3))."""
     c0, c1, c2, d0, d1, d2, d3, d4 = theta
     area = c0 + c1 * length + c2 * length**2
-    counter = d0 + d1 * length + d2 * length**2 + d3 * length**3 + d4 * np.cbrt(length) ** 2
+    counter = d0 + d1 * length + d2 * length**2 + d3 * length**3 + d4 * ew.cbrt(length) ** 2
     return _zeros(length), area, -counter
 
 
@@ -162,11 +163,10 @@ def _martens(theta, spec, domain, length, branch) -> Coefficients:
     c0, c1, c2, c3, d0 = theta
     angle = spec.fiber_angle + d0
     modulus = ((c3 * length + c2) * length + c1) * length + c0
-    dia = geo.diameter(spec, length, angle)
+    dia, dia_slope, volume_slope = geo.braid(spec, length, angle)
     f_pe = modulus * (dia - spec.inner_diameter) / spec.inner_diameter * spec.membrane_thickness * length * math.pi
     f_l = modulus * (length - spec.nominal_length) / spec.nominal_length * spec.membrane_thickness * math.pi * dia
-    q0 = f_pe * geo.diameter_slope(spec, length, angle) - f_l
-    return _zeros(length), -geo.volume_slope(spec, length, angle), q0
+    return _zeros(length), -volume_slope, f_pe * dia_slope - f_l
 
 
 _BIG = 1e12

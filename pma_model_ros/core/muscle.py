@@ -2,7 +2,8 @@
 
 All quantities are SI: lengths in m, angles in rad, pressures in Pa (gauge).
 The geometry functions take a :class:`MuscleSpec` or any object with its numeric
-fields as arrays (one entry per muscle, see :mod:`pma_model_ros.core.muscle_bank`).
+fields as arrays (one entry per muscle, see :mod:`pma_model_ros.core.muscle_bank`), and
+lengths as arrays or one float (:mod:`pma_model_ros.core.elementwise`).
 """
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ import sys
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from . import elementwise as ew
 
 
 @dataclass(frozen=True)
@@ -84,36 +87,41 @@ def _as_float(key: str, value: object) -> float:
 def fiber_length(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
     """Constant fibre length L_Fiber = L0 / cos(Theta0) [m] (eq. 3)."""
     theta = spec.fiber_angle if fiber_angle is None else fiber_angle
-    return spec.nominal_length / np.cos(theta)
+    return spec.nominal_length / ew.cos(theta)
 
 
 def turns(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
     """Number of fibre turns n = L0 tan(Theta0) / (pi D0) [-] (eq. 3)."""
     theta = spec.fiber_angle if fiber_angle is None else fiber_angle
-    return spec.nominal_length * np.tan(theta) / (math.pi * spec.inner_diameter)
+    return spec.nominal_length * ew.tan(theta) / (math.pi * spec.inner_diameter)
+
+
+def braid(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> tuple:
+    """Inner diameter D(L) = sqrt(L_Fiber^2 - L^2) / (n pi) [m] (eq. 2), its slope dD/dL [-], and the
+    volume slope dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2] (derivative of eq. 4), sharing one root."""
+    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
+    length = ew.asarray(length)
+    root = ew.sqrt(lf**2 - length**2)
+    return root / (n * math.pi), -length / (n * math.pi * root), (lf**2 - 3 * length**2) / (4 * math.pi * n**2)
 
 
 def diameter(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
-    """Inner diameter D(L) = sqrt(L_Fiber^2 - L^2) / (n pi) [m] (eq. 2)."""
-    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
-    return np.sqrt(lf**2 - np.asarray(length, float) ** 2) / (n * math.pi)
+    """Inner diameter D(L) [m] (eq. 2); see :func:`braid`."""
+    return braid(spec, length, fiber_angle)[0]
 
 
 def volume(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
     """Cylinder volume V(L) = (L L_Fiber^2 - L^3) / (4 pi n^2) [m^3] (eqs. 1 and 4)."""
     lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
-    length = np.asarray(length, float)
+    length = ew.asarray(length)
     return (length * lf**2 - length**3) / (4 * math.pi * n**2)
 
 
 def volume_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
-    """dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2], derivative of eq. 4."""
-    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
-    return (lf**2 - 3 * np.asarray(length, float) ** 2) / (4 * math.pi * n**2)
+    """dV/dL [m^2], derivative of eq. 4; see :func:`braid`."""
+    return braid(spec, length, fiber_angle)[2]
 
 
 def diameter_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
-    """dD/dL = -L / (n pi sqrt(L_Fiber^2 - L^2)) [-], derivative of eq. 2."""
-    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
-    length = np.asarray(length, float)
-    return -length / (n * math.pi * np.sqrt(lf**2 - length**2))
+    """dD/dL [-], derivative of eq. 2; see :func:`braid`."""
+    return braid(spec, length, fiber_angle)[1]

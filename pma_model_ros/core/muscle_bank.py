@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .models import Model
-from .muscle_model import Evaluator, ForceResult, MuscleModel, PressureResult
+from .muscle_model import Evaluator, ForceResult, MuscleModel, Operating, PressureResult, force_at
 
 
 @dataclass(frozen=True)
@@ -77,20 +77,29 @@ class MuscleBank:
         for i, muscle in enumerate(self.muscles):
             by_model.setdefault(muscle.model.name, []).append(i)
         self.groups = tuple(ModelGroup.of(index, [self.muscles[i] for i in index]) for index in by_model.values())
+        self.max_pressure = np.array([m.spec.max_pressure for m in self.muscles])   #: (N,) rated gauge pressures [Pa]
+        self.max_length = np.array([m.max_length for m in self.muscles])           #: (N,) fibre lengths [m] (eq. 3)
 
     def __len__(self) -> int:
         return len(self.muscles)
 
+    def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
+        """Length-dependent coefficients and flags of every muscle (one call per model); see :meth:`Evaluator.operating`."""
+        L, _, rate = self._inputs(length, length, length_rate)
+        parts = [(g.index, g.operating(L[..., g.index], rate[..., g.index])) for g in self.groups]
+        if len(parts) == 1:
+            return parts[0][1]
+        out = Operating(np.empty(L.shape, bool), np.empty(L.shape, np.uint16), np.empty(L.shape), np.empty(L.shape),
+                        np.empty(L.shape), self.max_pressure)
+        for index, part in parts:
+            for name in ("usable", "flags", "q2", "q1", "q0"):
+                getattr(out, name)[..., index] = getattr(part, name)
+        return out
+
     def force(self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> ForceResult:
         """Tension [N] of every muscle at gauge pressure [Pa] and length [m]; see :meth:`MuscleModel.force`."""
         p, L, rate = self._inputs(pressure, length, length_rate)
-        results = [(g.index, g.force(p[..., g.index], L[..., g.index], rate[..., g.index])) for g in self.groups]
-        if len(results) == 1:
-            return results[0][1]
-        out = ForceResult(np.empty(p.shape), np.empty(p.shape), np.empty(p.shape, np.uint16))
-        for index, result in results:
-            out.force[..., index], out.raw[..., index], out.flags[..., index] = result.force, result.raw, result.flags
-        return out
+        return force_at(self.operating(L, rate), p)
 
     def pressure(self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> PressureResult:
         """Gauge pressure [Pa] giving tension ``force`` [N] at ``length`` [m]; see :meth:`MuscleModel.pressure`."""

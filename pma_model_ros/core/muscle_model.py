@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from . import muscle as geo
 from .flags import Flag
-from .models import Domain, Model, force_raw
+from .models import Domain, Model
 from .muscle import MuscleSpec
 
 
@@ -33,6 +34,39 @@ class PressureResult:
     flags: np.ndarray      #: uint16 Flag words
 
 
+_INVALID, _LENGTH_OUT, _PRESSURE_OUT, _CLIPPED, _BRANCH_UNKNOWN = (
+    int(f) for f in (Flag.INVALID_INPUT, Flag.LENGTH_OUT_OF_RANGE, Flag.PRESSURE_OUT_OF_RANGE, Flag.CLIPPED,
+                     Flag.BRANCH_UNKNOWN))
+
+
+@dataclass(frozen=True)
+class Operating:
+    """What the force at given lengths needs besides the pressure: F_raw = (q2 p + q1) p + q0 at the operating length.
+
+    ``usable`` is False where the length is no length of the muscle (INVALID_INPUT in ``flags``);
+    ``flags`` also holds LENGTH_OUT_OF_RANGE and BRANCH_UNKNOWN.
+    """
+
+    usable: np.ndarray
+    flags: np.ndarray        #: uint16 Flag words of the length and branch
+    q2: np.ndarray           #: [N/Pa^2]
+    q1: np.ndarray           #: [N/Pa]
+    q0: np.ndarray           #: [N]
+    max_pressure: np.ndarray | float   #: rated gauge pressure [Pa]
+
+
+def force_at(op: Operating, pressure: ArrayLike) -> ForceResult:
+    """Tension [N] at gauge ``pressure`` [Pa] (broadcast against ``op``); the pressure held to [0, max_pressure]."""
+    p = np.asarray(pressure, float)
+    with np.errstate(invalid="ignore", over="ignore"):
+        usable = op.usable & np.isfinite(p)
+        p_op = np.clip(p, 0.0, op.max_pressure)
+        raw = np.where(usable, (op.q2 * p_op + op.q1) * p_op + op.q0, np.nan)
+        flags = np.where(usable, op.flags | np.where(p_op != p, _PRESSURE_OUT, 0) | np.where(raw < 0, _CLIPPED, 0),
+                         op.flags | _INVALID).astype(np.uint16)
+        return ForceResult(np.maximum(raw, 0.0), raw, flags)
+
+
 class Evaluator:
     """Force and inverse of ``model`` with ``theta``, ``spec``, ``domain`` and ``max_length``.
 
@@ -46,48 +80,40 @@ class Evaluator:
     domain: Domain
     max_length: float
 
-    def _length_flags(self, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(usable mask, flags) for lengths: geometry needs 0 < L < max_length."""
-        usable = np.isfinite(length) & (length > 0) & (length < self.max_length)
-        flags = np.where(usable, 0, Flag.INVALID_INPUT).astype(np.uint16)
-        outside = usable & ((length < self.domain.length_min) | (length > self.domain.length_max)
-                            | (length > self.spec.nominal_length))
-        flags[outside] |= np.uint16(Flag.LENGTH_OUT_OF_RANGE)
-        return usable, flags
+    def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
+        """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see :class:`Operating`).
 
-    def _operating_length(self, length: np.ndarray, usable: np.ndarray) -> np.ndarray:
-        """Length [m] the model is evaluated at: held inside the identified range, never extrapolated."""
+        The geometry needs 0 < L < max_length (else INVALID_INPUT).  The model is evaluated at the length
+        held inside the identified range, never extrapolated (LENGTH_OUT_OF_RANGE where that moved it).
+        ``length_rate`` [m/s] picks the hysteresis branch (+1 lengthening, -1 shortening, 0 unknown:
+        BRANCH_UNKNOWN).  Computed once per new length and reused for every pressure at it (:func:`force_at`).
+        """
+        L = np.asarray(length, float)
         top = np.minimum(self.domain.length_max, self.spec.nominal_length)
-        return np.where(usable, np.clip(length, self.domain.length_min, top), top)
-
-    def _branch(self, length_rate: ArrayLike | None, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """Hysteresis branch (+1 lengthening, -1 shortening, 0 unknown) and its flags."""
-        rate = np.zeros(shape) if length_rate is None else np.broadcast_to(np.asarray(length_rate, float), shape)
-        branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
-        unknown = (branch == 0) if self.model.hysteresis else np.zeros(shape, bool)
-        return branch, np.where(unknown, Flag.BRANCH_UNKNOWN, 0).astype(np.uint16)
+        with np.errstate(invalid="ignore", over="ignore"):
+            usable = (L > 0) & (L < self.max_length)   # False for NaN
+            at = np.where(usable, np.clip(L, self.domain.length_min, top), top)
+            flags = np.where(usable, np.where(at != L, _LENGTH_OUT, 0), _INVALID)
+            branch = 0.0
+            if self.model.hysteresis:
+                if length_rate is not None:
+                    rate = np.asarray(length_rate, float)
+                    branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
+                flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN, 0)
+            q2, q1, q0 = self.model.coefficients(self.theta, self.spec, self.domain, at, branch)
+        if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
+            q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
+        return Operating(usable, flags.astype(np.uint16), q2, q1, q0, self.spec.max_pressure)
 
     def force(self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> ForceResult:
         """Tension [N] at gauge pressure [Pa] and length [m]; ``length_rate`` [m/s] picks the hysteresis branch.
 
-        Never extrapolated: outside the identified length range (LENGTH_OUT_OF_RANGE)
-        or the rated pressures (PRESSURE_OUT_OF_RANGE) the force is the model's
+        Never extrapolated: outside the identified length range (LENGTH_OUT_OF_RANGE, :meth:`operating`)
+        or the rated pressures (PRESSURE_OUT_OF_RANGE, :func:`force_at`) the force is the model's
         at the nearest point of the domain, so it stays within the muscle's own bounds.
         """
         p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
-        usable, flags = self._length_flags(L)
-        usable &= np.isfinite(p)
-        branch, branch_flags = self._branch(length_rate, p.shape)
-        flags |= branch_flags
-        flags[~usable] |= np.uint16(Flag.INVALID_INPUT)
-        flags[usable & ((p < 0) | (p > self.spec.max_pressure))] |= np.uint16(Flag.PRESSURE_OUT_OF_RANGE)
-        p_op = np.where(usable, np.clip(p, 0.0, self.spec.max_pressure), 0.0)
-        with np.errstate(invalid="ignore", over="ignore"):
-            raw = force_raw(self.model, self.theta, self.spec, self.domain, p_op, self._operating_length(L, usable),
-                            branch)
-        raw = np.where(usable, raw, np.nan)
-        flags[usable & (raw < 0)] |= np.uint16(Flag.CLIPPED)
-        return ForceResult(np.where(usable, np.maximum(raw, 0.0), np.nan), raw, flags)
+        return force_at(self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)), p)
 
     def pressure(self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> PressureResult:
         """Gauge pressure [Pa] that gives tension ``force`` [N] at ``length`` [m].
@@ -98,17 +124,13 @@ class Evaluator:
         muscle starts to pull; a force out of reach gives the bound, flagged SATURATED.
         """
         F, L = np.broadcast_arrays(np.asarray(force, float), np.asarray(length, float))
-        usable, flags = self._length_flags(L)
-        usable &= np.isfinite(F)
-        branch, branch_flags = self._branch(length_rate, F.shape)
-        flags |= branch_flags
-        flags[~usable] |= np.uint16(Flag.INVALID_INPUT)
-        safe_L = self._operating_length(L, usable)
+        op = self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape))
+        usable = op.usable & np.isfinite(F)
+        flags = np.array(np.where(usable, op.flags, op.flags | _INVALID), np.uint16)
         target = np.where(usable, np.maximum(F, 0.0), 0.0)
         p_max = self.spec.max_pressure
+        q2, q1, q0 = op.q2, op.q1, op.q0
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            q2, q1, q0 = self.model.coefficients(self.theta, self.spec, self.domain, safe_L, branch)
-            q2, q1, q0 = np.broadcast_arrays(q2, q1, q0)
             disc = q1**2 - 4 * q2 * (q0 - target)
             denom = q1 + np.sqrt(np.maximum(disc, 0.0))
             p = 2 * (target - q0) / denom
@@ -140,3 +162,25 @@ class MuscleModel(Evaluator):
     def max_length(self) -> float:
         """Longest length the geometry can take, the fibre length L0 / cos(Theta0) [m] (eq. 3)."""
         return float(geo.fiber_length(self.spec))
+
+    @cached_property
+    def _theta(self) -> tuple[float, ...]:
+        """The parameters as plain floats (for :meth:`operating_one`)."""
+        return tuple(self.theta.tolist())
+
+    def operating_one(self, length: float, length_rate: float) -> tuple[int, float, float, float]:
+        """:meth:`operating` of one valid length [m] (0 < L < max_length) in plain floats: (flags, q2, q1, q0).
+
+        The float twin of the vector rule, for one message at a time, where numpy's per-call
+        overhead would cost more than the arithmetic; ``length_rate`` NaN: unknown.
+        """
+        flags = 0
+        top = min(self.domain.length_max, self.spec.nominal_length)
+        if length < self.domain.length_min or length > top:
+            flags = _LENGTH_OUT
+        branch = math.copysign(1.0, length_rate) if length_rate and math.isfinite(length_rate) else 0.0
+        if branch == 0.0 and self.model.hysteresis:
+            flags |= _BRANCH_UNKNOWN
+        operating = min(max(length, self.domain.length_min), top)
+        q2, q1, q0 = self.model.coefficients(self._theta, self.spec, self.domain, operating, branch)
+        return flags, float(q2), float(q1), float(q0)

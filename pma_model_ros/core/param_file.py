@@ -20,7 +20,7 @@ from pathlib import Path
 
 import yaml
 
-from .estimator import Config
+from .engine import STANDARD_ATMOSPHERE, Config
 from .force_map import load_yaml_mapping, read_user_file
 from .identification import Fit, ModelReport
 from .models import Domain, get_model
@@ -29,7 +29,7 @@ from .muscle_model import MuscleModel
 
 _ROUND = 12  # significant digits written; far below any fit's resolution
 #: Node settings written into generated files, beside the muscle (documented in the README).
-NODE_DEFAULTS = {"ambient_pressure": 101325.0, "max_input_age": 0.1}
+NODE_DEFAULTS = {"ambient_pressure": STANDARD_ATMOSPHERE, "max_input_age": 0.1}
 
 
 @dataclass(frozen=True)
@@ -112,3 +112,30 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
     config = Config(muscle, ambient, max_age)
     joint = str(parameters.get("joint_name") or muscle.spec.name)
     return NodeSettings(config, joint, str(parameters.get("frame_id") or joint))
+
+
+def all_node_settings(parameters: dict, model: str | None = None) -> list[NodeSettings]:
+    """Every muscle's settings from ``ros__parameters`` (nested): one muscle, or one per name of ``muscles``.
+
+    Muscle ``<name>`` reads the block ``<name>:`` plus the node-wide settings; its joint name defaults to
+    ``<name>``.  ValueError names the muscle and the problem.
+    """
+    names = parameters.get("muscles") or []
+    if not names:
+        return [node_settings(parameters, model)]
+    if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+        raise ValueError(f"muscles must be a list of names, got {names!r}")
+    common = {key: parameters[key] for key in NODE_DEFAULTS if key in parameters}
+    result = []
+    for name in names:
+        own = parameters.get(name)
+        if not isinstance(own, dict):
+            raise ValueError(f"muscle '{name}': no parameters under '{name}:'")
+        try:
+            result.append(node_settings(common | own | {"joint_name": own.get("joint_name") or name}, model))
+        except ValueError as err:
+            raise ValueError(f"muscle '{name}': {err}") from None
+    joints = [s.joint_name for s in result]
+    if len(set(joints)) != len(joints):
+        raise ValueError(f"two muscles share a joint_name: {joints}")
+    return result

@@ -7,20 +7,17 @@ tension [N]); publishes ``force_estimate`` (WrenchStamped, force.x = tension [N]
 ``pressure_command`` (FluidPressure, absolute Pa) and ``/diagnostics``.
 
 Many muscles (``muscles: [a, b, ...]``, each one's parameters under ``<name>.``): the same
-topics under ``<name>/`` (``input_mode: per_muscle``), or (``input_mode: combined``) one
-``muscle_states`` JointState with every length, one ``muscle_pressures`` JointState with every
-absolute pressure [Pa] in ``position``, answered by one ``force_estimates`` JointState
-(effort = tension [N]), all muscles evaluated in one vectorised call per model
-(:class:`~pma_model_ros.core.muscle_bank.MuscleBank`); commands come in one ``force_commands``
-JointState (effort = wanted tension [N]) and go out in one ``pressure_commands`` JointState
-(position = absolute pressure [Pa]).  The decisions live in :mod:`pma_model_ros.core.estimator`,
-one Estimator per muscle.
+topics under ``<name>/`` (``input_mode: per_muscle``, :class:`MuscleTopics`), or
+(``input_mode: combined``, :class:`CombinedTopics`) one ``muscle_states`` JointState with every
+length, one ``muscle_pressures`` JointState with every absolute pressure [Pa] in ``position``,
+answered by one ``force_estimates`` JointState (effort = tension [N]); commands come in one
+``force_commands`` JointState (effort = wanted tension [N]) and go out in one ``pressure_commands``
+JointState (position = absolute pressure [Pa]).  Every decision is the
+:class:`~pma_model_ros.core.engine.Engine`'s; the two adapters only turn messages into its calls.
 """
 from __future__ import annotations
 
-from functools import partial, reduce
-from itertools import islice
-import operator
+from functools import partial
 import sys
 from typing import Sequence
 
@@ -34,16 +31,12 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.estimator import WARN_FLAGS, Estimate, Estimator, Pair, joint_problem
-from ..core.muscle_bank import MuscleBank
+from ..core.engine import Engine, JointIndex
 from ..core.param_file import NodeSettings
 from . import model_params
-from .ros_time import now_seconds, seconds
 from .startup import StartupError, run
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
-#: Flags after which a muscle's diagnostic level may have risen (checked at once, not at the next report).
-WARN_MASK = int(reduce(operator.or_, WARN_FLAGS))
 
 #: Inputs: sensor-data QoS (best effort, volatile) with a queue of 100 instead of 5 (0.1 s at 1 kHz): a
 #: briefly stalled node catches up, and inputs older than max_input_age are counted stale (ERROR),
@@ -51,77 +44,34 @@ WARN_MASK = int(reduce(operator.or_, WARN_FLAGS))
 INPUT_QOS = QoSProfile(depth=100, reliability=qos_profile_sensor_data.reliability,
                        durability=qos_profile_sensor_data.durability, history=qos_profile_sensor_data.history)
 
-class JointIndex:
-    """Where each joint sits in the arrays of a JointState; the last valid name layout is cached."""
-
-    def __init__(self, joints: Sequence[str]) -> None:
-        self.joints = list(joints)
-        self._names: list[str] | None = None
-        self._index: list[int | str] = []
-
-    def of(self, names: list[str], values: Sequence[float], velocities: Sequence[float]) -> list[int | str]:
-        """Per joint, its index in ``values``, or why it has none (:func:`joint_problem`)."""
-        if names == self._names:   # same layout as before: every joint is there; only array sizes can differ
-            problem = joint_problem(names, values, velocities, self.joints[0])
-            return [problem] * len(self.joints) if problem else self._index
-        index = [joint_problem(names, values, velocities, joint) or names.index(joint) for joint in self.joints]
-        if all(isinstance(i, int) for i in index):
-            self._names, self._index = list(names), index
-        return index
-
 
 class ModelNode(Node):
-    """Thin ROS shell around one :class:`Estimator` per muscle and one :class:`MuscleBank`."""
+    """Thin ROS shell around one :class:`Engine` for all its muscles; topics by the input mode's adapter."""
 
-    def __init__(self) -> None:
-        super().__init__("model_node")
+    def __init__(self, **kwargs) -> None:
+        super().__init__("model_node", **kwargs)
         try:
-            self._names, self._mode = model_params.declare(self)
-            self._settings = model_params.all_settings(model_params.values(self), self._names)
+            self._names, mode = model_params.declare(self)
+            flat = model_params.values(self)
+            self.settings = model_params.all_settings(flat, self._names)
+            self.engine = Engine([s.config for s in self.settings], hold=DIAGNOSTIC_PERIOD,
+                                 **model_params.pairing(flat))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
-        self._estimators = [Estimator(s.config, hold=DIAGNOSTIC_PERIOD) for s in self._settings]
-        self._use(self._settings)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
-
-        sensor = INPUT_QOS
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        if self._mode == "combined":   # few entities: an executor's cost per wake grows with their number
-            self._states_pub = self.create_publisher(JointState, "force_estimates", 10)
-            self._commands_pub = self.create_publisher(JointState, "pressure_commands", 10)
-            self.create_subscription(JointState, "muscle_pressures", self._on_pressures, sensor)
-            self.create_subscription(JointState, "muscle_states", self._on_states, sensor)
-            self.create_subscription(JointState, "force_commands", self._on_commands, 10)
-        else:
-            prefixes = [f"{name}/" for name in self._names] or [""]
-            self._estimate_pubs = [self.create_publisher(WrenchStamped, f"{p}force_estimate", 10) for p in prefixes]
-            self._estimate_msgs = [WrenchStamped() for _ in prefixes]
-            self._command_pubs = [self.create_publisher(FluidPressure, f"{p}pressure_command", 10) for p in prefixes]
-            for k, prefix in enumerate(prefixes):
-                self.create_subscription(FluidPressure, f"{prefix}pressure", partial(self._on_pressure, k), sensor)
-                self.create_subscription(JointState, f"{prefix}muscle_state", partial(self._on_state, k), sensor)
-                self.create_subscription(WrenchStamped, f"{prefix}force_command", partial(self._on_command, k), 10)
-        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self._publish_status(now_seconds(self)))
+        self._ros_clock = self.get_clock().handle   # see now()
+        self.topics = (CombinedTopics if mode == "combined" else MuscleTopics)(self, self._names)
+        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
         muscles = [f"{s.config.model.spec.name} with model {s.config.model.model.name}, joint '{s.joint_name}'"
-                   for s in self._settings]
-        self.get_logger().info(muscles[0] if not self._names else f"{len(muscles)} muscles, {self._mode}: "
+                   for s in self.settings]
+        self.get_logger().info(muscles[0] if not self._names else f"{len(muscles)} muscles, {mode}: "
                                + "; ".join(muscles))
 
-    def _use(self, settings: list[NodeSettings]) -> None:
-        """Swap in new settings: each estimator's config; in combined mode the bank, joint layout and output."""
-        self._settings = settings
-        for estimator, s in zip(self._estimators, settings):
-            estimator.config = s.config   # one immutable object per muscle: atomic swap
-        if self._mode != "combined":
-            return
-        self._bank = MuscleBank([s.config.model for s in settings])
-        joints = [s.joint_name for s in settings]
-        self._pressure_index, self._state_index = JointIndex(joints), JointIndex(joints)
-        n = len(settings)
-        self._idle = [(0.0, s.config.model.domain.length_max, None) for s in settings]
-        self._estimates_msg = JointState(name=joints, effort=[0.0] * n)
-        self._effort_view = np.frombuffer(self._estimates_msg.effort, dtype=float)   # writes into the message
+    def now(self) -> float:
+        """The node clock (ROS time; sim time with use_sim_time) [s], read without building an rclpy Time."""
+        return self._ros_clock.get_now().nanoseconds * 1e-9
 
     def _validate(self, changes: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the whole would-be parameter set builds every muscle."""
@@ -134,116 +84,22 @@ class ModelNode(Node):
         return SetParametersResult(successful=True)
 
     def _apply(self, _changes: list[Parameter]) -> None:
-        self._use(model_params.all_settings(model_params.values(self), self._names))
+        settings = model_params.all_settings(model_params.values(self), self._names)
+        self.engine.configure([s.config for s in settings])
+        self.settings = settings
+        self.topics.use(settings)
 
-    # one muscle per message: per_muscle topics (and the one-muscle node)
+    def check_status(self, now: float, k: int | None = None) -> None:
+        """Publish the diagnostics at once if a level (muscle ``k``'s, or any) changed since the last report."""
+        if self.engine.status_due(now, k):
+            self.publish_status(now)
 
-    def _on_pressure(self, k: int, msg: FluidPressure) -> None:
-        now = now_seconds(self)
-        estimator = self._estimators[k]
-        pair = estimator.pressure(msg.fluid_pressure, seconds(msg.header.stamp), now, msg.header.stamp)
-        self._publish_estimate(k, estimator.estimate(pair, now))
-        self._check_level(k, now)
-
-    def _on_state(self, k: int, msg: JointState) -> None:
-        now = now_seconds(self)
-        estimator = self._estimators[k]
-        pair = estimator.joint_state(msg.name, msg.position, msg.velocity, self._settings[k].joint_name,
-                                     seconds(msg.header.stamp), now, msg.header.stamp)
-        self._publish_estimate(k, estimator.estimate(pair, now))
-        self._check_level(k, now)
-
-    def _publish_estimate(self, k: int, estimate: Estimate | None) -> None:
-        if estimate is None:
-            return
-        msg = self._estimate_msgs[k]
-        msg.header.stamp = estimate.tag
-        msg.header.frame_id = self._settings[k].frame_id
-        msg.wrench.force.x = estimate.force
-        self._estimate_pubs[k].publish(msg)
-
-    def _on_command(self, k: int, msg: WrenchStamped) -> None:
-        now = now_seconds(self)
-        command = self._estimators[k].command(msg.wrench.force.x, now)
-        if command is not None:
-            out = FluidPressure(fluid_pressure=command.pressure)
-            out.header.stamp = self.get_clock().now().to_msg()
-            out.header.frame_id = self._settings[k].frame_id
-            self._command_pubs[k].publish(out)
-        self._check_level(k, now)
-
-    # all muscles per message: the combined mode
-
-    def _on_pressures(self, msg: JointState) -> None:
-        now, stamp, tag, values = now_seconds(self), seconds(msg.header.stamp), msg.header.stamp, msg.position
-        self._answer([estimator.pressure(values[i], stamp, now, tag) if isinstance(i, int)
-                      else estimator.reject("pressure", i, now)
-                      for estimator, i in zip(self._estimators, self._pressure_index.of(msg.name, values, ()))], now)
-
-    def _on_states(self, msg: JointState) -> None:
-        now, stamp, tag = now_seconds(self), seconds(msg.header.stamp), msg.header.stamp
-        values, rates = msg.position, msg.velocity
-        has_rates = len(rates) > 0
-        self._answer([estimator.length(values[i], rates[i] if has_rates else None, stamp, now, tag)
-                      if isinstance(i, int) else estimator.reject("muscle_state", i, now)
-                      for estimator, i in zip(self._estimators, self._state_index.of(msg.name, values, rates))], now)
-
-    def _answer(self, pairs: list[Pair | None], now: float) -> None:
-        """Evaluate every muscle's pair in one bank call, accept each, publish one force_estimates."""
-        rows = [pair or idle for pair, idle in zip(pairs, self._idle)]   # idle: valid inputs, result unused
-        gauge, length, rate = (np.array(column, dtype=float) for column in islice(zip(*rows), 3))  # None: NaN
-        result = self._bank.force(gauge, length, rate)
-        accepted = [None if pair is None else estimator.accept(pair, force, flags, now) for estimator, pair, force, flags
-                    in zip(self._estimators, pairs, result.force.tolist(), result.flags.tolist())]
-        if any(e is not None for e in accepted):
-            self._states_pub.publish(self._estimates(accepted, result.force))
-        if any(self._estimators[k].status_due(now) for k, (estimate, flags)
-               in enumerate(zip(accepted, result.flags.tolist())) if estimate is None or flags & WARN_MASK):
-            self._publish_status(now)
-
-    def _on_commands(self, msg: JointState) -> None:
-        """Pressure commands of the muscles named in ``msg`` (the others are not commanded)."""
-        now, names, forces = now_seconds(self), msg.name, msg.effort
-        problem = "" if len(forces) == len(names) else f"mismatched arrays: {len(names)} names, {len(forces)} efforts"
-        out = JointState()
-        changed = False
-        for k, (estimator, s) in enumerate(zip(self._estimators, self._settings)):
-            if s.joint_name not in names:
-                continue
-            if problem:
-                estimator.reject("force_command", problem, now)
-            elif (command := estimator.command(forces[names.index(s.joint_name)], now)) is not None:
-                out.name.append(s.joint_name)
-                out.position.append(command.pressure)
-            changed |= estimator.status_due(now)
-        if out.name:
-            out.header.stamp = self.get_clock().now().to_msg()
-            self._commands_pub.publish(out)
-        if changed:
-            self._publish_status(now)
-
-    def _estimates(self, accepted: list[Estimate | None], forces: np.ndarray) -> JointState:
-        """The force_estimates message of each muscle's estimate (None: none): the prebuilt one when all have one."""
-        if None not in accepted:
-            msg = self._estimates_msg
-            self._effort_view[:] = forces
-        else:
-            msg = JointState(name=[s.joint_name for s, e in zip(self._settings, accepted) if e is not None],
-                             effort=[e.force for e in accepted if e is not None])
-        msg.header.stamp = max((e for e in accepted if e is not None), key=operator.attrgetter("stamp")).tag
-        return msg
-
-    # diagnostics: one status per muscle in one array
-
-    def _check_level(self, k: int, now: float) -> None:
-        if self._estimators[k].status_due(now):
-            self._publish_status(now)
-
-    def _publish_status(self, now: float) -> None:
+    def publish_status(self, now: float) -> None:
+        """One DiagnosticStatus per muscle in one DiagnosticArray."""
         node = self.get_fully_qualified_name()
         statuses = []
-        for k, (estimator, s) in enumerate(zip(self._estimators, self._settings)):
-            status = estimator.status(now)
+        for k, s in enumerate(self.settings):
+            status = self.engine.status(k, now)
             statuses.append(DiagnosticStatus(
                 level=bytes([status.level]), name=f"{node}: {s.joint_name}", message=status.message,
                 hardware_id=s.config.model.spec.name,
@@ -251,6 +107,130 @@ class ModelNode(Node):
         msg = DiagnosticArray(status=statuses)
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
+
+
+class MuscleTopics:
+    """``pressure``, ``muscle_state``, ``force_command`` in and ``force_estimate``, ``pressure_command`` out,
+    per muscle (under ``<name>/`` with several): each message is one call of the engine's one-muscle path."""
+
+    def __init__(self, node: ModelNode, names: Sequence[str]) -> None:
+        self.node, self.engine = node, node.engine
+        prefixes = [f"{name}/" for name in names] or [""]
+        self._estimate_pubs = [node.create_publisher(WrenchStamped, f"{p}force_estimate", 10) for p in prefixes]
+        self._estimate_msgs = [WrenchStamped() for _ in prefixes]
+        self._command_pubs = [node.create_publisher(FluidPressure, f"{p}pressure_command", 10) for p in prefixes]
+        for k, prefix in enumerate(prefixes):
+            node.create_subscription(FluidPressure, f"{prefix}pressure", partial(self._on_pressure, k), INPUT_QOS)
+            node.create_subscription(JointState, f"{prefix}muscle_state", partial(self._on_state, k), INPUT_QOS)
+            node.create_subscription(WrenchStamped, f"{prefix}force_command", partial(self._on_command, k), 10)
+        self.use(node.settings)
+
+    def use(self, settings: list[NodeSettings]) -> None:
+        self._joints = [s.joint_name for s in settings]
+        for msg, s in zip(self._estimate_msgs, settings):
+            msg.header.frame_id = s.frame_id
+
+    def _on_pressure(self, k: int, msg: FluidPressure) -> None:
+        now, stamp = self.node.now(), msg.header.stamp
+        force = self.engine.pressure(k, msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+        self._answer(k, force, now)
+
+    def _on_state(self, k: int, msg: JointState) -> None:
+        now, stamp = self.node.now(), msg.header.stamp
+        force = self.engine.joint_state(k, msg.name, msg.position, msg.velocity, self._joints[k],
+                                        stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+        self._answer(k, force, now)
+
+    def _answer(self, k: int, force: float | None, now: float) -> None:
+        if force is not None:
+            msg = self._estimate_msgs[k]
+            msg.header.stamp = self.engine.tag
+            msg.wrench.force.x = force
+            self._estimate_pubs[k].publish(msg)
+        self.node.check_status(now, k)
+
+    def _on_command(self, k: int, msg: WrenchStamped) -> None:
+        now = self.node.now()
+        pressure = self.engine.command(k, msg.wrench.force.x, now)
+        if pressure is not None:
+            out = FluidPressure(fluid_pressure=pressure)
+            out.header.stamp = self.node.get_clock().now().to_msg()
+            out.header.frame_id = self.node.settings[k].frame_id
+            self._command_pubs[k].publish(out)
+        self.node.check_status(now, k)
+
+
+class CombinedTopics:
+    """``muscle_pressures``, ``muscle_states``, ``force_commands`` in and ``force_estimates``, ``pressure_commands``
+    out, each a JointState of every muscle: each message is one vectorised call of the engine."""
+
+    def __init__(self, node: ModelNode, names: Sequence[str]) -> None:
+        self.node, self.engine = node, node.engine
+        self._states_pub = node.create_publisher(JointState, "force_estimates", 10)
+        self._commands_pub = node.create_publisher(JointState, "pressure_commands", 10)
+        node.create_subscription(JointState, "muscle_pressures", self._on_pressures, INPUT_QOS)
+        node.create_subscription(JointState, "muscle_states", self._on_states, INPUT_QOS)
+        node.create_subscription(JointState, "force_commands", self._on_commands, 10)
+        self.use(node.settings)
+
+    def use(self, settings: list[NodeSettings]) -> None:
+        self._joints = [s.joint_name for s in settings]
+        self._pressure_index, self._state_index = JointIndex(self._joints), JointIndex(self._joints)
+        self._all = JointState(name=self._joints, effort=[0.0] * len(self._joints))   # every muscle answered
+        self._effort = np.frombuffer(self._all.effort, dtype=float)                    # writes into that message
+
+    def _absent(self, source: str, present: np.ndarray | None, problems: list[str], now: float) -> None:
+        if present is not None:
+            for k, problem in zip(np.flatnonzero(~present).tolist(), problems):
+                self.engine.reject(k, source, problem, now)
+
+    def _on_pressures(self, msg: JointState) -> None:
+        now, stamp, values = self.node.now(), msg.header.stamp, msg.position
+        take, present, problems = self._pressure_index.of(msg.name, values, ())
+        self._absent("pressure", present, problems, now)
+        column = np.frombuffer(values, float)[take] if present is None or present.any() else np.zeros(len(take))
+        self._answer(self.engine.pressures(column, stamp.sec + stamp.nanosec * 1e-9, now, stamp, present), now)
+
+    def _on_states(self, msg: JointState) -> None:
+        now, stamp, values, rates = self.node.now(), msg.header.stamp, msg.position, msg.velocity
+        take, present, problems = self._state_index.of(msg.name, values, rates)
+        self._absent("muscle_state", present, problems, now)
+        column = np.frombuffer(values, float)[take] if present is None or present.any() else np.zeros(len(take))
+        rate = np.frombuffer(rates, float)[take] if len(rates) == len(values) and len(rates) else None
+        self._answer(self.engine.lengths(column, rate, stamp.sec + stamp.nanosec * 1e-9, now, stamp, present), now)
+
+    def _answer(self, estimated: np.ndarray, now: float) -> None:
+        """One force_estimates of the muscles that got an estimate (the prebuilt message when all did)."""
+        if estimated.all():
+            msg = self._all
+            self._effort[:] = self.engine.forces
+        elif estimated.any():
+            msg = JointState(name=[j for j, e in zip(self._joints, estimated.tolist()) if e],
+                             effort=self.engine.forces[estimated].tolist())
+        else:
+            msg = None
+        if msg is not None:
+            msg.header.stamp = self.engine.newest_tag(estimated)
+            self._states_pub.publish(msg)
+        self.node.check_status(now)
+
+    def _on_commands(self, msg: JointState) -> None:
+        """Pressure commands of the muscles named in ``msg`` (the others are not commanded)."""
+        now, names, forces = self.node.now(), msg.name, msg.effort
+        problem = "" if len(forces) == len(names) else f"mismatched arrays: {len(names)} names, {len(forces)} efforts"
+        out = JointState()
+        for k, joint in enumerate(self._joints):
+            if joint not in names:
+                continue
+            if problem:
+                self.engine.reject(k, "force_command", problem, now)
+            elif (pressure := self.engine.command(k, forces[names.index(joint)], now)) is not None:
+                out.name.append(joint)
+                out.position.append(pressure)
+        if out.name:
+            out.header.stamp = self.node.get_clock().now().to_msg()
+            self._commands_pub.publish(out)
+        self.node.check_status(now)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -22,8 +22,9 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from ..core.engine import PAIRINGS, STANDARD_ATMOSPHERE
 from ..core.models import MODELS, get_model
-from ..core.param_file import NodeSettings, node_settings
+from ..core.param_file import NodeSettings, all_node_settings
 
 DOUBLE, STRING, DOUBLES = Parameter.Type.DOUBLE, Parameter.Type.STRING, Parameter.Type.DOUBLE_ARRAY
 STRINGS = Parameter.Type.STRING_ARRAY
@@ -41,10 +42,17 @@ REQUIRED = {
 }
 #: name: (default, description, (min, max) or None); node-wide.
 OPTIONAL = {
-    "ambient_pressure": (101325.0, "ambient pressure [Pa absolute]; gauge = fluid_pressure - ambient_pressure",
+    "ambient_pressure": (STANDARD_ATMOSPHERE, "ambient pressure [Pa absolute]; gauge = fluid_pressure - ambient_pressure",
                          (0.0, 2e5)),
     "max_input_age": (0.1, "inputs whose stamp differs from the node clock by more than this are stale [s]",
                       (1e-3, 3600.0)),
+}
+#: name: (default, description, (min, max) or None); node-wide, fixed at start-up.
+PAIRING = {
+    "pairing": ("every_input", "when to estimate: every_input (each valid input, with the newest other one) or "
+                "approximate_time (once per new pressure and new length whose stamps lie within pairing_slop)", None),
+    "pairing_slop": (0.0005, "approximate_time: largest stamp difference of a pressure and a length paired [s]",
+                     (0.0, 1.0)),
 }
 #: name: (default, description); per muscle (under ``<name>.`` with ``muscles``).
 NAMING = {
@@ -84,6 +92,8 @@ def declare(node: Node) -> tuple[list[str], str]:
     _check_names(names, mode)
     for name, (default, text, limits) in OPTIONAL.items():
         node.declare_parameter(name, default, _descriptor(text, limits))
+    for name, (default, text, limits) in PAIRING.items():
+        node.declare_parameter(name, default, _descriptor(text, limits, read_only=True))
     for prefix in [f"{name}." for name in names] or [""]:
         _declare_muscle(node, prefix)
     return names, mode
@@ -111,47 +121,32 @@ def _check_names(names: list[str], mode: str) -> None:
         raise ValueError(f"parameter '{MUSCLES}': duplicate names in {names}")
 
 
+def pairing(flat: dict[str, object]) -> dict[str, object]:
+    """The engine's pairing arguments from the node's parameters; ValueError names a bad one."""
+    rule = flat.get("pairing", PAIRING["pairing"][0])
+    if rule not in PAIRINGS:
+        raise ValueError(f"parameter 'pairing': unknown rule {rule!r}; one of {', '.join(PAIRINGS)}")
+    return {"pairing": rule, "slop": float(flat.get("pairing_slop", PAIRING["pairing_slop"][0]))}
+
+
 def values(node: Node) -> dict[str, object]:
     """The node's set parameters as ``{dotted name: plain Python value}``."""
     return {name: plain(p.value) for name, p in node.get_parameters_by_prefix("").items() if p.value is not None}
 
 
-def settings(flat: dict[str, object]) -> NodeSettings:
-    """Validate a would-be one-muscle parameter set; ValueError names the offending parameter."""
-    missing = [name for name in REQUIRED if name not in flat]
-    if missing:
-        raise ValueError(f"parameter '{missing[0]}' is not set (missing from the parameter file?)")
-    try:
-        get_model(flat["model"])
-    except ValueError as err:
-        raise ValueError(f"parameter 'model': {err}") from None
-    return node_settings(_nest(flat))
-
-
 def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings]:
-    """Settings of every muscle of a would-be parameter set (one without ``names``).
-
-    Muscle ``<name>`` reads the parameters under ``<name>.`` plus the node-wide ones;
-    its joint name defaults to ``<name>``.  ValueError names the muscle and parameter.
-    """
-    if not names:
-        return [settings(flat)]
-    common = {key: flat[key] for key in OPTIONAL if key in flat}
-    by_muscle: dict[str, dict[str, object]] = {name: {} for name in names}
-    for key, value in flat.items():
-        head, _, rest = key.partition(".")
-        if head in by_muscle:
-            by_muscle[head][rest] = value
-    result = []
-    for name, own in by_muscle.items():
+    """Settings of every muscle of a would-be parameter set (one without ``names``; see
+    :func:`~pma_model_ros.core.param_file.all_node_settings`).  ValueError names the muscle and parameter."""
+    for prefix in [f"{name}." for name in names] or [""]:
+        where = f"muscle '{prefix[:-1]}': " if prefix else ""
+        missing = [name for name in REQUIRED if prefix + name not in flat]
+        if missing:
+            raise ValueError(f"{where}parameter '{missing[0]}' is not set (missing from the parameter file?)")
         try:
-            result.append(settings(common | own | {"joint_name": own.get("joint_name") or name}))
+            get_model(flat[prefix + "model"])
         except ValueError as err:
-            raise ValueError(f"muscle '{name}': {err}") from None
-    joints = [s.joint_name for s in result]
-    if len(set(joints)) != len(joints):
-        raise ValueError(f"two muscles share a joint_name: {joints}")
-    return result
+            raise ValueError(f"{where}parameter 'model': {err}") from None
+    return all_node_settings(_nest(flat))
 
 
 def plain(value: object) -> object:

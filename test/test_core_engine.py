@@ -1,0 +1,215 @@
+"""The estimation engine: validation, pairing, freshness, commands, diagnostics (no rclpy), and its two entry
+forms (one muscle's input, every muscle's input) making the same decisions."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from conftest import CONFIGS
+from pma_model_ros.core.engine import COUNTERS, Config, Engine, Level
+from pma_model_ros.core.flags import Flag
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
+
+AMBIENT = 101325.0
+P = 300e3          # gauge [Pa]
+L = 0.23           # [m]
+
+
+@pytest.fixture
+def est(martens_10_250):
+    return Engine([Config(martens_10_250, AMBIENT, max_input_age=0.1)], hold=1.0)
+
+
+def test_estimate_needs_both_inputs_and_pairs_the_newest(est, martens_10_250):
+    assert est.pressure(0, AMBIENT + P, stamp=10.0, now=10.0) is None
+    force = est.length(0, L, 0.0, stamp=10.01, now=10.01, tag="stamp-b")
+    assert force == pytest.approx(float(martens_10_250.force(P, L).force), rel=1e-9)
+    assert (est.stamp, est.tag) == (10.01, "stamp-b")
+    force = est.pressure(0, AMBIENT + 2 * P, stamp=10.02, now=10.02, tag="stamp-c")
+    assert force == pytest.approx(float(martens_10_250.force(2 * P, L).force), rel=1e-9)
+    assert (est.stamp, est.tag) == (10.02, "stamp-c")
+    assert est.counts(0)["estimates"] == 2
+
+
+def test_force_against_a_hand_calculation(est):
+    """Martens eq. 14 at one point, from Table 2's geometry and the shipped parameters by hand (no package code)."""
+    params = read_parameters(CONFIGS["DMSP-10-250"])
+    c0, c1, c2, c3, d0 = params["models"]["martens"]["params"]
+    spec = params["muscle"]
+    L0, D0, H0 = spec["nominal_length"], spec["inner_diameter"], spec["membrane_thickness"]
+    angle = spec["fiber_angle"] + d0
+    fibre = L0 / math.cos(angle)
+    n = L0 * math.tan(angle) / (math.pi * D0)
+    dV = (fibre**2 - 3 * L**2) / (4 * math.pi * n**2)
+    D = math.sqrt(fibre**2 - L**2) / (n * math.pi)
+    dD = -L / (n * math.pi * math.sqrt(fibre**2 - L**2))
+    E = c0 + c1 * L + c2 * L**2 + c3 * L**3
+    f_pe = E * (D - D0) / D0 * H0 * L * math.pi
+    f_l = E * (L - L0) / L0 * H0 * math.pi * D
+    expected = -P * dV + f_pe * dD - f_l
+    est.length(0, L, 0.0, stamp=1.0, now=1.0)
+    assert est.pressure(0, AMBIENT + P, stamp=1.0, now=1.0) == pytest.approx(expected, rel=1e-9)
+    assert 0 < expected < 35.17   # Table A2: 35.17 N at 310 kPa and the longer 0.234 m (a shorter muscle pulls less)
+
+
+def test_stale_input_gives_no_estimate_and_error(est):
+    est.pressure(0, AMBIENT + P, stamp=10.0, now=10.0)
+    assert est.length(0, L, 0.0, stamp=10.2, now=10.2) is None   # pressure is 0.2 s old
+    assert est.counts(0)["stale skipped"] == 1
+    level, message = est.level(0, 10.2)
+    assert level == Level.ERROR and "stale pressure" in message
+    assert est.length(0, L, 0.0, stamp=10.0, now=10.3) is None   # length itself too old
+    assert est.pressure(0, AMBIENT + P, stamp=11.0, now=10.0) is None  # stamp from the future
+
+
+@pytest.mark.parametrize("absolute, words", [(math.nan, "nan"), (-1.0, "negative"), (6e6, "absurd"),
+                                              (math.inf, "inf")])
+def test_bad_pressure_rejected(est, absolute, words):
+    est.length(0, L, 0.0, stamp=1.0, now=1.0)
+    est.pressure(0, AMBIENT + P, stamp=1.0, now=1.0)
+    assert est.pressure(0, absolute, stamp=1.01, now=1.01) is None
+    assert est.counts(0)["rejected pressure"] == 1
+    level, message = est.level(0, 1.01)
+    assert level == Level.ERROR and words in message.lower()
+    assert est.level(0, 2.5)[0] == Level.ERROR            # inputs stale by then
+    est.pressure(0, AMBIENT + P, stamp=2.5, now=2.5)
+    est.length(0, L, 0.0, stamp=2.5, now=2.5)
+    assert est.level(0, 2.5) == (Level.OK, "estimating")  # the rejection no longer holds
+
+
+@pytest.mark.parametrize("length", [math.nan, 0.0, -0.1, 0.3])
+def test_bad_length_rejected(est, length):
+    est.pressure(0, AMBIENT + P, stamp=1.0, now=1.0)
+    assert est.length(0, length, 0.0, stamp=1.0, now=1.0) is None
+    assert est.counts(0)["rejected muscle_state"] == 1
+
+
+def test_message_level_rejection_counts(est):
+    est.reject(0, "muscle_state", "joint 'x' not in ['y']", now=1.0)
+    assert est.counts(0) == {"received muscle_state": 1, "rejected muscle_state": 1}
+    assert est.level(0, 1.0) == (Level.ERROR, "invalid input: joint 'x' not in ['y']")
+
+
+def test_estimates_are_never_nan_and_nonnegative(est):
+    est.pressure(0, AMBIENT, stamp=1.0, now=1.0)                 # 0 Pa gauge: slack muscle
+    assert est.length(0, 0.2, 0.0, stamp=1.0, now=1.0) == 0.0
+    assert est.flags & Flag.CLIPPED
+
+
+def test_warning_for_outside_domain_and_unknown_branch():
+    est = Engine([Config(dmsp_10_100_hysteresis(), AMBIENT, 0.1)])
+    est.pressure(0, AMBIENT + 3e5, stamp=1.0, now=1.0)
+    est.length(0, 0.09, None, stamp=1.0, now=1.0)
+    assert est.flags & Flag.BRANCH_UNKNOWN
+    level, message = est.level(0, 1.0)
+    assert level == Level.WARN and "hysteresis branch unknown" in message
+    est.length(0, 0.09, 0.01, stamp=2.05, now=2.05)
+    est.pressure(0, AMBIENT + 3e5, stamp=2.1, now=2.1)
+    assert est.level(0, 2.1)[0] == Level.OK                      # warning held for 1 s only
+    est.pressure(0, AMBIENT + 9e5, stamp=2.12, now=2.12)
+    level, message = est.level(0, 2.12)
+    assert level == Level.WARN and "outside validity domain" in message
+
+
+def test_command_inverts_the_model(est, martens_10_250):
+    assert est.command(0, 100.0, now=1.0) is None                # no length yet
+    est.length(0, L, 0.0, stamp=1.0, now=1.0)
+    gauge = est.command(0, 100.0, now=1.05) - AMBIENT
+    assert float(martens_10_250.force(gauge, L).force) == pytest.approx(100.0, abs=1e-6)
+    est.command(0, 1e5, now=1.05)
+    assert est.flags & Flag.SATURATED
+    assert est.level(0, 1.05)[0] == Level.ERROR                  # pressure never received
+    assert est.command(0, math.nan, now=1.05) is None and est.counts(0)["rejected force_command"] == 1
+    assert est.command(0, 100.0, now=1.2) is None                # length now stale
+
+
+def test_config_swap_and_status(est, martens_10_250):
+    est.pressure(0, AMBIENT + P, stamp=1.0, now=1.0)
+    first = est.length(0, L, 0.0, stamp=1.0, now=1.0)
+    sarosi = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "sarosi")
+    est.configure([Config(sarosi, AMBIENT, 0.1)])
+    assert est.pressure(0, AMBIENT + P, stamp=1.01, now=1.01) == pytest.approx(float(sarosi.force(P, L).force),
+                                                                               rel=1e-9)
+    assert first == pytest.approx(float(martens_10_250.force(P, L).force), rel=1e-9)
+    est.status(0, 1.0)
+    status = est.status(0, 2.0)
+    assert status.values["model"] == "sarosi" and status.values["estimates"] == "2"
+    assert float(status.values["estimates rate [Hz]"]) == pytest.approx(0.0)
+
+
+def test_config_swap_to_a_shorter_muscle_rejects_the_kept_length(est):
+    """A length the new geometry cannot take gives no estimate (and ERROR), never a force at the wrong length."""
+    est.length(0, L, 0.0, stamp=1.0, now=1.0)
+    est.configure([Config(dmsp_10_100_hysteresis(), AMBIENT, 0.1)])   # fibre length 0.107 m < 0.23 m
+    assert est.pressure(0, AMBIENT + P, stamp=1.0, now=1.0) is None
+    assert est.level(0, 1.0)[0] == Level.ERROR and est.counts(0)["rejected muscle_state"] == 1
+
+
+def test_approximate_time_pairs_each_input_once(martens_10_250):
+    est = Engine([Config(martens_10_250, AMBIENT, 0.1)], pairing="approximate_time", slop=0.002)
+    assert est.length(0, L, 0.0, stamp=1.0, now=1.0) is None
+    assert est.pressure(0, AMBIENT + P, stamp=1.0005, now=1.001) is not None     # the pair of tick 1
+    assert est.length(0, L, 0.0, stamp=1.001, now=1.0015) is None                # waits for its pressure
+    assert est.pressure(0, AMBIENT + P, stamp=1.010, now=1.010) is None          # 9 ms apart: the length dropped
+    assert est.counts(0)["unpaired"] == 1
+    assert est.length(0, L, 0.0, stamp=1.011, now=1.011) is not None             # pairs with the 1.010 pressure
+    assert est.counts(0)["estimates"] == 2
+    with pytest.raises(ValueError, match="pairing"):
+        Engine([Config(martens_10_250)], pairing="exact")
+
+
+# --- the two entry forms make the same decisions ----------------------------------------------------------
+
+MODELS = [muscle_model(read_parameters(CONFIGS[muscle]), name) for muscle in ("DMSP-10-250", "DMSP-20-300")
+          for name in ("martens", "sarosi", "hildebrandt", "wickramatunge")] + [dmsp_10_100_hysteresis()]
+
+#: One message of every muscle: kind, per-muscle value (NaN, negative, absurd, out of geometry included), rate.
+good = st.floats(0.0, 1.0)
+values = st.one_of(good, good, good, good, st.sampled_from([math.nan, -1.0, 0.0, 2.0, math.inf]))
+steps = st.tuples(st.sampled_from(["pressure", "length", "pressure", "length", "wait"]),
+                  st.lists(values, min_size=len(MODELS), max_size=len(MODELS)),
+                  st.sampled_from([-0.01, 0.0, 0.01, math.nan, None]),
+                  st.one_of(st.floats(0.0, 0.005), st.floats(0.0, 0.005), st.floats(0.0, 0.3)),  # time step [s]
+                  st.one_of(st.floats(-0.003, 0.0), st.floats(-0.15, 0.05)))  # stamp - now [s]: some stale
+
+
+def _physical(kind: str, unit: float, model) -> float:
+    """A unit draw as a pressure [Pa absolute] or a length [m] of ``model``, beyond the bounds at the edges."""
+    if not 0 <= unit <= 1:
+        return unit
+    if kind == "pressure":
+        return AMBIENT + (unit - 0.1) * 1.2 * model.spec.max_pressure
+    return unit * 1.1 * model.max_length
+
+
+@pytest.mark.parametrize("pairing", ["every_input", "approximate_time"])
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+@given(stream=st.lists(steps, min_size=1, max_size=25))
+def test_one_by_one_equals_all_at_once(pairing, stream):
+    """A stream of messages of every muscle, fed muscle by muscle (float path) and as one vector per message:
+    the same estimates, flags, counters and diagnostic levels and texts."""
+    configs = [Config(m, AMBIENT, 0.1) for m in MODELS]
+    one, many = (Engine(configs, hold=0.5, pairing=pairing, slop=0.003) for _ in range(2))
+    now = 100.0
+    for kind, units, rate, dt, offset in stream:
+        now += dt
+        if kind == "wait":
+            continue
+        column = np.array([_physical(kind, u, m) for u, m in zip(units, MODELS)])
+        if kind == "pressure":
+            singles = [one.pressure(k, column[k], now + offset, now, tag=k) for k in range(len(MODELS))]
+            got = many.pressures(column, now + offset, now, tag="msg")
+        else:
+            rates = None if rate is None else np.full(len(MODELS), rate)
+            singles = [one.length(k, column[k], rate, now + offset, now, tag=k) for k in range(len(MODELS))]
+            got = many.lengths(column, rates, now + offset, now, tag="msg")
+        assert got.tolist() == [s is not None for s in singles]
+        expected = [s for s in singles if s is not None]
+        assert many.forces[got].tolist() == pytest.approx(expected, rel=1e-9, abs=1e-9)   # math vs numpy: ulps
+        for k in range(len(MODELS)):
+            assert one.counts(k) == many.counts(k)
+            assert one.level(k, now) == many.level(k, now)
+        assert many.levels(now).tolist() == [one.level(k, now)[0] for k in range(len(MODELS))]
+    assert set(COUNTERS) >= set().union(*(one.counts(k) for k in range(len(MODELS))))
