@@ -165,3 +165,71 @@ def test_bad_bags_one_line_exit_2_no_output(tmp_path, make, words):
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.count("\n") == 1 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
     assert list(out_dir.iterdir()) == []
+
+
+EXAMPLE = CONFIGS["DMSP-10-250"].parent / "example_multi_muscle.yaml"
+
+
+def multi_muscle_bag(path, combined: bool, names: list[str], ticks: int = 200):
+    """``ticks`` at 100 Hz of every muscle of the example file: lengths then pressures each tick, as combined
+    JointStates or as each muscle's own topics; the inputs of each tick."""
+    specs = {name: muscle_model(read_parameters(EXAMPLE), name=name) for name in names}
+    inputs = []
+    with BagWriter(path, "mcap") as bag:
+        if combined:
+            conns = (bag.topic(f"{NS}/muscle_states", JOINT_STATE, [SENSOR_DATA]),
+                     bag.topic(f"{NS}/muscle_pressures", JOINT_STATE, [SENSOR_DATA]))
+        else:
+            conns = {n: (bag.topic(f"{NS}/{n}/muscle_state", JOINT_STATE, [SENSOR_DATA]),
+                         bag.topic(f"{NS}/{n}/pressure", FLUID_PRESSURE, [SENSOR_DATA])) for n in names}
+        for k in range(ticks):
+            t = START_NS + k * 10**7
+            gauge = np.array([3e5 + 2e5 * math.sin(k / 15 + i) for i in range(len(names))])
+            length = np.array([specs[n].domain.length_min + (specs[n].domain.length_max - specs[n].domain.length_min)
+                               * (0.5 + 0.5 * math.cos(k / 25 + i)) for i, n in enumerate(names)])
+            rate = np.array([-0.01 * math.sin(k / 25 + i) for i in range(len(names))])
+            inputs.append((t + 4 * 10**5, gauge, length, rate))
+            empty = np.zeros(0)
+            if combined:
+                bag.write(conns[0], t + 2 * 10**5, T[JOINT_STATE](header(t), list(names), length, rate, empty))
+                bag.write(conns[1], t + 4 * 10**5, T[JOINT_STATE](header(t), list(names), gauge + 101325.0, empty,
+                                                                  empty))
+            else:
+                for i, n in enumerate(names):
+                    bag.write(conns[n][0], t + 2 * 10**5, T[JOINT_STATE](header(t), [n], length[i:i + 1],
+                                                                         rate[i:i + 1], empty))
+                    bag.write(conns[n][1], t + 4 * 10**5, T[FLUID_PRESSURE](header(t), gauge[i] + 101325.0, 0.0))
+    return inputs
+
+
+def muscle_model(parameters, name):
+    from pma_model_ros.core.param_file import muscle_model as build
+    return build(parameters[name])
+
+
+@pytest.mark.parametrize("mode", ["combined", "per_muscle"])
+def test_multi_muscle_parameter_file(tmp_path, mode):
+    """bag estimate of a muscles: file in both input modes: each muscle's force, at each tick's pressures, is its
+    own model's at that tick's inputs (the core, muscle by muscle)."""
+    from pma_model_ros.core.param_file import all_node_settings
+    parameters = read_parameters(EXAMPLE)
+    names = parameters["muscles"]
+    inputs = multi_muscle_bag(tmp_path / "in", mode == "combined", names)
+    summary = estimate_bag(tmp_path / "in", all_node_settings(parameters), tmp_path / "out", names=names,
+                           combined=mode == "combined", progress=False)
+    models = [muscle_model(parameters, n) for n in names]
+    expected = {t: [float(m.force(g, L, r).force) for m, g, L, r in zip(models, gauge, length, rate)]
+                for t, gauge, length, rate in inputs}
+    got: dict[int, dict[str, float]] = {}
+    for topic, time_ns, msg in read(tmp_path / "out"):
+        if topic == f"{NS}/force_estimates":
+            got.setdefault(time_ns, {}).update(zip(msg.name, msg.effort.tolist()))
+        elif topic.endswith("/force_estimate") and time_ns in expected:
+            got.setdefault(time_ns, {})[topic.split("/")[-2]] = msg.wrench.force.x
+    checked = [t for t in expected if t in got]
+    assert len(checked) == len(inputs)
+    for t in checked:
+        assert [got[t][n] for n in names] == pytest.approx(expected[t], rel=1e-9, abs=1e-6), t
+    assert summary.counts["estimates"] == summary.estimates == 4 * (2 * len(inputs) - 1)
+    statuses = [m.status for topic, _, m in read(tmp_path / "out") if topic == "/diagnostics"]
+    assert {s.name for s in statuses[-1]} == {f"{NS}/model_node: {n}" for n in names}

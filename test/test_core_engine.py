@@ -212,4 +212,26 @@ def test_one_by_one_equals_all_at_once(pairing, stream):
             assert one.counts(k) == many.counts(k)
             assert one.level(k, now) == many.level(k, now)
         assert many.levels(now).tolist() == [one.level(k, now)[0] for k in range(len(MODELS))]
+        due = any([one.status_due(now, k) for k in range(len(MODELS))])
+        assert many.status_due(now) == due          # the vector form's shortcut included
+        if due or kind == "pressure" and dt > 0.1:   # report on change, and now and then (the timer)
+            assert [one.status(k, now) for k in range(len(MODELS))] == \
+                [many.status(k, now) for k in range(len(MODELS))]
     assert set(COUNTERS) >= set().union(*(one.counts(k) for k in range(len(MODELS))))
+
+
+def test_status_due_after_a_steady_stretch(martens_10_250):
+    """Levels reported OK for a while; then an input with the other one stale must be reported at once."""
+    engine = Engine([Config(martens_10_250, AMBIENT, 0.1)] * 3, hold=1.0)
+    pressures, lengths = np.full(3, AMBIENT + P), np.full(3, L)
+    now = 10.0
+    for _ in range(5):
+        now += 0.001
+        engine.pressures(pressures, now, now)
+        engine.lengths(lengths, None, now, now)
+        if engine.status_due(now):
+            [engine.status(k, now) for k in range(3)]
+    assert not engine.status_due(now) and engine.levels(now).tolist() == [0, 0, 0]
+    now += 0.2                                            # the lengths are now 0.2 s old
+    assert not engine.pressures(pressures, now, now).any()
+    assert engine.status_due(now) and engine.level(0, now)[1].startswith("stale muscle_state")

@@ -182,6 +182,7 @@ class Engine:
         self.stamp, self.tag, self.flags = math.nan, None, 0
         self.forces, self.estimated = np.zeros(n), np.zeros(n, bool)
         self._everyone, self._unknown_rates = np.ones(n, bool), np.full(n, math.nan)
+        self._steady, self._calm = False, None   # every level reported OK; time of an input that changed none
         self.configure(configs)
 
     def __len__(self) -> int:
@@ -203,6 +204,7 @@ class Engine:
     def pressure(self, k: int, absolute: float, stamp: float, now: float, tag: object = None) -> float | None:
         """A pressure reading [Pa absolute] of muscle ``k`` stamped ``stamp`` [s]; its force estimate [N], if any."""
         self._counts[k, 0] += 1
+        self._calm = None
         if not 0 <= absolute <= ABSURD_PRESSURE:   # NaN too
             return self._invalid(k, "pressure", pressure_problem(absolute), now)
         self._pressure[k], self._p_stamp[k], self._p_tag[k], self._p_new[k] = absolute, stamp, tag, True
@@ -212,6 +214,7 @@ class Engine:
                tag: object = None) -> float | None:
         """A length [m] of muscle ``k`` with its rate [m/s] (None or NaN: unknown); its force estimate [N], if any."""
         self._counts[k, 1] += 1
+        self._calm = None
         model = self.configs[k].model
         if not 0 < length < model.max_length:      # NaN too
             return self._invalid(k, "muscle_state", length_problem(length, model.max_length), now)
@@ -299,10 +302,12 @@ class Engine:
 
     def _invalid(self, k: int, source: str, reason: str, now: float) -> None:
         self._counts[k, _REJECTED[source]] += 1
+        self._calm = None
         self._reject_time[k], self._reject_reason[k] = now, reason
         return None
 
     def _note(self, k: int, flags: int, now: float) -> None:
+        self._calm = None
         for j, bit in enumerate(_WARN_BITS.tolist()):
             if flags & bit:
                 self._warned[k, j] = now
@@ -368,7 +373,8 @@ class Engine:
             pairs &= ~apart
             self._p_new[pairs] = self._l_new[pairs] = False
         fresh = np.maximum(np.abs(now - p_stamp), np.abs(now - l_stamp)) <= self._age
-        if not fresh.all():
+        fresh_all = fresh.all()
+        if not fresh_all:
             self._counts[:, _STALE] += pairs & ~fresh
             pairs &= fresh
         usable = pairs & ((self._lflags & _INVALID) == 0)
@@ -380,10 +386,13 @@ class Engine:
             for k in np.flatnonzero(pairs & ~ok).tolist():
                 self._invalid(k, "muscle_state", f"no force at length {self._length[k]:g} m "
                               f"({describe(int(result.flags[k]))})", now)
-        if (result.flags & _WARN_MASK).any():
+        warned_any = (result.flags & _WARN_MASK).any()
+        if warned_any:
             self._warned[ok[:, None] & ((result.flags[:, None] & _WARN_BITS) != 0)] = now
         self._counts[:, _ESTIMATES] += ok
         self.forces, self.flags, self.estimated = result.force, result.flags, ok
+        # every muscle fresh and estimated without a warning: no level can have risen (see status_due)
+        self._calm = now if candidates is self._everyone and ok.all() and fresh_all and not warned_any else None
         return ok
 
     def inputs(self, k: int) -> tuple[float, float, float]:
@@ -427,7 +436,12 @@ class Engine:
         """Whether a level (muscle ``k``'s, or any) differs from the last :meth:`status` report: report on change."""
         if k is not None:
             return self.level(k, now)[0] != self._reported.item(k)
-        return bool((self.levels(now) != self._reported).any())
+        if self._steady and self._calm == now:   # all reported OK, and the input just taken changed nothing
+            return False
+        levels = self.levels(now)
+        due = bool((levels != self._reported).any())
+        self._steady = not due and not levels.any()
+        return due
 
     def status(self, k: int, now: float) -> Status:
         """Muscle ``k``'s level, reason, counters and message rates [Hz] since its previous status."""
@@ -440,6 +454,7 @@ class Engine:
             for key, i in _RATES:
                 values[f"{key} rate [Hz]"] = f"{(counts[i] - before[i]) / (now - since):.1f}"
         self._report_time[k], self._report_counts[k], self._reported[k] = now, counts, level
+        self._steady = False
         values["model"] = self.configs[k].model.model.name
         return Status(level, message, values)
 
