@@ -42,12 +42,13 @@ from rclpy.qos import QoSProfile, qos_profile_sensor_data  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
 from pma_model_ros import node_process  # noqa: E402
+from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
 from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
 
 SINGLE = REPO / "config" / "dmsp_10_250.yaml"
-AMBIENT = 101325.0       # [Pa]
+AMBIENT = STANDARD_ATMOSPHERE   # [Pa]
 WARMUP = 1.0             # [s] after the first answer, not measured
 DRAIN = 0.5              # [s] after the last cycle, for late answers
 ANSWERS = 2              # per cycle: one per input message

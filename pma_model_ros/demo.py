@@ -25,6 +25,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from . import node_process
 from .core.force_map import shipped_force_map
+from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import muscle_model, read_parameters
 
 NAMESPACE = "/pma_demo"
@@ -136,7 +137,7 @@ def run(duration: float, config: Path) -> int:
                  "model_node": node_process.start(
                      node_process.command("model_node", NAMESPACE, params_file=config), logs["model_node"])}
         rclpy.init()
-        monitor = Monitor(comparison, float(params.get("ambient_pressure", 101325.0)))
+        monitor = Monitor(comparison, float(params.get("ambient_pressure", STANDARD_ATMOSPHERE)))
         start = time.monotonic()
         try:
             print("   t/s    p/kPa    L/mm  estimate/N measured/N  err/%  max err/% (of max force)")

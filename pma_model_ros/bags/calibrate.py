@@ -30,6 +30,7 @@ from ..core.force_map import ForceMap
 from .bag_io import (FLUID_PRESSURE, JOINT_STATE, WRENCH_STAMPED, BagError, connections_of, deserialize, messages,
                      open_bag, topic)
 from .estimate import muscle_namespace
+from ..core.node_parameters import STANDARD_ATMOSPHERE
 
 MIN_SAMPLES = 3          #: fewest samples in a window for a slope
 PRESSURE_CELL = 5e3      #: [Pa] pressure side of an averaging cell
@@ -158,7 +159,7 @@ class Calibration:
     kept: int             #: of which quasi-static
 
 
-def force_map_from_bag(bag: str | Path, joint: str, ambient_pressure: float = 101325.0,
+def force_map_from_bag(bag: str | Path, joint: str, ambient_pressure: float = STANDARD_ATMOSPHERE,
                        criterion: QuasiStatic = QuasiStatic(), namespace: str | None = None,
                        force_topic: str | None = None) -> Calibration:
     """The force map of a recording's quasi-static samples (module docstring)."""

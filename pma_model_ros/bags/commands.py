@@ -9,6 +9,7 @@ import argparse
 
 from ..core.force_map import ForceMap
 from ..core.muscle import MuscleSpec
+from ..core.node_parameters import STANDARD_ATMOSPHERE
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
@@ -84,7 +85,8 @@ def add_fit_bag_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--force-topic", help="measured force: WrenchStamped (force.x) or JointState (effort); "
                                          "default <ns>/force if recorded, else the effort in <ns>/muscle_state")
     g.add_argument("--joint", help="JointState entry of the muscle (default: the spec's name)")
-    g.add_argument("--ambient-pressure", type=float, default=101325.0, help="[Pa absolute] (default 101325)")
+    g.add_argument("--ambient-pressure", type=float, default=STANDARD_ATMOSPHERE,
+                   help=f"[Pa absolute] (default {STANDARD_ATMOSPHERE:g})")
     g.add_argument("--window", type=float, default=1.0, help="quasi-static window [s] (default 1)")
     g.add_argument("--max-length-rate", type=float, default=1e-3, help="quasi-static |dL/dt| bound [m/s] "
                                                                       "(default 0.001)")

@@ -36,11 +36,10 @@ import numpy as np
 from .flags import Flag, describe
 from .muscle_bank import MuscleBank
 from .muscle_model import MuscleModel, Operating, force_at
+from .node_parameters import SPECS, STANDARD_ATMOSPHERE
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8 bar).
 ABSURD_PRESSURE = 5e6
-#: Standard atmosphere [Pa absolute]: the default ambient pressure.
-STANDARD_ATMOSPHERE = 101325.0
 #: Flags that make an estimate or command WARN, with their diagnostic wording.
 WARN_FLAGS = {
     Flag.SATURATED: "saturated",
@@ -52,8 +51,6 @@ _WARN_TEXTS = tuple(f"{text} ({flag.name})" for flag, text in WARN_FLAGS.items()
 _WARN_BITS = np.array([int(flag) for flag in WARN_FLAGS], np.uint16)
 _WARN_MASK = int(sum(WARN_FLAGS))
 _INVALID, _PRESSURE_OUT, _CLIPPED = int(Flag.INVALID_INPUT), int(Flag.PRESSURE_OUT_OF_RANGE), int(Flag.CLIPPED)
-#: Pairing rules (see the module docstring).
-PAIRINGS = ("every_input", "approximate_time")
 #: Counters of each muscle, in the order of the engine's count array.
 COUNTERS = ("received pressure", "received muscle_state", "received force_command",
             "rejected pressure", "rejected muscle_state", "rejected force_command",
@@ -139,11 +136,8 @@ class Config:
     max_input_age: float = 0.1                     #: [s] inputs with |now - stamp| above this are stale
 
     def __post_init__(self) -> None:
-        if not 0 <= self.ambient_pressure < ABSURD_PRESSURE:
-            raise ValueError(f"ambient_pressure must be in [0, {ABSURD_PRESSURE:g}) Pa absolute, "
-                             f"got {self.ambient_pressure:g}")
-        if not 0 < self.max_input_age < math.inf:
-            raise ValueError(f"max_input_age must be > 0 s, got {self.max_input_age:g}")
+        SPECS["ambient_pressure"].check(self.ambient_pressure)
+        SPECS["max_input_age"].check(self.max_input_age)
 
 
 @dataclass(frozen=True)
@@ -164,10 +158,8 @@ class Engine:
 
     def __init__(self, configs: Sequence[Config], hold: float = 1.0, pairing: str = "every_input",
                  slop: float = 0.0) -> None:
-        if pairing not in PAIRINGS:
-            raise ValueError(f"pairing must be one of {', '.join(PAIRINGS)}, got {pairing!r}")
-        if not 0 <= slop < math.inf:
-            raise ValueError(f"pairing slop must be >= 0 s, got {slop!r}")
+        SPECS["pairing"].check(pairing)
+        SPECS["pairing_slop"].check(slop)
         n = len(configs)
         self.hold, self.approximate, self.slop = hold, pairing == "approximate_time", slop
         self._pressure, self._p_stamp = np.full(n, math.nan), np.full(n, math.nan)   # absolute [Pa], [s]

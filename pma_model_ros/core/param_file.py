@@ -20,12 +20,13 @@ from pathlib import Path
 
 import yaml
 
-from .engine import STANDARD_ATMOSPHERE, Config
+from .engine import Config
 from .force_map import load_yaml_mapping, read_user_file
 from .identification import Fit, ModelReport
 from .models import Domain, get_model
 from .muscle import MuscleSpec
 from .muscle_model import MuscleModel
+from .node_parameters import STANDARD_ATMOSPHERE
 
 _ROUND = 12  # significant digits written; far below any fit's resolution
 #: Node settings written into generated files, beside the muscle (documented in the README).

@@ -15,6 +15,7 @@ import numpy as np
 
 from .force_map import MAPPED_MUSCLES, shipped_force_map
 from .ground_truth import GroundTruth
+from .node_parameters import SPECS, STANDARD_ATMOSPHERE
 
 TRAJECTORIES = ("constant", "sine", "sweep", "steps")
 #: Share of each 'steps' period spent moving to the next length (the rest holds it).
@@ -23,7 +24,7 @@ STEP_MOVE = 0.25
 PARAMETERS = {
     "muscle": ("DMSP-10-250", f"shipped muscle whose measured map is the truth: {', '.join(MAPPED_MUSCLES)}", None),
     "rate": (100.0, "publishing rate [Hz]", (1.0, 1000.0)),
-    "ambient_pressure": (101325.0, "ambient pressure [Pa absolute]", (0.0, 2e5)),
+    "ambient_pressure": (STANDARD_ATMOSPHERE, "ambient pressure [Pa absolute]", SPECS["ambient_pressure"].limits),
     "joint_name": ("", "JointState entry name (empty: the muscle name)", None),
     "noise.pressure_std": (0.0, "standard deviation of the published pressure [Pa]", (0.0, 1e5)),
     "noise.length_std": (0.0, "standard deviation of the published length [m]", (0.0, 0.01)),

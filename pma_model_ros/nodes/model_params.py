@@ -1,82 +1,55 @@
-"""Parameters of the model node: declarations with descriptors, and their validation.
+"""Parameters of the model node: ROS declarations of :mod:`pma_model_ros.core.node_parameters`, and validation.
 
-Every parameter is declared explicitly so that each carries a description,
-type and range.  The nested ``models.<name>.*`` entries of a parameter file are
-declared for every model this package knows (unset unless the file gives them);
-entries of unknown models are ignored, as rclpy ignores any undeclared override.
-``automatically_declare_parameters_from_overrides`` is not used: it would
-declare the fixed parameters without descriptors.
+Every parameter is declared explicitly from that table, so that each carries its description,
+unit, range and read-only flag.  The nested ``models.<name>.*`` entries of a parameter file are
+declared for every model this package knows (unset unless the file gives them); entries of unknown
+models are ignored, as rclpy ignores any undeclared override.
+``automatically_declare_parameters_from_overrides`` is not used: it would declare the fixed
+parameters without descriptors.
 
-One node serves one muscle (the parameters at the top level, as in
-``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per
-name with the same parameters under ``<name>.`` (``config/example_multi_muscle.yaml``);
-``ambient_pressure`` and ``max_input_age`` stay node-wide.
+One node serves one muscle (the per-muscle parameters at the top level, as in
+``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per name with the
+per-muscle parameters under ``<name>.`` (``config/example_multi_muscle.yaml``); the others are
+node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`.
 """
 from __future__ import annotations
 
 import array
-import math
 import re
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..core.engine import PAIRINGS, STANDARD_ATMOSPHERE
 from ..core.models import MODELS, get_model
+from ..core.node_parameters import PARAMETERS, SPECS, ParameterSpec
 from ..core.param_file import NodeSettings, all_node_settings
 
-DOUBLE, STRING, DOUBLES = Parameter.Type.DOUBLE, Parameter.Type.STRING, Parameter.Type.DOUBLE_ARRAY
-STRINGS = Parameter.Type.STRING_ARRAY
-
-#: name: (type, description, (min, max) or None). Required: no default, must come from the file.
-REQUIRED = {
-    "muscle.name": (STRING, "catalogue name of the muscle, e.g. DMSP-10-250", None),
-    "muscle.nominal_length": (DOUBLE, "initial (unpressurised) length L0 [m]", (0.0, 10.0)),
-    "muscle.inner_diameter": (DOUBLE, "initial inner diameter D0 [m]", (0.0, 1.0)),
-    "muscle.membrane_thickness": (DOUBLE, "initial membrane thickness H0 [m]", (0.0, 1.0)),
-    "muscle.fiber_angle": (DOUBLE, "initial braid angle Theta0 to the muscle axis [rad]", (0.0, math.pi / 2)),
-    "muscle.max_pressure": (DOUBLE, "highest rated gauge pressure [Pa]", (0.0, 5e6)),
-    "model": (STRING, f"force model in use, one of models.*: {', '.join(MODELS)}", None),
-    "length_range": (DOUBLES, "[min, max] length the models were identified on [m]", None),
-}
-#: name: (default, description, (min, max) or None); node-wide.
-OPTIONAL = {
-    "ambient_pressure": (STANDARD_ATMOSPHERE, "ambient pressure [Pa absolute]; gauge = fluid_pressure - ambient_pressure",
-                         (0.0, 2e5)),
-    "max_input_age": (0.1, "inputs whose stamp differs from the node clock by more than this are stale [s]",
-                      (1e-3, 3600.0)),
-}
-#: name: (default, description, (min, max) or None); node-wide, fixed at start-up.
-PAIRING = {
-    "pairing": ("every_input", "when to estimate: every_input (each valid input, with the newest other one) or "
-                "approximate_time (once per new pressure and new length whose stamps lie within pairing_slop)", None),
-    "pairing_slop": (0.0005, "approximate_time: largest stamp difference of a pressure and a length paired [s]",
-                     (0.0, 1.0)),
-}
-#: name: (default, description); per muscle (under ``<name>.`` with ``muscles``).
-NAMING = {
-    "joint_name": ("", "JointState entry of this muscle (empty: muscle.name; with `muscles`: the muscle's name)"),
-    "frame_id": ("", "header.frame_id of force_estimate (empty: joint_name)"),
-}
-#: Multi-muscle parameters, fixed at start-up.
-MUSCLES = "muscles"
-INPUT_MODE = "input_mode"
-INPUT_MODES = {"per_muscle": "topics <name>/pressure, <name>/muscle_state -> <name>/force_estimate",
-               "combined": "JointStates muscle_pressures, muscle_states -> JointState force_estimates"}
+TYPES = {"double": Parameter.Type.DOUBLE, "string": Parameter.Type.STRING, "double[]": Parameter.Type.DOUBLE_ARRAY,
+         "string[]": Parameter.Type.STRING_ARRAY}
+#: Parameters required per muscle (no default: from the file), without the models.* entries.
+REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith("models.")]
 _MUSCLE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
-#: models.<name>.<entry>: identification results, read-only information.
-MODEL_INFO = {"objective": (STRING, "identification objective"),
-              "err": (DOUBLE, "max error on the map, eq. 23 [% of max force]"),
-              "rmse": (DOUBLE, "root mean square error on the map [N]"),
-              "r2": (DOUBLE, "coefficient of determination [-]"),
-              "cv_err": (DOUBLE, "worst leave-one-length-out error [% of max force]")}
+#: models.<name>.<entry>: identification results, read-only information (see the table's models.* row).
+MODEL_INFO = {"objective": Parameter.Type.STRING, "err": Parameter.Type.DOUBLE, "rmse": Parameter.Type.DOUBLE,
+              "r2": Parameter.Type.DOUBLE, "cv_err": Parameter.Type.DOUBLE}
 
 
-def _descriptor(description: str, limits: tuple[float, float] | None = None,
-                read_only: bool = False) -> ParameterDescriptor:
-    ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
-    return ParameterDescriptor(description=description, floating_point_range=ranges, read_only=read_only)
+def descriptor(spec: ParameterSpec, description: str | None = None) -> ParameterDescriptor:
+    """The ROS descriptor of ``spec``: description with unit and choices, range, read-only flag."""
+    text = description or spec.description
+    if spec.unit:
+        text += f" [{spec.unit}]"
+    ranges = [FloatingPointRange(from_value=spec.limits[0], to_value=spec.limits[1])] if spec.limits else []
+    return ParameterDescriptor(description=text, floating_point_range=ranges, read_only=spec.read_only)
+
+
+def _declare(node: Node, spec: ParameterSpec, name: str | None = None):
+    kind = TYPES[spec.kind]
+    value = kind if spec.default is None else spec.default
+    if spec.kind == "string[]" and not spec.default:
+        value = kind
+    return node.declare_parameter(name or spec.name, value, descriptor(spec))
 
 
 def declare(node: Node) -> tuple[list[str], str]:
@@ -84,49 +57,42 @@ def declare(node: Node) -> tuple[list[str], str]:
 
     Raises rclpy parameter exceptions on bad overrides, ValueError on a bad ``muscles`` list or mode.
     """
-    names = list(node.declare_parameter(MUSCLES, STRINGS, _descriptor(
-        "names of the muscles this node serves, each with its parameters under '<name>.' "
-        "(unset: one muscle, parameters at the top level)", read_only=True)).value or [])
-    mode = node.declare_parameter(INPUT_MODE, "per_muscle", _descriptor(
-        "with `muscles`: " + "; ".join(f"{k}: {v}" for k, v in INPUT_MODES.items()), read_only=True)).value
+    names = list(_declare(node, SPECS["muscles"]).value or [])
+    mode = _declare(node, SPECS["input_mode"]).value
     _check_names(names, mode)
-    for name, (default, text, limits) in OPTIONAL.items():
-        node.declare_parameter(name, default, _descriptor(text, limits))
-    for name, (default, text, limits) in PAIRING.items():
-        node.declare_parameter(name, default, _descriptor(text, limits, read_only=True))
+    for spec in PARAMETERS:
+        if not spec.per_muscle and spec.name not in ("muscles", "input_mode", "executor"):
+            _declare(node, spec)
     for prefix in [f"{name}." for name in names] or [""]:
         _declare_muscle(node, prefix)
     return names, mode
 
 
 def _declare_muscle(node: Node, prefix: str) -> None:
-    for name, (kind, text, limits) in REQUIRED.items():
-        node.declare_parameter(prefix + name, kind, _descriptor(text, limits))
-    for name, (default, text) in NAMING.items():
-        node.declare_parameter(prefix + name, default, _descriptor(text))
+    for spec in PARAMETERS:
+        if spec.per_muscle and not spec.name.startswith("models."):
+            _declare(node, spec, prefix + spec.name)
+    params, info = SPECS["models.<model>.params"], SPECS["models.<model>.{objective, err, rmse, r2, cv_err}"]
     for model in MODELS.values():
-        node.declare_parameter(f"{prefix}models.{model.name}.params", DOUBLES, _descriptor(
-            f"identified parameters {list(model.param_names)} of {model.name} ({model.equation}), SI units"))
-        for entry, (kind, text) in MODEL_INFO.items():
-            node.declare_parameter(f"{prefix}models.{model.name}.{entry}", kind, _descriptor(text, read_only=True))
+        node.declare_parameter(f"{prefix}models.{model.name}.params", TYPES["double[]"], descriptor(
+            params, f"identified parameters {list(model.param_names)} of {model.name} ({model.equation}), SI units"))
+        for entry, kind in MODEL_INFO.items():
+            node.declare_parameter(f"{prefix}models.{model.name}.{entry}", kind, descriptor(info))
 
 
 def _check_names(names: list[str], mode: str) -> None:
-    if mode not in INPUT_MODES:
-        raise ValueError(f"parameter '{INPUT_MODE}': unknown mode {mode!r}; one of {', '.join(INPUT_MODES)}")
+    SPECS["input_mode"].check(mode)
     bad = [n for n in names if not _MUSCLE_NAME.fullmatch(n)]
     if bad:
-        raise ValueError(f"parameter '{MUSCLES}': {bad[0]!r} is not a name (letters, digits, '_'; a letter first)")
+        raise ValueError(f"parameter 'muscles': {bad[0]!r} is not a name (letters, digits, '_'; a letter first)")
     if len(set(names)) != len(names):
-        raise ValueError(f"parameter '{MUSCLES}': duplicate names in {names}")
+        raise ValueError(f"parameter 'muscles': duplicate names in {names}")
 
 
 def pairing(flat: dict[str, object]) -> dict[str, object]:
-    """The engine's pairing arguments from the node's parameters; ValueError names a bad one."""
-    rule = flat.get("pairing", PAIRING["pairing"][0])
-    if rule not in PAIRINGS:
-        raise ValueError(f"parameter 'pairing': unknown rule {rule!r}; one of {', '.join(PAIRINGS)}")
-    return {"pairing": rule, "slop": float(flat.get("pairing_slop", PAIRING["pairing_slop"][0]))}
+    """The engine's pairing arguments from the node's parameters."""
+    return {"pairing": flat.get("pairing", SPECS["pairing"].default),
+            "slop": flat.get("pairing_slop", SPECS["pairing_slop"].default)}
 
 
 def values(node: Node) -> dict[str, object]:

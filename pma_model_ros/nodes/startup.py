@@ -18,11 +18,13 @@ from rclpy.node import Node
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.logging import LoggingSeverity, get_logger_level, set_logger_level
 
+from ..core.node_parameters import SPECS
+
 
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
 #: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and SIGTERM).
 SPIN_TIMEOUT = 0.5
-#: Values of the ``executor`` parameter.
+#: The executors of the ``executor`` parameter (:data:`~pma_model_ros.core.node_parameters.EXECUTORS`).
 EXECUTORS: dict[str, Callable[..., Executor]] = {"single": SingleThreadedExecutor, "events": EventsExecutor}
 
 
@@ -56,10 +58,13 @@ def fail(node_name: str, err: Exception) -> int:
 
 def executor(node: Node) -> Executor:
     """The executor named by ``node``'s parameter ``executor`` (declared here, read-only)."""
-    name = node.declare_parameter("executor", "single", ParameterDescriptor(
-        description=f"rclpy executor spinning this node: {' or '.join(EXECUTORS)}", read_only=True)).value
-    if name not in EXECUTORS:
-        raise StartupError(f"parameter 'executor': unknown executor {name!r}; one of {', '.join(EXECUTORS)}")
+    spec = SPECS["executor"]
+    name = node.declare_parameter(spec.name, spec.default, ParameterDescriptor(
+        description=spec.description, read_only=True)).value
+    try:
+        spec.check(name)
+    except ValueError as err:
+        raise StartupError(str(err)) from None
     return EXECUTORS[name](context=node.context)
 
 
