@@ -235,3 +235,14 @@ def test_status_due_after_a_steady_stretch(martens_10_250):
     now += 0.2                                            # the lengths are now 0.2 s old
     assert not engine.pressures(pressures, now, now).any()
     assert engine.status_due(now) and engine.level(0, now)[1].startswith("stale muscle_state")
+
+
+def test_on_change_reports_wait_for_the_report_interval(martens_10_250):
+    engine = Engine([Config(martens_10_250, AMBIENT, 0.1)], report_interval=0.1)
+    engine.length(0, L, 0.0, stamp=1.0, now=1.0)
+    assert engine.status_due(1.0, 0)
+    engine.status(0, 1.0)                                     # ERROR: no pressure yet
+    engine.pressure(0, AMBIENT + P, stamp=1.05, now=1.05)     # now OK, but 0.05 s after the last report
+    assert not engine.status_due(1.05, 0) and not engine.status_due(1.05)
+    engine.length(0, L, 0.0, stamp=1.12, now=1.12)
+    assert engine.status_due(1.12, 0) and engine.status_due(1.12)   # reported with the next input after 0.1 s

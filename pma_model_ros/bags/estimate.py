@@ -39,7 +39,7 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
-from ..core.engine import Engine, JointIndex
+from ..core.engine import REPORT_INTERVAL, Engine, JointIndex
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
 from .bag_io import (DIAGNOSTIC_ARRAY, FLUID_PRESSURE, JOINT_STATE, RELIABLE, TYPESTORE, WRENCH_STAMPED, BagError,
@@ -146,7 +146,8 @@ class _OfflineNode:
             self._commands = [writer.topic(topic(namespace, f"{p}pressure_command"), FLUID_PRESSURE, [RELIABLE])
                               for p in prefixes] if has_commands else []
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
-        self.engine = Engine([s.config for s in settings], hold=DIAGNOSTIC_PERIOD_NS * 1e-9)
+        self.engine = Engine([s.config for s in settings], hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
+                             report_interval=REPORT_INTERVAL)
         self.joints = [s.joint_name for s in settings]
         self._index = {role: JointIndex(self.joints) for role in (_PRESSURE, _STATE)}
         self.summary = Summary(namespace)

@@ -40,6 +40,8 @@ from .node_parameters import SPECS, STANDARD_ATMOSPHERE
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8 bar).
 ABSURD_PRESSURE = 5e6
+#: [s] Shortest time between two on-change status reports of model_node (and of its offline twin).
+REPORT_INTERVAL = 0.1
 #: Flags that make an estimate or command WARN, with their diagnostic wording.
 WARN_FLAGS = {
     Flag.SATURATED: "saturated",
@@ -157,7 +159,7 @@ class Engine:
     """
 
     def __init__(self, configs: Sequence[Config], hold: float = 1.0, pairing: str = "every_input",
-                 slop: float = 0.0) -> None:
+                 slop: float = 0.0, report_interval: float = 0.0) -> None:
         SPECS["pairing"].check(pairing)
         SPECS["pairing_slop"].check(slop)
         n = len(configs)
@@ -175,6 +177,7 @@ class Engine:
         self.forces, self.estimated = np.zeros(n), np.zeros(n, bool)
         self._everyone, self._unknown_rates = np.ones(n, bool), np.full(n, math.nan)
         self._steady, self._calm = False, None   # every level reported OK; time of an input that changed none
+        self.report_interval, self._last_report = report_interval, -math.inf
         self.configure(configs)
 
     def __len__(self) -> int:
@@ -425,7 +428,14 @@ class Engine:
         return np.where(error, int(Level.ERROR), warn.view(np.int8))
 
     def status_due(self, now: float, k: int | None = None) -> bool:
-        """Whether a level (muscle ``k``'s, or any) differs from the last :meth:`status` report: report on change."""
+        """Whether a level (muscle ``k``'s, or any) differs from the last :meth:`status` report: report on change.
+
+        Not sooner than ``report_interval`` [s] after the last report (a change then waits until the next
+        input after it): a node that falls behind, its inputs flapping between fresh and stale, must not
+        spend its time reporting (a status of 64 muscles costs milliseconds to publish).
+        """
+        if 0 <= now - self._last_report < self.report_interval:
+            return False
         if k is not None:
             return self.level(k, now)[0] != self._reported.item(k)
         if self._steady and self._calm == now:   # all reported OK, and the input just taken changed nothing
@@ -446,7 +456,7 @@ class Engine:
             for key, i in _RATES:
                 values[f"{key} rate [Hz]"] = f"{(counts[i] - before[i]) / (now - since):.1f}"
         self._report_time[k], self._report_counts[k], self._reported[k] = now, counts, level
-        self._steady = False
+        self._steady, self._last_report = False, now
         values["model"] = self.configs[k].model.model.name
         return Status(level, message, values)
 

@@ -31,7 +31,7 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.engine import Engine, JointIndex
+from ..core.engine import REPORT_INTERVAL, Engine, JointIndex
 from ..core.param_file import NodeSettings
 from . import model_params
 from .startup import StartupError, run
@@ -55,7 +55,7 @@ class ModelNode(Node):
             flat = model_params.values(self)
             self.settings = model_params.all_settings(flat, self._names)
             self.engine = Engine([s.config for s in self.settings], hold=DIAGNOSTIC_PERIOD,
-                                 **model_params.pairing(flat))
+                                 report_interval=REPORT_INTERVAL, **model_params.pairing(flat))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
         self.add_on_set_parameters_callback(self._validate)
