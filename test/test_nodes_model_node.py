@@ -10,6 +10,7 @@ import math
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from conftest import CONFIGS, REPO
@@ -39,9 +40,10 @@ def make_node():
 
 
 def record(publisher) -> list:
-    """What ``publisher`` publishes from now on (copies: the node reuses its message objects)."""
+    """What ``publisher`` publishes from now on, as messages (the node publishes some serialized)."""
     sent = []
-    publisher.publish = lambda msg: sent.append(copy.deepcopy(msg))
+    publisher.publish = lambda msg: sent.append(deserialize_message(msg, publisher.msg_type)
+                                                if isinstance(msg, bytes) else copy.deepcopy(msg))
     return sent
 
 

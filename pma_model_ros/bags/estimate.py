@@ -29,7 +29,6 @@ import csv as csv_module
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
-import struct
 import sys
 import tempfile
 import time
@@ -39,6 +38,7 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
+from ..core.cdr import StampedTemplate, sentinels
 from ..core.engine import REPORT_INTERVAL, Engine, JointIndex
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
@@ -82,21 +82,19 @@ def muscle_namespace(reader: Reader, namespace: str | None = None, first: str = 
 
 
 class WrenchStampedCdr:
-    """Little-endian CDR bytes of a WrenchStamped with a fixed ``frame_id``: stamp and force.x packed in a template."""
+    """Little-endian CDR bytes of a WrenchStamped with a fixed ``frame_id``: stamp and force.x patched in a
+    template (:class:`~pma_model_ros.core.cdr.StampedTemplate`)."""
 
     def __init__(self, frame_id: str) -> None:
         Wrench, Vector3 = T["geometry_msgs/msg/Wrench"], T["geometry_msgs/msg/Vector3"]
         zero = Vector3(0.0, 0.0, 0.0)
-        template = TYPESTORE.serialize_cdr(T[WRENCH_STAMPED](Header(Time(0, 0), frame_id), Wrench(zero, zero)),
-                                           WRENCH_STAMPED, little_endian=True)
-        self._template = bytes(template)
-        self._force_x = len(self._template) - 6 * 8   # force x, y, z and torque x, y, z close the message
+        self._template = StampedTemplate(TYPESTORE.serialize_cdr(
+            T[WRENCH_STAMPED](Header(Time(0, 0), frame_id), Wrench(Vector3(sentinels(1)[0], 0.0, 0.0), zero)),
+            WRENCH_STAMPED, little_endian=True), 1)
 
     def __call__(self, sec: int, nanosec: int, force: float) -> bytes:
-        data = bytearray(self._template)
-        struct.pack_into("<iI", data, 4, sec, nanosec)
-        struct.pack_into("<d", data, self._force_x, force)
-        return bytes(data)
+        self._template.values[0] = force
+        return self._template(sec, nanosec)
 
 
 @dataclass

@@ -86,9 +86,9 @@ class MuscleBank:
     def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
         """Length-dependent coefficients and flags of every muscle (one call per model); see :meth:`Evaluator.operating`."""
         L, _, rate = self._inputs(length, length, length_rate)
+        if len(self.groups) == 1:   # every muscle, in bank order
+            return self.groups[0].operating(L, rate)
         parts = [(g.index, g.operating(L[..., g.index], rate[..., g.index])) for g in self.groups]
-        if len(parts) == 1:
-            return parts[0][1]
         out = Operating(np.empty(L.shape, bool), np.empty(L.shape, np.uint16), np.empty(L.shape), np.empty(L.shape),
                         np.empty(L.shape), self.max_pressure)
         for index, part in parts:
@@ -114,8 +114,10 @@ class MuscleBank:
 
     def _inputs(self, value: ArrayLike, length: ArrayLike,
                 length_rate: ArrayLike | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        rate = np.nan if length_rate is None else length_rate
-        v, L, r = np.broadcast_arrays(np.asarray(value, float), np.asarray(length, float), np.asarray(rate, float))
+        v, L = np.asarray(value, float), np.asarray(length, float)
+        r = np.full(L.shape, np.nan) if length_rate is None else np.asarray(length_rate, float)
+        if not v.shape == L.shape == r.shape:
+            v, L, r = np.broadcast_arrays(v, L, r)
         if v.shape[-1:] != (len(self),):
             raise ValueError(f"inputs need a last axis of {len(self)} muscles, got shape {v.shape}")
         return v, L, r

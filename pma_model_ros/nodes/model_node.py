@@ -22,15 +22,18 @@ import sys
 from typing import Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
 import numpy as np
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rclpy.serialization import serialize_message
 from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import Header
 
+from ..core.cdr import StampedTemplate, sentinels
 from ..core.engine import REPORT_INTERVAL, Engine, JointIndex
 from ..core.param_file import NodeSettings
 from . import model_params
@@ -117,7 +120,6 @@ class MuscleTopics:
         self.node, self.engine = node, node.engine
         prefixes = [f"{name}/" for name in names] or [""]
         self._estimate_pubs = [node.create_publisher(WrenchStamped, f"{p}force_estimate", 10) for p in prefixes]
-        self._estimate_msgs = [WrenchStamped() for _ in prefixes]
         self._command_pubs = [node.create_publisher(FluidPressure, f"{p}pressure_command", 10) for p in prefixes]
         for k, prefix in enumerate(prefixes):
             node.create_subscription(FluidPressure, f"{prefix}pressure", partial(self._on_pressure, k), INPUT_QOS)
@@ -127,8 +129,9 @@ class MuscleTopics:
 
     def use(self, settings: list[NodeSettings]) -> None:
         self._joints = [s.joint_name for s in settings]
-        for msg, s in zip(self._estimate_msgs, settings):
-            msg.header.frame_id = s.frame_id
+        self._estimates = [StampedTemplate(serialize_message(WrenchStamped(
+            header=Header(frame_id=s.frame_id), wrench=Wrench(force=Vector3(x=sentinels(1)[0])))), 1)
+            for s in settings]
 
     def _on_pressure(self, k: int, msg: FluidPressure) -> None:
         now, stamp = self.node.now(), msg.header.stamp
@@ -143,10 +146,9 @@ class MuscleTopics:
 
     def _answer(self, k: int, force: float | None, now: float) -> None:
         if force is not None:
-            msg = self._estimate_msgs[k]
-            msg.header.stamp = self.engine.tag
-            msg.wrench.force.x = force
-            self._estimate_pubs[k].publish(msg)
+            estimate, tag = self._estimates[k], self.engine.tag
+            estimate.values[0] = force
+            self._estimate_pubs[k].publish(estimate(tag.sec, tag.nanosec))
         self.node.check_status(now, k)
 
     def _on_command(self, k: int, msg: WrenchStamped) -> None:
@@ -176,8 +178,8 @@ class CombinedTopics:
     def use(self, settings: list[NodeSettings]) -> None:
         self._joints = [s.joint_name for s in settings]
         self._pressure_index, self._state_index = JointIndex(self._joints), JointIndex(self._joints)
-        self._all = JointState(name=self._joints, effort=[0.0] * len(self._joints))   # every muscle answered
-        self._effort = np.frombuffer(self._all.effort, dtype=float)                    # writes into that message
+        n = len(self._joints)   # a message of every muscle's estimate
+        self._all = StampedTemplate(serialize_message(JointState(name=self._joints, effort=sentinels(n).tolist())), n)
 
     def _absent(self, source: str, present: np.ndarray | None, problems: list[str], now: float) -> None:
         if present is not None:
@@ -202,14 +204,12 @@ class CombinedTopics:
     def _answer(self, estimated: np.ndarray, now: float) -> None:
         """One force_estimates of the muscles that got an estimate (the prebuilt message when all did)."""
         if estimated.all():
-            msg = self._all
-            self._effort[:] = self.engine.forces
+            tag = self.engine.newest_tag(estimated)
+            self._all.values[:] = self.engine.forces
+            self._states_pub.publish(self._all(tag.sec, tag.nanosec))
         elif estimated.any():
             msg = JointState(name=[j for j, e in zip(self._joints, estimated.tolist()) if e],
                              effort=self.engine.forces[estimated].tolist())
-        else:
-            msg = None
-        if msg is not None:
             msg.header.stamp = self.engine.newest_tag(estimated)
             self._states_pub.publish(msg)
         self.node.check_status(now)
