@@ -23,13 +23,13 @@ SENTINEL = 1.2345678901234567e-300
 
 class StampedTemplate:
     """``data``: the serialized message, with the patched float64 fields set to ``SENTINEL * (1 + i)``, i = 0 ..
-    ``count`` - 1, consecutive (rclpy's serializer may add bytes at the end, so they are searched for)."""
+    ``count`` - 1, consecutive (rclpy's serializer may append bytes after the message, so they are searched for)."""
 
     def __init__(self, data: bytes, count: int) -> None:
         if bytes(data[:2]) != _CDR_LE:
             raise ValueError(f"not little-endian CDR (encapsulation {bytes(data[:4])!r})")
         self._buffer = bytearray(data)
-        at = self._buffer.rfind(sentinels(count).tobytes())
+        at = self._buffer.find(sentinels(count).tobytes())   # the first: rclpy may append stale buffer bytes
         if at < 0:
             raise ValueError(f"the {count} sentinel values are not in the serialized message")
         #: The patched float64 fields, a view into the message bytes: write into it.
