@@ -39,7 +39,7 @@ from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
 from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL, Engine, JointIndex
+from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, Engine, JointIndex
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
 from .bag_io import (DIAGNOSTIC_ARRAY, FLUID_PRESSURE, JOINT_STATE, RELIABLE, TYPESTORE, WRENCH_STAMPED, BagError,
@@ -145,7 +145,7 @@ class _OfflineNode:
                               for p in prefixes] if has_commands else []
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
         self.engine = Engine([s.config for s in settings], hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
-                             report_interval=REPORT_INTERVAL)
+                             report_interval=REPORT_INTERVAL_PER_MUSCLE * len(settings))
         self.joints = [s.joint_name for s in settings]
         self._index = {role: JointIndex(self.joints) for role in (_PRESSURE, _STATE)}
         self.summary = Summary(namespace)

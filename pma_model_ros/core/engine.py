@@ -40,8 +40,10 @@ from .node_parameters import SPECS, STANDARD_ATMOSPHERE
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8 bar).
 ABSURD_PRESSURE = 5e6
-#: [s] Shortest time between two on-change status reports of model_node (and of its offline twin).
-REPORT_INTERVAL = 0.1
+#: [s] Shortest time between two on-change status reports of model_node (and of its offline twin), per muscle
+#: reported: a status costs about 50 us per muscle to build and publish, so on-change reports take at most a
+#: few percent of a core however many muscles flap (N = 64: at most one every 0.1 s).
+REPORT_INTERVAL_PER_MUSCLE = 0.0015
 #: Flags that make an estimate or command WARN, with their diagnostic wording.
 WARN_FLAGS = {
     Flag.SATURATED: "saturated",

@@ -34,7 +34,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Header
 
 from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL, Engine, JointIndex
+from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, Engine, JointIndex
 from ..core.param_file import NodeSettings
 from . import model_params
 from .startup import StartupError, run
@@ -58,7 +58,8 @@ class ModelNode(Node):
             flat = model_params.values(self)
             self.settings = model_params.all_settings(flat, self._names)
             self.engine = Engine([s.config for s in self.settings], hold=DIAGNOSTIC_PERIOD,
-                                 report_interval=REPORT_INTERVAL, **model_params.pairing(flat))
+                                 report_interval=REPORT_INTERVAL_PER_MUSCLE * len(self.settings),
+                                 **model_params.pairing(flat))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
         self.add_on_set_parameters_callback(self._validate)
