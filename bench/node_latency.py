@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import copy
 import cProfile
-import math
 from functools import partial
 import os
 from pathlib import Path
@@ -227,7 +226,7 @@ def profiled_model_node(out: Path, args: list[str]) -> int:
 
 def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float]:
     """CPU time of model_node's callbacks per cycle (both inputs, called directly: no executor, no wait) and
-    of its one MuscleBank call (NaN for one muscle) [us]; published answers go nowhere."""
+    of the engine's share of it (its two calls per cycle, without the messages) [us]; answers go nowhere."""
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     rclpy.init(args=["--ros-args", "-r", "__ns:=/cost", "--params-file", str(params)])
     try:
@@ -243,18 +242,22 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
             handlers[0](first)
             handlers[1](second)
         per_cycle = (time.process_time() - start) / cycles
-        bank = math.nan   # the one-muscle node evaluates its scalar MuscleModel, no bank
-        if muscles > 1:
-            g, L = np.full(muscles, 300e3), np.full(muscles, 0.23)
-            start = time.process_time()
-            for _ in range(cycles):
-                model.engine.bank.force(g, L, None)
-            bank = (time.process_time() - start) / cycles
+        engine, now = model.engine, model.now()
+        pressure, length = AMBIENT + 300e3, 0.23
+        start = time.process_time()
+        for k in range(cycles):
+            if muscles == 1:
+                engine.pressure(0, pressure, now + k * 1e-6, now + k * 1e-6)
+                engine.length(0, length, 0.0, now + k * 1e-6, now + k * 1e-6)
+            else:
+                engine.pressures(np.full(muscles, pressure), now + k * 1e-6, now + k * 1e-6)
+                engine.lengths(np.full(muscles, length), np.zeros(muscles), now + k * 1e-6, now + k * 1e-6)
+        own = (time.process_time() - start) / cycles
         model.destroy_node()
         node.destroy_node()
     finally:
         rclpy.shutdown()
-    return per_cycle * 1e6, bank * 1e6
+    return per_cycle * 1e6, own * 1e6
 
 
 def main() -> int:
@@ -278,8 +281,8 @@ def main() -> int:
         print("model_node callbacks called directly (no executor, no DDS), CPU per cycle (both inputs):")
         for n in args.muscles:
             cycle, bank = callback_cost(n, Path(tmp))
-            print(f"{n:>3} muscles: {cycle:5.0f} us" + (f", of which the 2 MuscleBank calls {2 * bank:.0f} us"
-                                                         if n > 1 else " (scalar MuscleModel, no bank)"))
+            print(f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
+                  + (" (one vectorised call per message)" if n > 1 else " (its one-muscle float path)"))
         print(f"\nround trip at {args.rate:g} Hz, {args.duration:g} s per row, 2 answers per cycle "
               f"(times in ms; ratio = model_node / relay)")
         print(f"{'N':>3} {'executor':<8} {'responder':<11} {'cycles':>7} {'lost':>5} {'p50':>7} {'p99':>7} "
