@@ -24,7 +24,7 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
     ],
-    python_requires='>=3.10',
+    python_requires='>=3.11',
     install_requires=['numpy', 'scipy', 'PyYAML'],
     extras_require={'test': ['pytest', 'hypothesis']},
     zip_safe=True,

@@ -6,7 +6,7 @@ fixed length L, so each is written once, as the coefficients
     F_raw(p, L) = q2(L) p^2 + q1(L) p + q0(L)        [N], p in Pa gauge, L in m.
 
 That single form gives the forward force, the closed-form inverse
-(:mod:`pma_model_ros.core.inverse`) and the identification residuals.
+(:meth:`pma_model_ros.core.muscle_model.Evaluator.pressure`) and the identification residuals.
 Equation numbers refer to Martens & Boblan, Actuators 2017 ("eq. N") and to
 Sárosi, "Modelling hysteresis in the force characteristic of the fluidic
 muscles" ("Sárosi eq. N").  Start points are the paper's Table 1.
