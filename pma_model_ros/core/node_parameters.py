@@ -92,7 +92,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
                   "stamps lie within `pairing_slop`)", choices=PAIRINGS, read_only=True),
     ParameterSpec("pairing_slop", "double", 0.0005, "`approximate_time`: largest stamp difference of a pressure "
                   "and a length paired", "s", (0.0, 1.0), read_only=True),
-    ParameterSpec("executor", "string", "single", "rclpy executor spinning the node: `single` "
+    ParameterSpec("executor", "string", "events", "rclpy executor spinning the node: `single` "
                   "(SingleThreadedExecutor) or `events` (EventsExecutor)", choices=EXECUTORS, read_only=True),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}

@@ -7,6 +7,8 @@ Every node spins on the executor named by its read-only ROS parameter ``executor
 from __future__ import annotations
 
 import re
+import signal
+import threading
 from typing import Callable
 
 import rclpy
@@ -14,6 +16,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
+from rclpy.signals import SignalHandlerOptions
 from rclpy.node import Node
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.logging import LoggingSeverity, get_logger_level, set_logger_level
@@ -41,7 +44,7 @@ def init(args: list[str] | None) -> None:
     level = get_logger_level("rcl")
     set_logger_level("rcl", LoggingSeverity.FATAL)
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)   # run() handles the signals
     except RCLError as err:
         text = re.sub(r", at \S+:\d+", "", str(err)).removeprefix("failed to initialize rcl: ")
         raise StartupError(text) from None
@@ -69,8 +72,16 @@ def executor(node: Node) -> Executor:
 
 
 def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -> int:
-    """Init, build the node, spin until Ctrl-C or shutdown (the Jazzy idiom); the exit code."""
+    """Init, build the node, spin until SIGINT, SIGTERM or shutdown; the exit code.
+
+    The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the node are
+    shut down before the context.  With rclpy's own signal handler the context went first, and the
+    EventsExecutor could still run a callback whose ``publish`` then failed (docs/performance-nodes.md).
+    """
     node = None
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda *_: stop.set())
     try:
         init(args)
         node = make_node()
@@ -81,7 +92,7 @@ def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -
         return fail(node_name, err)
     try:
         spinner.add_node(node)
-        while node.context.ok():
+        while node.context.ok() and not stop.is_set():
             spinner.spin_once(timeout_sec=SPIN_TIMEOUT)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
