@@ -4,7 +4,10 @@ Forward force (physical value, clipped at 0 N) and the inverse pressure, both
 vectorised over numpy arrays and both returning per-sample :class:`Flag` words.
 They are written once, in :class:`Evaluator`, for one muscle
 (:class:`MuscleModel`) and for a group of muscles sharing a model whose
-numbers are arrays (:mod:`pma_model_ros.core.muscle_bank`).
+numbers are arrays (:mod:`pma_model_ros.core.muscle_bank`).  The force is split
+in two: the length-dependent :class:`Operating` (coefficients and flags, once per
+new length) and :func:`force_at` (per pressure); :meth:`MuscleModel.operating_one`
+is the float twin of the first for one message of one muscle.
 """
 from __future__ import annotations
 
