@@ -244,14 +244,16 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
         per_cycle = (time.process_time() - start) / cycles
         engine, now = model.engine, model.now()
         pressure, length = AMBIENT + 300e3, 0.23
+        pressures, lengths, rates = np.full(muscles, pressure), np.full(muscles, length), np.zeros(muscles)
         start = time.process_time()
         for k in range(cycles):
+            t = now + k * 1e-6
             if muscles == 1:
-                engine.pressure(0, pressure, now + k * 1e-6, now + k * 1e-6)
-                engine.length(0, length, 0.0, now + k * 1e-6, now + k * 1e-6)
+                engine.pressure(0, pressure, t, t)
+                engine.length(0, length, 0.0, t, t)
             else:
-                engine.pressures(np.full(muscles, pressure), now + k * 1e-6, now + k * 1e-6)
-                engine.lengths(np.full(muscles, length), np.zeros(muscles), now + k * 1e-6, now + k * 1e-6)
+                engine.pressures(pressures, t, t)
+                engine.lengths(lengths, rates, t, t)
         own = (time.process_time() - start) / cycles
         model.destroy_node()
         node.destroy_node()

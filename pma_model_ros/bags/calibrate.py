@@ -26,11 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.engine import seconds
 from ..core.force_map import ForceMap
+from ..core.node_parameters import STANDARD_ATMOSPHERE
 from .bag_io import (FLUID_PRESSURE, JOINT_STATE, WRENCH_STAMPED, BagError, connections_of, deserialize, messages,
                      open_bag, topic)
 from .estimate import muscle_namespace
-from ..core.node_parameters import STANDARD_ATMOSPHERE
 
 MIN_SAMPLES = 3          #: fewest samples in a window for a slope
 PRESSURE_CELL = 5e3      #: [Pa] pressure side of an averaging cell
@@ -108,7 +109,7 @@ def read_samples(bag: str | Path, joint: str, ambient_pressure: float, namespace
         series: dict[str, list[tuple[float, float]]] = {"pressure": [], "length": [], "force": []}
         for connection, _, data in messages(reader, connections):
             msg = deserialize(data, connection)
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            stamp = seconds(msg.header.stamp)
             if connection.topic == pressure:
                 series["pressure"].append((stamp, msg.fluid_pressure - ambient_pressure))
             if connection.topic == force_topic and connection.msgtype == WRENCH_STAMPED:

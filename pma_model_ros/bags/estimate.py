@@ -39,7 +39,7 @@ from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
 from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, Engine, JointIndex
+from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, CombinedInputs, Engine, seconds
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
 from .bag_io import (DIAGNOSTIC_ARRAY, FLUID_PRESSURE, JOINT_STATE, RELIABLE, TYPESTORE, WRENCH_STAMPED, BagError,
@@ -147,7 +147,7 @@ class _OfflineNode:
         self.engine = Engine([s.config for s in settings], hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
                              report_interval=REPORT_INTERVAL_PER_MUSCLE * len(settings))
         self.joints = [s.joint_name for s in settings]
-        self._index = {role: JointIndex(self.joints) for role in (_PRESSURE, _STATE)}
+        self._inputs = CombinedInputs(self.engine, self.joints)
         self.summary = Summary(namespace)
         self._names = [f"{namespace.rstrip('/')}/model_node: {joint}" for joint in self.joints]
         self._wrenches = [WrenchStampedCdr(s.frame_id) for s in settings]
@@ -171,15 +171,14 @@ class _OfflineNode:
                 continue
             msg, now = deserialize(data, connection), time_ns * 1e-9
             tag = msg.header.stamp
-            stamp = tag.sec + tag.nanosec * 1e-9
             if self.combined:
-                self._combined(role, msg, stamp, now, time_ns)
+                self._combined(role, msg, now, time_ns)
                 k = None
             elif role == _PRESSURE:
-                self._estimate(k, engine.pressure(k, msg.fluid_pressure, stamp, now, tag), time_ns)
+                self._estimate(k, engine.pressure(k, msg.fluid_pressure, seconds(tag), now, tag), time_ns)
             elif role == _STATE:
-                self._estimate(k, engine.joint_state(k, msg.name, msg.position, msg.velocity, joints[k], stamp, now,
-                                                     tag), time_ns)
+                self._estimate(k, engine.joint_state(k, msg.name, msg.position, msg.velocity, joints[k], seconds(tag),
+                                                     now, tag), time_ns)
             else:
                 self._command(k, engine.command(k, msg.wrench.force.x, now), time_ns)
             if engine.status_due(now, k):
@@ -208,48 +207,28 @@ class _OfflineNode:
         self.writer.write(self._commands[k], time_ns, T[FLUID_PRESSURE](header, pressure, 0.0))
         self.summary.commands += 1
 
-    def _combined(self, role: int, msg, stamp: float, now: float, time_ns: int) -> None:
+    def _combined(self, role: int, msg, now: float, time_ns: int) -> None:
         """One combined JointState: every muscle's pressure or length in one vectorised call, or commands."""
-        engine, joints = self.engine, self.joints
+        engine, inputs = self.engine, self._inputs
+        empty = np.zeros(0)
         if role == _COMMAND:
-            names, forces = list(msg.name), msg.effort
-            problem = "" if len(forces) == len(names) else \
-                f"mismatched arrays: {len(names)} names, {len(forces)} efforts"
-            out_names, out_pressures = [], []
-            for k, joint in enumerate(joints):
-                if joint not in names:
-                    continue
-                if problem:
-                    engine.reject(k, "force_command", problem, now)
-                elif (pressure := engine.command(k, float(forces[names.index(joint)]), now)) is not None:
-                    out_names.append(joint)
-                    out_pressures.append(pressure)
-            if out_names:
+            joints, pressures = inputs.commands(list(msg.name), msg.effort, now)
+            if joints:
                 header = Header(Time(time_ns // 10**9, time_ns % 10**9), "")
-                empty = np.zeros(0)
-                self.writer.write(self._commands[0], time_ns, T[JOINT_STATE](
-                    header, out_names, np.array(out_pressures), empty, empty))
-                self.summary.commands += len(out_names)
+                self.writer.write(self._commands[0], time_ns, T[JOINT_STATE](header, joints, np.array(pressures),
+                                                                             empty, empty))
+                self.summary.commands += len(joints)
             return
-        values, rates = msg.position, msg.velocity if role == _STATE else ()
-        take, present, problems = self._index[role].of(list(msg.name), values, rates)
-        source = "pressure" if role == _PRESSURE else "muscle_state"
-        if present is not None:
-            for k, problem in zip(np.flatnonzero(~present).tolist(), problems):
-                engine.reject(k, source, problem, now)
-        column = np.asarray(values, float)[take] if present is None or present.any() else np.zeros(len(take))
         if role == _PRESSURE:
-            estimated = engine.pressures(column, stamp, now, msg.header.stamp, present)
+            estimated = inputs.pressures(list(msg.name), msg.position, msg.header.stamp, now)
         else:
-            rate = np.asarray(rates, float)[take] if len(rates) and len(rates) == len(values) else None
-            estimated = engine.lengths(column, rate, stamp, now, msg.header.stamp, present)
+            estimated = inputs.lengths(list(msg.name), msg.position, msg.velocity, msg.header.stamp, now)
         if not estimated.any():
             return
         tag = engine.newest_tag(estimated)
-        header = Header(Time(tag.sec, tag.nanosec), "")
-        empty = np.zeros(0)
         self.writer.write(self._estimates[0], time_ns, T[JOINT_STATE](
-            header, [j for j, e in zip(joints, estimated.tolist()) if e], empty, empty, engine.forces[estimated]))
+            Header(Time(tag.sec, tag.nanosec), ""), [j for j, e in zip(inputs.joints, estimated.tolist()) if e],
+            empty, empty, engine.forces[estimated]))
         self.summary.estimates += int(estimated.sum())
         for k in np.flatnonzero(estimated).tolist():
             self._row(k, time_ns, tag, float(engine.forces[k]), int(engine.flags[k]))

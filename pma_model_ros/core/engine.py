@@ -36,13 +36,13 @@ import numpy as np
 from .flags import Flag, describe
 from .muscle_bank import MuscleBank
 from .muscle_model import MuscleModel, Operating, force_at
-from .node_parameters import SPECS, STANDARD_ATMOSPHERE
+from .node_parameters import SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8 bar).
 ABSURD_PRESSURE = 5e6
 #: [s] Shortest time between two on-change status reports of model_node (and of its offline twin), per muscle
-#: reported: a status costs about 50 us per muscle to build and publish, so on-change reports take at most a
-#: few percent of a core however many muscles flap (N = 64: at most one every 0.1 s).
+#: reported: building and publishing a status of 64 muscles took about 3 ms under cProfile, so on-change
+#: reports stay a few percent of a core however many muscles flap (N = 64: at most one every 0.1 s).
 REPORT_INTERVAL_PER_MUSCLE = 0.0015
 #: Flags that make an estimate or command WARN, with their diagnostic wording.
 WARN_FLAGS = {
@@ -52,7 +52,8 @@ WARN_FLAGS = {
     Flag.BRANCH_UNKNOWN: "hysteresis branch unknown",
 }
 _WARN_TEXTS = tuple(f"{text} ({flag.name})" for flag, text in WARN_FLAGS.items())
-_WARN_BITS = np.array([int(flag) for flag in WARN_FLAGS], np.uint16)
+_WARN_BIT_LIST = tuple(int(flag) for flag in WARN_FLAGS)
+_WARN_BITS = np.array(_WARN_BIT_LIST, np.uint16)
 _WARN_MASK = int(sum(WARN_FLAGS))
 _INVALID, _PRESSURE_OUT, _CLIPPED = int(Flag.INVALID_INPUT), int(Flag.PRESSURE_OUT_OF_RANGE), int(Flag.CLIPPED)
 #: Counters of each muscle, in the order of the engine's count array.
@@ -64,6 +65,11 @@ _REJECTED = {"pressure": 3, "muscle_state": 4, "force_command": 5}
 _STALE, _UNPAIRED, _ESTIMATES, _COMMANDS, _NO_LENGTH = 6, 7, 8, 9, 10
 #: Counters whose rates [Hz] a status reports.
 _RATES = (("received pressure", 0), ("received muscle_state", 1), ("estimates", _ESTIMATES))
+
+
+def seconds(stamp) -> float:
+    """A header stamp (``builtin_interfaces/Time``: ``sec``, ``nanosec``, of rclpy or rosbags) in seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def joint_problem(names: Sequence[str], positions: Sequence[float], velocities: Sequence[float],
@@ -97,32 +103,6 @@ def length_problem(length: float, limit: float) -> str:
     return f"length {length:g} m outside the geometry (0, {limit:.4g}) m"
 
 
-class JointIndex:
-    """Where each joint sits in the arrays of a JointState; the last complete name layout is cached."""
-
-    def __init__(self, joints: Sequence[str]) -> None:
-        self.joints = list(joints)
-        self._names: list[str] | None = None
-        self._take = np.zeros(0, np.intp)
-
-    def of(self, names: list[str], values: Sequence[float],
-           velocities: Sequence[float]) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
-        """(index of each joint in ``values`` (0 where absent), which joints are present (None: all),
-        why each absent one is absent (:func:`joint_problem`))."""
-        if names == self._names:   # same layout as before: every joint is there; only array sizes can differ
-            problem = joint_problem(names, values, velocities, self.joints[0])
-            if not problem:
-                return self._take, None, []
-            return self._take, np.zeros(len(self.joints), bool), [problem] * len(self.joints)
-        found = [joint_problem(names, values, velocities, joint) or names.index(joint) for joint in self.joints]
-        present = np.array([isinstance(i, int) for i in found])
-        take = np.array([i if isinstance(i, int) else 0 for i in found], np.intp)
-        if present.all():
-            self._names, self._take = list(names), take
-            return take, None, []
-        return take, present, [i for i in found if isinstance(i, str)]
-
-
 class Level(enum.IntEnum):
     """Diagnostic level; values equal diagnostic_msgs/DiagnosticStatus levels."""
 
@@ -136,8 +116,8 @@ class Config:
     """One muscle's identified model and the node settings the engine needs; swapped whole at runtime."""
 
     model: MuscleModel
-    ambient_pressure: float = STANDARD_ATMOSPHERE  #: [Pa] absolute; gauge = absolute - ambient
-    max_input_age: float = 0.1                     #: [s] inputs with |now - stamp| above this are stale
+    ambient_pressure: float = SPECS["ambient_pressure"].default  #: [Pa] absolute; gauge = absolute - ambient
+    max_input_age: float = SPECS["max_input_age"].default        #: [s] inputs with |now - stamp| above this are stale
 
     def __post_init__(self) -> None:
         SPECS["ambient_pressure"].check(self.ambient_pressure)
@@ -267,9 +247,11 @@ class Engine:
         if flags & _WARN_MASK:
             self._note(k, flags, now)
         self._counts[k, _ESTIMATES] += 1
-        newer_length = l_stamp > p_stamp
-        self.stamp, self.flags = (l_stamp, flags) if newer_length else (p_stamp, flags)
-        self.tag = self._l_tag[k] if newer_length else self._p_tag[k]
+        self.flags = flags
+        if l_stamp > p_stamp:
+            self.stamp, self.tag = l_stamp, self._l_tag[k]
+        else:
+            self.stamp, self.tag = p_stamp, self._p_tag[k]
         return raw
 
     def command(self, k: int, force: float, now: float) -> float | None:
@@ -305,7 +287,7 @@ class Engine:
 
     def _note(self, k: int, flags: int, now: float) -> None:
         self._calm = None
-        for j, bit in enumerate(_WARN_BITS.tolist()):
+        for j, bit in enumerate(_WARN_BIT_LIST):
             if flags & bit:
                 self._warned[k, j] = now
 
@@ -465,3 +447,84 @@ class Engine:
     def counts(self, k: int) -> dict[str, int]:
         """Muscle ``k``'s non-zero counters."""
         return {key: n for key, n in zip(COUNTERS, self._counts[k].tolist()) if n}
+
+
+class _JointIndex:
+    """Where each joint sits in the arrays of a JointState; the last complete name layout is cached."""
+
+    def __init__(self, joints: Sequence[str]) -> None:
+        self.joints = list(joints)
+        self._names: list[str] | None = None
+        self._take = np.zeros(0, np.intp)
+
+    def of(self, names: list[str], values: Sequence[float],
+           velocities: Sequence[float]) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+        """(index of each joint in ``values`` (0 where absent), which joints are present (None: all),
+        why each absent one is absent (:func:`joint_problem`))."""
+        if names == self._names:   # same layout as before: every joint is there; only array sizes can differ
+            problem = joint_problem(names, values, velocities, self.joints[0])
+            if not problem:
+                return self._take, None, []
+            return self._take, np.zeros(len(self.joints), bool), [problem] * len(self.joints)
+        found = [joint_problem(names, values, velocities, joint) or names.index(joint) for joint in self.joints]
+        present = np.array([isinstance(i, int) for i in found])
+        take = np.array([i if isinstance(i, int) else 0 for i in found], np.intp)
+        if present.all():
+            self._names, self._take = list(names), take
+            return take, None, []
+        return take, present, [i for i in found if isinstance(i, str)]
+
+
+class CombinedInputs:
+    """The combined input mode's JointStates (every muscle in one message) into one :class:`Engine`.
+
+    ``joints`` are the muscles' JointState names, in the engine's order.  A message that lacks a muscle,
+    or whose arrays do not match, rejects only the muscles it gives no value for; the others are one
+    vectorised engine call.  ``model_node`` and ``bag estimate`` both use this.
+    """
+
+    def __init__(self, engine: Engine, joints: Sequence[str]) -> None:
+        self.engine, self.joints = engine, list(joints)
+        self._index = {"pressure": _JointIndex(joints), "muscle_state": _JointIndex(joints)}
+
+    def pressures(self, names: list[str], positions: Sequence[float], stamp, now: float) -> np.ndarray:
+        """A ``muscle_pressures`` message: absolute pressures [Pa] in ``positions``, header ``stamp`` (``sec``,
+        ``nanosec``); which muscles got an estimate (see :meth:`Engine.pressures`)."""
+        take, present = self._take("pressure", names, positions, (), now)
+        return self.engine.pressures(np.asarray(positions, float)[take] if take is not None else
+                                     np.zeros(len(self.joints)), seconds(stamp), now, stamp, present)
+
+    def lengths(self, names: list[str], positions: Sequence[float], velocities: Sequence[float], stamp,
+                now: float) -> np.ndarray:
+        """A ``muscle_states`` message: lengths [m] in ``positions``, rates [m/s] in ``velocities`` (may be empty)."""
+        take, present = self._take("muscle_state", names, positions, velocities, now)
+        if take is None:
+            return self.engine.lengths(np.zeros(len(self.joints)), None, seconds(stamp), now, stamp, present)
+        rates = np.asarray(velocities, float)[take] if len(velocities) else None
+        return self.engine.lengths(np.asarray(positions, float)[take], rates, seconds(stamp), now, stamp, present)
+
+    def _take(self, source: str, names: list[str], values: Sequence[float], velocities: Sequence[float],
+              now: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(where each muscle's value sits, None if no muscle has one; which are present, None: all); the absent
+        ones rejected with their reason."""
+        take, present, problems = self._index[source].of(names, values, velocities)
+        if present is None:
+            return take, None
+        for k, problem in zip(np.flatnonzero(~present).tolist(), problems):
+            self.engine.reject(k, source, problem, now)
+        return (take if present.any() else None), present
+
+    def commands(self, names: list[str], efforts: Sequence[float], now: float) -> tuple[list[str], list[float]]:
+        """A ``force_commands`` message (wanted tensions [N] in ``efforts``): the joints commanded and their
+        absolute pressures [Pa]; muscles not named are not commanded."""
+        problem = "" if len(efforts) == len(names) else f"mismatched arrays: {len(names)} names, {len(efforts)} efforts"
+        joints, pressures = [], []
+        for k, joint in enumerate(self.joints):
+            if joint not in names:
+                continue
+            if problem:
+                self.engine.reject(k, "force_command", problem, now)
+            elif (pressure := self.engine.command(k, float(efforts[names.index(joint)]), now)) is not None:
+                joints.append(joint)
+                pressures.append(pressure)
+        return joints, pressures

@@ -26,11 +26,11 @@ from .identification import Fit, ModelReport
 from .models import Domain, get_model
 from .muscle import MuscleSpec
 from .muscle_model import MuscleModel
-from .node_parameters import STANDARD_ATMOSPHERE
+from .node_parameters import SPECS
 
 _ROUND = 12  # significant digits written; far below any fit's resolution
 #: Node settings written into generated files, beside the muscle (documented in the README).
-NODE_DEFAULTS = {"ambient_pressure": STANDARD_ATMOSPHERE, "max_input_age": 0.1}
+NODE_DEFAULTS = {name: SPECS[name].default for name in ("ambient_pressure", "max_input_age")}
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Header
 
 from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, Engine, JointIndex
+from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, CombinedInputs, Engine, seconds
 from ..core.param_file import NodeSettings
 from . import model_params
 from .startup import StartupError, run
@@ -136,13 +136,13 @@ class MuscleTopics:
 
     def _on_pressure(self, k: int, msg: FluidPressure) -> None:
         now, stamp = self.node.now(), msg.header.stamp
-        force = self.engine.pressure(k, msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+        force = self.engine.pressure(k, msg.fluid_pressure, seconds(stamp), now, stamp)
         self._answer(k, force, now)
 
     def _on_state(self, k: int, msg: JointState) -> None:
         now, stamp = self.node.now(), msg.header.stamp
         force = self.engine.joint_state(k, msg.name, msg.position, msg.velocity, self._joints[k],
-                                        stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+                                        seconds(stamp), now, stamp)
         self._answer(k, force, now)
 
     def _answer(self, k: int, force: float | None, now: float) -> None:
@@ -177,30 +177,18 @@ class CombinedTopics:
         self.use(node.settings)
 
     def use(self, settings: list[NodeSettings]) -> None:
-        self._joints = [s.joint_name for s in settings]
-        self._pressure_index, self._state_index = JointIndex(self._joints), JointIndex(self._joints)
-        n = len(self._joints)   # a message of every muscle's estimate
-        self._all = StampedTemplate(serialize_message(JointState(name=self._joints, effort=sentinels(n).tolist())), n)
-
-    def _absent(self, source: str, present: np.ndarray | None, problems: list[str], now: float) -> None:
-        if present is not None:
-            for k, problem in zip(np.flatnonzero(~present).tolist(), problems):
-                self.engine.reject(k, source, problem, now)
+        self._inputs = CombinedInputs(self.engine, [s.joint_name for s in settings])
+        n = len(settings)   # a message of every muscle's estimate
+        self._all = StampedTemplate(serialize_message(JointState(name=self._inputs.joints,
+                                                                 effort=sentinels(n).tolist())), n)
 
     def _on_pressures(self, msg: JointState) -> None:
-        now, stamp, values = self.node.now(), msg.header.stamp, msg.position
-        take, present, problems = self._pressure_index.of(msg.name, values, ())
-        self._absent("pressure", present, problems, now)
-        column = np.frombuffer(values, float)[take] if present is None or present.any() else np.zeros(len(take))
-        self._answer(self.engine.pressures(column, stamp.sec + stamp.nanosec * 1e-9, now, stamp, present), now)
+        now = self.node.now()
+        self._answer(self._inputs.pressures(msg.name, msg.position, msg.header.stamp, now), now)
 
     def _on_states(self, msg: JointState) -> None:
-        now, stamp, values, rates = self.node.now(), msg.header.stamp, msg.position, msg.velocity
-        take, present, problems = self._state_index.of(msg.name, values, rates)
-        self._absent("muscle_state", present, problems, now)
-        column = np.frombuffer(values, float)[take] if present is None or present.any() else np.zeros(len(take))
-        rate = np.frombuffer(rates, float)[take] if len(rates) == len(values) and len(rates) else None
-        self._answer(self.engine.lengths(column, rate, stamp.sec + stamp.nanosec * 1e-9, now, stamp, present), now)
+        now = self.node.now()
+        self._answer(self._inputs.lengths(msg.name, msg.position, msg.velocity, msg.header.stamp, now), now)
 
     def _answer(self, estimated: np.ndarray, now: float) -> None:
         """One force_estimates of the muscles that got an estimate (the prebuilt message when all did)."""
@@ -209,7 +197,7 @@ class CombinedTopics:
             self._all.values[:] = self.engine.forces
             self._states_pub.publish(self._all(tag.sec, tag.nanosec))
         elif estimated.any():
-            msg = JointState(name=[j for j, e in zip(self._joints, estimated.tolist()) if e],
+            msg = JointState(name=[j for j, e in zip(self._inputs.joints, estimated.tolist()) if e],
                              effort=self.engine.forces[estimated].tolist())
             msg.header.stamp = self.engine.newest_tag(estimated)
             self._states_pub.publish(msg)
@@ -217,18 +205,10 @@ class CombinedTopics:
 
     def _on_commands(self, msg: JointState) -> None:
         """Pressure commands of the muscles named in ``msg`` (the others are not commanded)."""
-        now, names, forces = self.node.now(), msg.name, msg.effort
-        problem = "" if len(forces) == len(names) else f"mismatched arrays: {len(names)} names, {len(forces)} efforts"
-        out = JointState()
-        for k, joint in enumerate(self._joints):
-            if joint not in names:
-                continue
-            if problem:
-                self.engine.reject(k, "force_command", problem, now)
-            elif (pressure := self.engine.command(k, forces[names.index(joint)], now)) is not None:
-                out.name.append(joint)
-                out.position.append(pressure)
-        if out.name:
+        now = self.node.now()
+        joints, pressures = self._inputs.commands(msg.name, msg.effort, now)
+        if joints:
+            out = JointState(name=joints, position=pressures)
             out.header.stamp = self.node.get_clock().now().to_msg()
             self._commands_pub.publish(out)
         self.node.check_status(now)

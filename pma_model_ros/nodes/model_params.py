@@ -45,10 +45,7 @@ def descriptor(spec: ParameterSpec, description: str | None = None) -> Parameter
 
 
 def _declare(node: Node, spec: ParameterSpec, name: str | None = None):
-    kind = TYPES[spec.kind]
-    value = kind if spec.default is None else spec.default
-    if spec.kind == "string[]" and not spec.default:
-        value = kind
+    value = spec.default if spec.default not in (None, []) else TYPES[spec.kind]   # no value: the type alone
     return node.declare_parameter(name or spec.name, value, descriptor(spec))
 
 
