@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .models import Model
-from .muscle_model import Evaluator, ForceResult, MuscleModel, Operating, PressureResult, force_at
+from .muscle_model import Evaluator, ForceResult, MuscleModel, Operating, PressureResult, force_at, pressure_for
 
 
 @dataclass(frozen=True)
@@ -104,13 +104,7 @@ class MuscleBank:
     def pressure(self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> PressureResult:
         """Gauge pressure [Pa] giving tension ``force`` [N] at ``length`` [m]; see :meth:`MuscleModel.pressure`."""
         F, L, rate = self._inputs(force, length, length_rate)
-        results = [(g.index, g.pressure(F[..., g.index], L[..., g.index], rate[..., g.index])) for g in self.groups]
-        if len(results) == 1:
-            return results[0][1]
-        out = PressureResult(np.empty(F.shape), np.empty(F.shape, np.uint16))
-        for index, result in results:
-            out.pressure[..., index], out.flags[..., index] = result.pressure, result.flags
-        return out
+        return pressure_for(self.operating(L, rate), F)
 
     def _inputs(self, value: ArrayLike, length: ArrayLike,
                 length_rate: ArrayLike | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

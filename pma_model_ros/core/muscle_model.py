@@ -37,9 +37,9 @@ class PressureResult:
     flags: np.ndarray      #: uint16 Flag words
 
 
-_INVALID, _LENGTH_OUT, _PRESSURE_OUT, _CLIPPED, _BRANCH_UNKNOWN = (
+_INVALID, _LENGTH_OUT, _PRESSURE_OUT, _CLIPPED, _SATURATED, _BRANCH_UNKNOWN = (
     int(f) for f in (Flag.INVALID_INPUT, Flag.LENGTH_OUT_OF_RANGE, Flag.PRESSURE_OUT_OF_RANGE, Flag.CLIPPED,
-                     Flag.BRANCH_UNKNOWN))
+                     Flag.SATURATED, Flag.BRANCH_UNKNOWN))
 
 
 @dataclass(frozen=True)
@@ -119,34 +119,45 @@ class Evaluator:
         return force_at(self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)), p)
 
     def pressure(self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> PressureResult:
-        """Gauge pressure [Pa] that gives tension ``force`` [N] at ``length`` [m].
-
-        Closed form: every model is F = q2 p^2 + q1 p + q0 at fixed L, and the
-        root where F rises with p is p = 2 (F - q0) / (q1 + sqrt(q1^2 - 4 q2 (q0 - F))),
-        valid for q2 = 0 too.  A force <= 0 gives the pressure at which the
-        muscle starts to pull; a force out of reach gives the bound, flagged SATURATED.
-        """
+        """Gauge pressure [Pa] that gives tension ``force`` [N] at ``length`` [m] (:func:`pressure_for`)."""
         F, L = np.broadcast_arrays(np.asarray(force, float), np.asarray(length, float))
         op = self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape))
-        usable = op.usable & np.isfinite(F)
-        flags = np.array(np.where(usable, op.flags, op.flags | _INVALID), np.uint16)
-        target = np.where(usable, np.maximum(F, 0.0), 0.0)
-        p_max = self.spec.max_pressure
-        q2, q1, q0 = op.q2, op.q1, op.q0
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            disc = q1**2 - 4 * q2 * (q0 - target)
-            denom = q1 + np.sqrt(np.maximum(disc, 0.0))
-            p = 2 * (target - q0) / denom
-            reachable = (disc >= 0) & (denom > 0) & np.isfinite(p)
-            f_at_max = (q2 * p_max + q1) * p_max + q0
-        p = np.where(reachable, p, np.where(f_at_max < target, p_max, 0.0))
-        wants_pull = usable & (F > 0)
-        slack = 1e-9 * p_max  # round-off at the bounds is not saturation
-        too_high = p > p_max + slack
-        too_low = (p < -slack) & wants_pull
-        flags[usable & (~reachable | too_high | too_low)] |= np.uint16(Flag.SATURATED)
-        p = np.clip(p, 0.0, p_max)
-        return PressureResult(np.where(usable, p, np.nan), flags)
+        return pressure_for(op, F)
+
+
+def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
+    """The inverse of :func:`force_at`: gauge pressure [Pa] in [0, max_pressure] giving tension ``force`` [N].
+
+    At fixed length every model is f(p) = q2 p^2 + q1 p + q0, of either sign of q2 and q1.  The
+    answer is the smallest root of f(p) = max(force, 0) in [0, max_pressure] (so a force <= 0 gives
+    the pressure at which the muscle starts to pull).  Where no root lies there, it is the pressure
+    of the nearest reachable force, flagged SATURATED: a bound or the vertex -q1 / (2 q2) (the peak of
+    a concave model, the trough of a convex one), whichever has the model force nearest the target
+    (the smaller pressure on a tie).
+    """
+    F = np.asarray(force, float)
+    p_max = op.max_pressure
+    usable = op.usable & np.isfinite(F)
+    target = np.where(usable, np.maximum(F, 0.0), 0.0)
+    q2, q1, c = op.q2, op.q1, op.q0 - target
+    slack = 1e-9 * p_max   # round-off at the bounds is not out of reach
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        # Both roots without cancellation (Numerical Recipes 5.6): Q = -(q1 + sgn(q1) sqrt(disc)) / 2.
+        disc = q1 * q1 - 4 * q2 * c
+        big = -0.5 * (q1 + np.copysign(np.sqrt(disc), q1))
+        roots = np.stack(np.broadcast_arrays(big / q2, c / big))
+        inside = (disc >= 0) & (roots >= -slack) & (roots <= p_max + slack)
+        smallest = np.min(np.where(inside, roots, np.inf), axis=0)
+        vertex = np.clip(np.where(q2 != 0, -q1 / (2 * q2), 0.0), 0.0, p_max)
+        candidates = np.stack(np.broadcast_arrays(0.0 * vertex, vertex, p_max + 0.0 * vertex))
+        miss = np.abs((q2 * candidates + q1) * candidates + c)
+        nearest = np.take_along_axis(candidates, np.argmin(miss, axis=0)[None], axis=0)[0]
+        reached = np.isfinite(smallest)
+        p = np.clip(np.where(reached, smallest, nearest), 0.0, p_max)
+        served = np.maximum((q2 * p + q1) * p + op.q0, 0.0)
+        short = ~reached & (np.abs(served - target) > 1e-9 * np.maximum(target, 1.0))
+    flags = np.where(usable, op.flags | np.where(short, _SATURATED, 0), op.flags | _INVALID).astype(np.uint16)
+    return PressureResult(np.where(usable, p, np.nan), flags)
 
 
 @dataclass(frozen=True)
