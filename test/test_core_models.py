@@ -49,6 +49,18 @@ def test_andrikopoulos_with_unit_corrections_is_mckibben_at_l0():
         force_raw(get_model("mckibben"), np.zeros(0), *args), rel=1e-12)
 
 
+def test_andrikopoulos_at_twelve_percent_contraction_by_hand():
+    """Eq. 18 on the DMSP-10-250 (D0 = 0.01 m, Theta0 = 0.49916 rad) with c0 = 1.2, c1 = 1.5 at L = 0.22 m, 5 bar.
+
+    kappa = 0.03 / 0.25 = 0.12; tan^2 Theta0 = 0.297262, sin^2 Theta0 = 0.229146; (1 - 1.5 * 0.12)^2 = 0.6724;
+    3 / 0.297262 * 0.6724 - 1 / 0.229146 = 2.421893; F = 5e5 * 1.2 * pi 1e-4 / 4 * 2.421893 = 114.129 N.
+    (Without the square: 184.32 N.)
+    """
+    spec, fmap = shipped_spec("DMSP-10-250"), shipped_force_map("DMSP-10-250")
+    force = force_raw(get_model("andrikopoulos"), np.array([1.2, 1.5]), spec, domain_of(fmap), 5e5, 0.22)
+    assert force == pytest.approx(114.129, abs=1e-3)
+
+
 def test_tondu_lopez_is_an_alias():
     assert get_model("Tondu_Lopez") is MODELS["andrikopoulos"]
     with pytest.raises(ValueError, match="unknown model"):
@@ -79,12 +91,15 @@ def test_hysteresis_branches():
 
 
 def test_physical_force_flags_and_clipping(martens_10_250):
-    res = martens_10_250.force(np.array([3e5, 1e5, -1e4, 9e5, 3e5, np.nan]),
-                               np.array([0.23, 0.2, 0.23, 0.23, 0.26, 0.23]))
+    res = martens_10_250.force(np.array([3e5, 1e5, -3e4, 9e5, 3e5, np.nan, -5e3]),
+                               np.array([0.23, 0.2, 0.23, 0.23, 0.26, 0.23, 0.23]))
     assert np.all(res.force[:5] >= 0) and np.isnan(res.force[5])
+    vented = martens_10_250.force(0.0, 0.23)   # 5 kPa below ambient: a vented muscle, served as 0 Pa gauge
+    assert res.flags[6] == vented.flags and not res.flags[6] & Flag.PRESSURE_OUT_OF_RANGE
+    assert res.force[6] == float(vented.force)
     assert res.flags[0] == Flag.OK
     assert res.flags[1] & Flag.CLIPPED and res.force[1] == 0 and res.raw[1] < 0
-    assert res.flags[2] & Flag.PRESSURE_OUT_OF_RANGE
+    assert res.flags[2] & Flag.PRESSURE_OUT_OF_RANGE and res.flags[2] & Flag.BELOW_AMBIENT
     assert res.flags[3] & Flag.PRESSURE_OUT_OF_RANGE
     assert res.flags[4] & Flag.LENGTH_OUT_OF_RANGE
     assert res.flags[5] & Flag.INVALID_INPUT

@@ -36,7 +36,7 @@ from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.models import MODELS, Domain
 from pma_model_ros.core.muscle import MuscleSpec
-from pma_model_ros.core.muscle_model import MuscleModel
+from pma_model_ros.core.muscle_model import VENTED_BAND, MuscleModel
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 PARAMETERS = {muscle: read_parameters(path) for muscle, path in CONFIGS.items()}
@@ -63,14 +63,14 @@ def working_length(muscle: MuscleModel, unit: np.ndarray) -> np.ndarray:
 
 
 def domain_length(muscle: MuscleModel, unit: np.ndarray) -> np.ndarray:
-    """Lengths in the validity domain [min, min(max, L0)] [m] from unit floats in [0, 1]."""
-    low, high = muscle.domain.length_min, min(muscle.domain.length_max, muscle.spec.nominal_length)
+    """Lengths served [m] (the identified range, or the envelope where the model extrapolates) from unit floats."""
+    low, high = muscle.limits.length_low, muscle.limits.length_high
     return low + unit * (high - low)
 
 
 def operating_length(muscle: MuscleModel, length: np.ndarray) -> np.ndarray:
-    """Where MuscleModel evaluates the model: the length held inside [min, min(max, L0)] [m]."""
-    return np.clip(length, muscle.domain.length_min, min(muscle.domain.length_max, muscle.spec.nominal_length))
+    """Where MuscleModel evaluates the model: the length held inside the lengths served [m]."""
+    return np.clip(length, muscle.limits.length_low, muscle.limits.length_high)
 
 
 def units(size: int = 8):
@@ -91,7 +91,13 @@ def test_served_force_is_nonnegative_clipped_raw_force(muscle, u_p, u_L, rate):
     np.testing.assert_array_equal(result.force, np.maximum(result.raw, 0.0))
     np.testing.assert_array_equal(flagged(result.flags, Flag.CLIPPED), result.raw < 0)
     np.testing.assert_array_equal(flagged(result.flags, Flag.PRESSURE_OUT_OF_RANGE),
-                                  (p < 0) | (p > muscle.spec.max_pressure))
+                                  (p < -VENTED_BAND) | (p > muscle.limits.pressure_top))
+    np.testing.assert_array_equal(flagged(result.flags, Flag.BELOW_AMBIENT), p < -VENTED_BAND)
+    served = np.clip(p, 0, muscle.limits.pressure_top)
+    np.testing.assert_array_equal(flagged(result.flags, Flag.EXTRAPOLATED) & (served > 0),
+                                  (served > muscle.limits.pressure_known)
+                                  | (operating_length(muscle, L) < muscle.domain.length_min)
+                                  | (operating_length(muscle, L) > muscle.domain.length_max))
 
 
 # --- monotonic in pressure exactly where dF/dp >= 0 ---------------------------------------------------

@@ -35,7 +35,7 @@ import numpy as np
 
 from .flags import Flag, describe
 from .muscle_bank import MuscleBank
-from .muscle_model import MuscleModel, Operating, force_at
+from .muscle_model import VENTED_BAND, MuscleModel, Operating, force_at
 from .node_parameters import SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8 bar).
@@ -50,12 +50,16 @@ WARN_FLAGS = {
     Flag.LENGTH_OUT_OF_RANGE: "outside validity domain",
     Flag.PRESSURE_OUT_OF_RANGE: "outside validity domain",
     Flag.BRANCH_UNKNOWN: "hysteresis branch unknown",
+    Flag.EXTRAPOLATED: "extrapolated beyond the identified data",
+    Flag.BELOW_AMBIENT: "pressure far below ambient: a gauge sensor read as absolute? (pressure_reference)",
 }
 _WARN_TEXTS = tuple(f"{text} ({flag.name})" for flag, text in WARN_FLAGS.items())
 _WARN_BIT_LIST = tuple(int(flag) for flag in WARN_FLAGS)
 _WARN_BITS = np.array(_WARN_BIT_LIST, np.uint16)
 _WARN_MASK = int(sum(WARN_FLAGS))
-_INVALID, _PRESSURE_OUT, _CLIPPED = int(Flag.INVALID_INPUT), int(Flag.PRESSURE_OUT_OF_RANGE), int(Flag.CLIPPED)
+_INVALID, _PRESSURE_OUT, _CLIPPED, _EXTRAPOLATED, _BELOW_AMBIENT = (
+    int(f) for f in (Flag.INVALID_INPUT, Flag.PRESSURE_OUT_OF_RANGE, Flag.CLIPPED, Flag.EXTRAPOLATED,
+                     Flag.BELOW_AMBIENT))
 #: Counters of each muscle, in the order of the engine's count array.
 COUNTERS = ("received pressure", "received muscle_state", "received force_command",
             "rejected pressure", "rejected muscle_state", "rejected force_command",
@@ -231,11 +235,17 @@ class Engine:
             self._counts[k, _STALE] += 1
             return None
         gauge = self._pressure.item(k) - self._ambient.item(k)
-        p_max = self.configs[k].model.spec.max_pressure
+        limits = self.configs[k].model.limits
         flags = int(self._lflags[k])
-        if gauge < 0 or gauge > p_max:
+        if gauge < 0:   # the rule of force_at, in floats
+            if gauge < -VENTED_BAND:
+                flags |= _PRESSURE_OUT | _BELOW_AMBIENT
+            gauge = 0.0
+        elif gauge > limits.pressure_top:
             flags |= _PRESSURE_OUT
-            gauge = 0.0 if gauge < 0 else p_max
+            gauge = limits.pressure_top
+        if gauge > limits.pressure_known:
+            flags |= _EXTRAPOLATED
         q = self._q
         raw = (q.item(0, k) * gauge + q.item(1, k)) * gauge + q.item(2, k)
         if flags & _INVALID or not raw < math.inf:   # NaN or inf: the model gives no force here
@@ -358,7 +368,7 @@ class Engine:
             pairs &= fresh
         usable = pairs & ((self._lflags & _INVALID) == 0)
         q2, q1, q0 = self._q
-        result = force_at(Operating(usable, self._lflags, q2, q1, q0, self.bank.max_pressure),
+        result = force_at(Operating(usable, self._lflags, q2, q1, q0, self.bank.limits),
                           self._pressure - self._ambient)
         ok = usable & (result.raw < math.inf)
         if (ok != pairs).any():

@@ -28,14 +28,30 @@ Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 @dataclass(frozen=True)
 class Domain:
-    """Length range [m] a model was identified on; its validity domain in L."""
+    """What a model was identified on, and how it is served outside that.
 
-    length_min: float
-    length_max: float
+    Inside [length_min, length_max] x [0, pressure_max] the model is served as identified.  Outside, if
+    ``extrapolates`` (its held-out error on the map's edge lengths is at most ``EDGE_CV_LIMIT``), the
+    model's own value is served in the physical envelope (the braid's shortest length to L0, 0 to the
+    rated pressure), flagged EXTRAPOLATED; otherwise the value at the nearest identified point, flagged
+    LENGTH_OUT_OF_RANGE or PRESSURE_OUT_OF_RANGE (:meth:`~.muscle_model.Evaluator.operating`).
+    """
+
+    length_min: float                  #: [m]
+    length_max: float                  #: [m]
+    pressure_max: float = math.inf     #: highest identified gauge pressure [Pa]; inf: unknown (the rated one)
+    extrapolates: bool = False         #: the model is credible outside the identified box
 
     def __post_init__(self) -> None:
         if not (0 < self.length_min < self.length_max):
             raise ValueError(f"length range must satisfy 0 < min < max, got [{self.length_min}, {self.length_max}]")
+        if not self.pressure_max > 0:
+            raise ValueError(f"identified pressure range must reach above 0 Pa, got {self.pressure_max}")
+
+
+#: [%] Worst held-out error (eq. 23) on the map's shortest and longest lengths up to which a model is trusted
+#: outside its identified data (:class:`Domain`).
+EDGE_CV_LIMIT = 10.0
 
 
 @dataclass(frozen=True)

@@ -125,3 +125,9 @@ def volume_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None 
 def diameter_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
     """dD/dL [-], derivative of eq. 2; see :func:`braid`."""
     return braid(spec, length, fiber_angle)[1]
+
+
+def shortest_length(spec: MuscleSpec) -> float:
+    """Shortest length of the ideal braid, L_Fiber / sqrt(3) [m]: there dV/dL = 0 (eq. 4), Theta = 54.7 deg,
+    and the muscle pulls no more at any pressure (its full contraction)."""
+    return fiber_length(spec) / math.sqrt(3)

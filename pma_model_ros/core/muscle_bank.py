@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .models import Model
-from .muscle_model import Evaluator, ForceResult, MuscleModel, Operating, PressureResult, force_at, pressure_for
+from .muscle_model import Evaluator, ForceResult, Limits, MuscleModel, Operating, PressureResult, force_at, pressure_for
 
 
 @dataclass(frozen=True)
@@ -32,10 +32,12 @@ class SpecColumns:
 
 @dataclass(frozen=True)
 class DomainColumns:
-    """Identified length ranges of n muscles as arrays of n [m]."""
+    """The :class:`~.models.Domain` of n muscles as arrays of n (m, m, Pa, bool)."""
 
     length_min: np.ndarray
     length_max: np.ndarray
+    pressure_max: np.ndarray
+    extrapolates: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -56,7 +58,7 @@ class ModelGroup(Evaluator):
 
         spec = SpecColumns(*(column(lambda m, f=f.name: getattr(m.spec, f))
                              for f in fields(SpecColumns)))
-        domain = DomainColumns(column(lambda m: m.domain.length_min), column(lambda m: m.domain.length_max))
+        domain = DomainColumns(*(column(lambda m, f=f.name: getattr(m.domain, f)) for f in fields(DomainColumns)))
         theta = np.stack([m.theta for m in muscles], axis=1)
         return cls(np.asarray(index, dtype=np.intp), spec, muscles[0].model, theta, domain,
                    column(lambda m: m.max_length))
@@ -77,7 +79,8 @@ class MuscleBank:
         for i, muscle in enumerate(self.muscles):
             by_model.setdefault(muscle.model.name, []).append(i)
         self.groups = tuple(ModelGroup.of(index, [self.muscles[i] for i in index]) for index in by_model.values())
-        self.max_pressure = np.array([m.spec.max_pressure for m in self.muscles])   #: (N,) rated gauge pressures [Pa]
+        #: (N,) lengths and pressures served and commanded
+        self.limits = Limits(*(np.array([getattr(m.limits, f.name) for m in self.muscles]) for f in fields(Limits)))
         self.max_length = np.array([m.max_length for m in self.muscles])           #: (N,) fibre lengths [m] (eq. 3)
 
     def __len__(self) -> int:
@@ -90,7 +93,7 @@ class MuscleBank:
             return self.groups[0].operating(L, rate)
         parts = [(g.index, g.operating(L[..., g.index], rate[..., g.index])) for g in self.groups]
         out = Operating(np.empty(L.shape, bool), np.empty(L.shape, np.uint16), np.empty(L.shape), np.empty(L.shape),
-                        np.empty(L.shape), self.max_pressure)
+                        np.empty(L.shape), self.limits)
         for index, part in parts:
             for name in ("usable", "flags", "q2", "q1", "q0"):
                 getattr(out, name)[..., index] = getattr(part, name)

@@ -11,7 +11,7 @@ is the float twin of the first for one message of one muscle.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 import math
 
@@ -37,9 +37,35 @@ class PressureResult:
     flags: np.ndarray      #: uint16 Flag words
 
 
-_INVALID, _LENGTH_OUT, _PRESSURE_OUT, _CLIPPED, _SATURATED, _BRANCH_UNKNOWN = (
+_INVALID, _LENGTH_OUT, _PRESSURE_OUT, _CLIPPED, _SATURATED, _BRANCH_UNKNOWN, _EXTRAPOLATED, _BELOW_AMBIENT = (
     int(f) for f in (Flag.INVALID_INPUT, Flag.LENGTH_OUT_OF_RANGE, Flag.PRESSURE_OUT_OF_RANGE, Flag.CLIPPED,
-                     Flag.SATURATED, Flag.BRANCH_UNKNOWN))
+                     Flag.SATURATED, Flag.BRANCH_UNKNOWN, Flag.EXTRAPOLATED, Flag.BELOW_AMBIENT))
+
+
+#: [Pa] Gauge pressures this far below 0 are a vented muscle or sensor noise: served as 0 Pa, unflagged.
+VENTED_BAND = 10e3
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Where a muscle is served (:class:`~.models.Domain`): floats for one muscle, arrays of n for a group."""
+
+    length_low: np.ndarray | float      #: shortest length served [m]: the braid's shortest if it extrapolates
+    length_high: np.ndarray | float     #: longest length served [m] (at most L0)
+    pressure_known: np.ndarray | float  #: highest identified gauge pressure [Pa]; EXTRAPOLATED above
+    pressure_top: np.ndarray | float    #: highest gauge pressure served [Pa]
+    command_top: np.ndarray | float     #: highest gauge pressure the inverse commands [Pa]: never above the rated
+
+
+def limits_of(spec, domain, shortest) -> Limits:
+    """:class:`Limits` of a spec and domain (numbers or arrays) whose braid's shortest length is ``shortest``."""
+    wide = np.asarray(domain.extrapolates, bool)
+    rated = np.asarray(spec.max_pressure, float)
+    known = np.where(np.isfinite(domain.pressure_max), domain.pressure_max, rated)
+    top = np.where(wide, np.maximum(rated, known), known)
+    return Limits(np.where(wide, shortest, domain.length_min),
+                  np.where(wide, spec.nominal_length, np.minimum(domain.length_max, spec.nominal_length)),
+                  known, top, np.minimum(rated, top))
 
 
 @dataclass(frozen=True)
@@ -47,7 +73,7 @@ class Operating:
     """What the force at given lengths needs besides the pressure: F_raw = (q2 p + q1) p + q0 at the operating length.
 
     ``usable`` is False where the length is no length of the muscle (INVALID_INPUT in ``flags``);
-    ``flags`` also holds LENGTH_OUT_OF_RANGE and BRANCH_UNKNOWN.
+    ``flags`` also holds LENGTH_OUT_OF_RANGE, EXTRAPOLATED (of the length) and BRANCH_UNKNOWN.
     """
 
     usable: np.ndarray
@@ -55,17 +81,26 @@ class Operating:
     q2: np.ndarray           #: [N/Pa^2]
     q1: np.ndarray           #: [N/Pa]
     q0: np.ndarray           #: [N]
-    max_pressure: np.ndarray | float   #: rated gauge pressure [Pa]
+    limits: Limits           #: pressures served and commanded
 
 
 def force_at(op: Operating, pressure: ArrayLike) -> ForceResult:
-    """Tension [N] at gauge ``pressure`` [Pa] (broadcast against ``op``); the pressure held to [0, max_pressure]."""
+    """Tension [N] at gauge ``pressure`` [Pa] (broadcast against ``op``).
+
+    The pressure is held to [0, pressure_top] (PRESSURE_OUT_OF_RANGE where that moved it, except within
+    ``VENTED_BAND`` below 0: a vented muscle; BELOW_AMBIENT below that band); EXTRAPOLATED above the
+    identified pressures.
+    """
     p = np.asarray(pressure, float)
+    lim = op.limits
     with np.errstate(invalid="ignore", over="ignore"):
         usable = op.usable & np.isfinite(p)
-        p_op = np.clip(p, 0.0, op.max_pressure)
+        p_op = np.clip(p, 0.0, lim.pressure_top)
         raw = np.where(usable, (op.q2 * p_op + op.q1) * p_op + op.q0, np.nan)
-        flags = np.where(usable, op.flags | np.where(p_op != p, _PRESSURE_OUT, 0) | np.where(raw < 0, _CLIPPED, 0),
+        moved = (p_op != p) & ~((p < 0) & (p >= -VENTED_BAND))
+        flags = np.where(usable, op.flags | np.where(moved, _PRESSURE_OUT, 0) | np.where(raw < 0, _CLIPPED, 0)
+                         | np.where(p < -VENTED_BAND, _BELOW_AMBIENT, 0)
+                         | np.where(p_op > lim.pressure_known, _EXTRAPOLATED, 0),
                          op.flags | _INVALID).astype(np.uint16)
         return ForceResult(np.maximum(raw, 0.0), raw, flags)
 
@@ -83,20 +118,29 @@ class Evaluator:
     domain: Domain
     max_length: float
 
+    @cached_property
+    def limits(self) -> Limits:
+        """Lengths and pressures served and commanded (:class:`Limits`)."""
+        return limits_of(self.spec, self.domain, geo.shortest_length(self.spec))
+
     def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
         """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see :class:`Operating`).
 
         The geometry needs 0 < L < max_length (else INVALID_INPUT).  The model is evaluated at the length
-        held inside the identified range, never extrapolated (LENGTH_OUT_OF_RANGE where that moved it).
-        ``length_rate`` [m/s] picks the hysteresis branch (+1 lengthening, -1 shortening, 0 unknown:
-        BRANCH_UNKNOWN).  Computed once per new length and reused for every pressure at it (:func:`force_at`).
+        held inside the lengths served (LENGTH_OUT_OF_RANGE where that moved it): the identified range, or,
+        if the model extrapolates credibly, the physical envelope (EXTRAPOLATED outside the identified range;
+        :class:`~.models.Domain`).  ``length_rate`` [m/s] picks the hysteresis branch (+1 lengthening,
+        -1 shortening, 0 unknown: BRANCH_UNKNOWN).  Computed once per new length and reused for every
+        pressure at it (:func:`force_at`).
         """
         L = np.asarray(length, float)
-        top = np.minimum(self.domain.length_max, self.spec.nominal_length)
+        lim = self.limits
         with np.errstate(invalid="ignore", over="ignore"):
             usable = (L > 0) & (L < self.max_length)   # False for NaN
-            at = np.where(usable, np.clip(L, self.domain.length_min, top), top)
-            flags = np.where(usable, np.where(at != L, _LENGTH_OUT, 0), _INVALID)
+            at = np.where(usable, np.clip(L, lim.length_low, lim.length_high), lim.length_high)
+            outside = (at < self.domain.length_min) | (at > self.domain.length_max)
+            flags = np.where(usable, np.where(at != L, _LENGTH_OUT, 0) | np.where(outside, _EXTRAPOLATED, 0),
+                             _INVALID)
             branch = 0.0
             if self.model.hysteresis:
                 if length_rate is not None:
@@ -106,14 +150,14 @@ class Evaluator:
             q2, q1, q0 = self.model.coefficients(self.theta, self.spec, self.domain, at, branch)
         if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
             q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
-        return Operating(usable, flags.astype(np.uint16), q2, q1, q0, self.spec.max_pressure)
+        return Operating(usable, flags.astype(np.uint16), q2, q1, q0, lim)
 
     def force(self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> ForceResult:
         """Tension [N] at gauge pressure [Pa] and length [m]; ``length_rate`` [m/s] picks the hysteresis branch.
 
-        Never extrapolated: outside the identified length range (LENGTH_OUT_OF_RANGE, :meth:`operating`)
-        or the rated pressures (PRESSURE_OUT_OF_RANGE, :func:`force_at`) the force is the model's
-        at the nearest point of the domain, so it stays within the muscle's own bounds.
+        Outside the identified data the model's own value where it extrapolates credibly (EXTRAPOLATED),
+        else the value at the nearest point served (LENGTH_OUT_OF_RANGE, PRESSURE_OUT_OF_RANGE):
+        :meth:`operating` and :func:`force_at`.
         """
         p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
         return force_at(self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)), p)
@@ -126,17 +170,19 @@ class Evaluator:
 
 
 def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
-    """The inverse of :func:`force_at`: gauge pressure [Pa] in [0, max_pressure] giving tension ``force`` [N].
+    """The inverse of :func:`force_at`: gauge pressure [Pa] in [0, p_max] giving tension ``force`` [N].
 
-    At fixed length every model is f(p) = q2 p^2 + q1 p + q0, of either sign of q2 and q1.  The
-    answer is the smallest root of f(p) = max(force, 0) in [0, max_pressure] (so a force <= 0 gives
+    p_max is the rated pressure (or the highest identified one, for a model that does not extrapolate;
+    :class:`Limits`); above the identified pressures the answer is flagged EXTRAPOLATED.  At fixed
+    length every model is f(p) = q2 p^2 + q1 p + q0, of either sign of q2 and q1.  The
+    answer is the smallest root of f(p) = max(force, 0) in [0, p_max] (so a force <= 0 gives
     the pressure at which the muscle starts to pull).  Where no root lies there, it is the pressure
     of the nearest reachable force, flagged SATURATED: a bound or the vertex -q1 / (2 q2) (the peak of
     a concave model, the trough of a convex one), whichever has the model force nearest the target
     (the smaller pressure on a tie).
     """
     F = np.asarray(force, float)
-    p_max = op.max_pressure
+    p_max = op.limits.command_top
     usable = op.usable & np.isfinite(F)
     target = np.where(usable, np.maximum(F, 0.0), 0.0)
     q2, q1, c = op.q2, op.q1, op.q0 - target
@@ -156,7 +202,9 @@ def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
         p = np.clip(np.where(reached, smallest, nearest), 0.0, p_max)
         served = np.maximum((q2 * p + q1) * p + op.q0, 0.0)
         short = ~reached & (np.abs(served - target) > 1e-9 * np.maximum(target, 1.0))
-    flags = np.where(usable, op.flags | np.where(short, _SATURATED, 0), op.flags | _INVALID).astype(np.uint16)
+        beyond = p > op.limits.pressure_known
+    flags = np.where(usable, op.flags | np.where(short, _SATURATED, 0) | np.where(beyond, _EXTRAPOLATED, 0),
+                     op.flags | _INVALID).astype(np.uint16)
     return PressureResult(np.where(usable, p, np.nan), flags)
 
 
@@ -178,6 +226,12 @@ class MuscleModel(Evaluator):
         return float(geo.fiber_length(self.spec))
 
     @cached_property
+    def limits(self) -> Limits:
+        """:class:`Limits` as plain floats."""
+        lim = limits_of(self.spec, self.domain, geo.shortest_length(self.spec))
+        return Limits(*(float(getattr(lim, f.name)) for f in fields(Limits)))
+
+    @cached_property
     def _theta(self) -> tuple[float, ...]:
         """The parameters as plain floats (for :meth:`operating_one`)."""
         return tuple(self.theta.tolist())
@@ -188,13 +242,13 @@ class MuscleModel(Evaluator):
         The float twin of the vector rule, for one message at a time, where numpy's per-call
         overhead would cost more than the arithmetic; ``length_rate`` NaN: unknown.
         """
-        flags = 0
-        top = min(self.domain.length_max, self.spec.nominal_length)
-        if length < self.domain.length_min or length > top:
-            flags = _LENGTH_OUT
+        lim, domain = self.limits, self.domain
+        operating = min(max(length, lim.length_low), lim.length_high)
+        flags = _LENGTH_OUT if operating != length else 0
+        if operating < domain.length_min or operating > domain.length_max:
+            flags |= _EXTRAPOLATED
         branch = math.copysign(1.0, length_rate) if length_rate and math.isfinite(length_rate) else 0.0
         if branch == 0.0 and self.model.hysteresis:
             flags |= _BRANCH_UNKNOWN
-        operating = min(max(length, self.domain.length_min), top)
         q2, q1, q0 = self.model.coefficients(self._theta, self.spec, self.domain, operating, branch)
         return flags, float(q2), float(q1), float(q0)
