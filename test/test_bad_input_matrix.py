@@ -117,7 +117,10 @@ MESSAGES = {
     'pressure-below-ambient': (pressure(AMBIENT - 50e3), estimate(WARN, OUTSIDE, gauge=-50e3)),
     'pressure-above-rated': (pressure(AMBIENT + 1e6), estimate(WARN, OUTSIDE, gauge=1e6)),
     'length-above-range': (state([0.26]), estimate(WARN, OUTSIDE, length=0.26)),
-    'length-below-range': (state([0.19]), estimate(WARN, OUTSIDE, length=0.19)),
+    'length-below-envelope': (state([0.15]), estimate(WARN, OUTSIDE, length=0.15)),   # braid's shortest: 0.164 m
+    'length-below-identified': (state([0.19]), estimate(WARN, 'extrapolated beyond the identified data', length=0.19)),
+    'pressure-vented': (pressure(AMBIENT - 5e3), estimate(OK, 'estimating', gauge=-5e3)),
+    'pressure-gauge-sensor': (pressure(80e3), estimate(WARN, 'a gauge sensor read as absolute', gauge=80e3 - AMBIENT)),
     'command-unreachable': (command(1e5), Expect(WARN, r'saturated \(SATURATED\)', 'pressure commands',
                                                  lambda m: m.spec.max_pressure)),
     'command-negative': (command(-50.0), Expect(OK, 'estimating', 'pressure commands', pull_start)),

@@ -63,9 +63,12 @@ def test_regenerated_config_matches_committed(results, muscle, tmp_path):
     fresh, committed = read_parameters(out), read_parameters(CONFIGS[muscle])
     assert fresh["model"] == committed["model"] and fresh["muscle"] == committed["muscle"]
     assert fresh["length_range"] == committed["length_range"]
+    assert fresh["pressure_range"] == committed["pressure_range"]
     for name, entry in committed["models"].items():
         new = fresh["models"][name]
-        assert new["objective"] == entry["objective"]
-        for key in ("err", "rmse", "r2", "cv_err"):
+        assert new["objective"] == entry["objective"] and new["extrapolates"] == entry["extrapolates"]
+        for key in ("err", "rmse", "r2"):
             assert new[key] == pytest.approx(entry[key], rel=1e-4, abs=1e-3), (name, key)
+        for key in ("cv_err", "edge_cv_err"):   # fits of 4-5 lengths: the held-out error varies ~1e-4 by platform
+            assert new[key] == pytest.approx(entry[key], rel=1e-3), (name, key)
         assert np.allclose(new.get("params", []), entry.get("params", []), rtol=1e-4, atol=0), name

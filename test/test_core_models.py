@@ -4,10 +4,12 @@ import math
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.force_map import shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import domain_of, max_error_percent
 from pma_model_ros.core.models import MODELS, force_raw, get_model
+from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis, to_si
 
 # Martens & Boblan 2017, Table 2 (as printed).
@@ -105,14 +107,16 @@ def test_physical_force_flags_and_clipping(martens_10_250):
     assert res.flags[5] & Flag.INVALID_INPUT
 
 
-def test_force_is_held_at_the_domain_edge_never_extrapolated(martens_10_250):
-    """Outside length_range or the rated pressure the model is evaluated at the nearest domain point, flagged."""
-    m, p_max = martens_10_250, martens_10_250.spec.max_pressure
+def test_a_model_that_does_not_extrapolate_is_held_at_the_domain_edge():
+    """Outside length_range or the identified pressures such a model is evaluated at the nearest domain point,
+    flagged (what extrapolating models serve instead: test_core_muscle_model.py)."""
+    m = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "sarosi")
+    assert not m.domain.extrapolates and m.domain.pressure_max == 650e3
     low, high = m.domain.length_min, m.domain.length_max
-    for length, edge in ((0.26, high), (0.28, high), (0.19, low)):      # 0.28 m: Martens itself has no value
+    for length, edge in ((0.26, high), (0.28, high), (0.19, low)):
         out, inside = m.force(3e5, length), m.force(3e5, edge)
         assert float(out.force) == float(inside.force) and np.isfinite(out.raw)
         assert out.flags & Flag.LENGTH_OUT_OF_RANGE and not inside.flags & Flag.LENGTH_OUT_OF_RANGE
-    out, rated = m.force(2e6, 0.24), m.force(p_max, 0.24)
-    assert float(out.force) == float(rated.force) and out.flags & Flag.PRESSURE_OUT_OF_RANGE
+    out, top = m.force(2e6, 0.24), m.force(650e3, 0.24)
+    assert float(out.force) == float(top.force) and out.flags & Flag.PRESSURE_OUT_OF_RANGE
     assert float(m.force(-5e4, 0.25).force) == float(m.force(0.0, 0.25).force)

@@ -94,7 +94,7 @@ def test_served_force_is_nonnegative_clipped_raw_force(muscle, u_p, u_L, rate):
                                   (p < -VENTED_BAND) | (p > muscle.limits.pressure_top))
     np.testing.assert_array_equal(flagged(result.flags, Flag.BELOW_AMBIENT), p < -VENTED_BAND)
     served = np.clip(p, 0, muscle.limits.pressure_top)
-    np.testing.assert_array_equal(flagged(result.flags, Flag.EXTRAPOLATED) & (served > 0),
+    np.testing.assert_array_equal(flagged(result.flags, Flag.EXTRAPOLATED),
                                   (served > muscle.limits.pressure_known)
                                   | (operating_length(muscle, L) < muscle.domain.length_min)
                                   | (operating_length(muscle, L) > muscle.domain.length_max))

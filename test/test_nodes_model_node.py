@@ -79,6 +79,19 @@ def test_one_muscle_command_and_diagnostics_on_change(make_node):
     assert diagnostics[-1].status[0].message == "invalid input: joint 'DMSP-10-250' not in ['elbow']"
 
 
+def test_gauge_sensor_readings_and_commands(make_node):
+    """pressure_reference: gauge: a reading of 300 kPa is 300 kPa gauge, and commands are published in gauge."""
+    node = make_node(CONFIGS['DMSP-10-250'], pressure_reference='gauge')
+    topics = node.topics
+    estimates, commands = record(topics._estimate_pubs[0]), record(topics._command_pubs[0])
+    now = node.get_clock().now().to_msg()
+    topics._on_state(0, state(now, 0.25, 0.0))
+    topics._on_pressure(0, pressure(now, 300e3))
+    assert estimates[-1].wrench.force.x == pytest.approx(float(MARTENS.force(300e3, 0.25).force), rel=1e-9)
+    topics._on_command(0, force_command(100.0))
+    assert float(MARTENS.force(commands[0].fluid_pressure, 0.25).force) == pytest.approx(100.0, abs=1e-6)
+
+
 def expected_forces(inputs: dict) -> dict[str, float]:
     example = read_parameters(EXAMPLE)
     return {name: float(muscle_model(read_parameters(REPO / 'config' / f'{cfg}.yaml'), example[name]['model'])

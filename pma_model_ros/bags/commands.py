@@ -9,7 +9,7 @@ import argparse
 
 from ..core.force_map import ForceMap
 from ..core.muscle import MuscleSpec
-from ..core.node_parameters import STANDARD_ATMOSPHERE
+from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
@@ -30,6 +30,9 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--storage", choices=("mcap", "sqlite3"), help="output storage (default: the input's)")
     p.add_argument("--namespace", help="namespace of the muscle's topics (default: the only one in the bag)")
     p.add_argument("--model", help="override the file's default model")
+    p.add_argument("--pressure-reference", choices=PRESSURE_REFERENCES,
+                   help="what the recorded fluid_pressure holds (default: the file's `pressure_reference`, "
+                        "else absolute)")
     p.set_defaults(func=cmd_bag_estimate)
     p = commands.add_parser("play", help="publish a recording's messages with their recorded timing (rclpy)",
                             description="Like `ros2 bag play`: each message on its topic at its recorded log "
@@ -52,6 +55,8 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
     from ..core.param_file import all_node_settings, read_parameters
     from .estimate import estimate_bag
     parameters = read_parameters(args.config)
+    if args.pressure_reference:
+        parameters["pressure_reference"] = args.pressure_reference
     settings = all_node_settings(parameters, args.model)
     summary = estimate_bag(args.bag, settings, args.out, names=parameters.get("muscles") or [],
                            combined=parameters.get("input_mode") == "combined", storage=args.storage,
@@ -87,6 +92,8 @@ def add_fit_bag_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--joint", help="JointState entry of the muscle (default: the spec's name)")
     g.add_argument("--ambient-pressure", type=float, default=STANDARD_ATMOSPHERE,
                    help=f"[Pa absolute] (default {STANDARD_ATMOSPHERE:g})")
+    g.add_argument("--pressure-reference", choices=PRESSURE_REFERENCES, default="absolute",
+                   help="what the recorded fluid_pressure holds (default absolute, the message's definition)")
     g.add_argument("--window", type=float, default=1.0, help="quasi-static window [s] (default 1)")
     g.add_argument("--max-length-rate", type=float, default=1e-3, help="quasi-static |dL/dt| bound [m/s] "
                                                                       "(default 0.001)")
@@ -98,7 +105,8 @@ def bag_force_map(args: argparse.Namespace, spec: MuscleSpec) -> ForceMap:
     """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell."""
     from .calibrate import QuasiStatic, force_map_from_bag
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)
-    calibration = force_map_from_bag(args.bag, args.joint or spec.name, args.ambient_pressure, criterion,
+    ambient = 0.0 if args.pressure_reference == "gauge" else args.ambient_pressure   # reading - ambient = gauge
+    calibration = force_map_from_bag(args.bag, args.joint or spec.name, ambient, criterion,
                                      args.namespace, args.force_topic)
     print(f"{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static, "
           f"{calibration.force_map.force.size} cells")

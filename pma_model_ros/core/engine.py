@@ -122,10 +122,17 @@ class Config:
     model: MuscleModel
     ambient_pressure: float = SPECS["ambient_pressure"].default  #: [Pa] absolute; gauge = absolute - ambient
     max_input_age: float = SPECS["max_input_age"].default        #: [s] inputs with |now - stamp| above this are stale
+    pressure_reference: str = SPECS["pressure_reference"].default  #: what pressure readings and commands hold
 
     def __post_init__(self) -> None:
         SPECS["ambient_pressure"].check(self.ambient_pressure)
         SPECS["max_input_age"].check(self.max_input_age)
+        SPECS["pressure_reference"].check(self.pressure_reference)
+
+    @property
+    def reading_offset(self) -> float:
+        """What to add to a pressure reading [Pa] for the absolute pressure: 0, or ambient for gauge readings."""
+        return self.ambient_pressure if self.pressure_reference == "gauge" else 0.0
 
 
 @dataclass(frozen=True)
@@ -175,6 +182,8 @@ class Engine:
             raise ValueError("configure needs one config per muscle")
         bank = MuscleBank([c.model for c in configs])
         self._ambient = np.array([c.ambient_pressure for c in configs])
+        self._offset = np.array([c.reading_offset for c in configs])   # reading + offset = absolute [Pa]
+        self._offsets = bool(self._offset.any())
         self._age = np.array([c.max_input_age for c in configs])
         op = bank.operating(self._length, self._rate)   # a length the new geometry cannot take: INVALID_INPUT
         self._lflags, self._q = op.flags.astype(np.uint16), np.array([op.q2, op.q1, op.q0], float)
@@ -182,10 +191,12 @@ class Engine:
 
     # --- one input of one muscle --------------------------------------------------------------------------
 
-    def pressure(self, k: int, absolute: float, stamp: float, now: float, tag: object = None) -> float | None:
-        """A pressure reading [Pa absolute] of muscle ``k`` stamped ``stamp`` [s]; its force estimate [N], if any."""
+    def pressure(self, k: int, reading: float, stamp: float, now: float, tag: object = None) -> float | None:
+        """A pressure reading [Pa, absolute or gauge by the config's ``pressure_reference``] of muscle ``k``
+        stamped ``stamp`` [s]; its force estimate [N], if any."""
         self._counts[k, 0] += 1
         self._calm = None
+        absolute = reading + self._offset.item(k)
         if not 0 <= absolute <= ABSURD_PRESSURE:   # NaN too
             return self._invalid(k, "pressure", pressure_problem(absolute), now)
         self._pressure[k], self._p_stamp[k], self._p_tag[k], self._p_new[k] = absolute, stamp, tag, True
@@ -265,7 +276,8 @@ class Engine:
         return raw
 
     def command(self, k: int, force: float, now: float) -> float | None:
-        """A wanted tension [N] of muscle ``k``; the absolute pressure [Pa] giving it, or None without a fresh length.
+        """A wanted tension [N] of muscle ``k``; the pressure [Pa, absolute or gauge as the readings] giving it, or
+        None without a fresh length.
 
         ``flags`` then holds the command's flags.
         """
@@ -281,7 +293,7 @@ class Engine:
         if self.flags & _WARN_MASK:
             self._note(k, self.flags, now)
         self._counts[k, _COMMANDS] += 1
-        return float(result.pressure) + self._ambient.item(k)
+        return float(result.pressure) + self._ambient.item(k) - self._offset.item(k)
 
     def reject(self, k: int, source: str, reason: str, now: float) -> None:
         """Count a message of ``source`` (``pressure``, ``muscle_state`` or ``force_command``) refused before it
@@ -303,14 +315,15 @@ class Engine:
 
     # --- one input of every muscle ------------------------------------------------------------------------
 
-    def pressures(self, absolute: np.ndarray, stamp: float, now: float, tag: object = None,
+    def pressures(self, readings: np.ndarray, stamp: float, now: float, tag: object = None,
                   present: np.ndarray | None = None) -> np.ndarray:
-        """One absolute pressure [Pa] of every muscle (of those ``present``), all stamped ``stamp`` [s].
+        """One pressure reading [Pa] of every muscle (of those ``present``; see :meth:`pressure`), all stamped
+        ``stamp`` [s].
 
         Returns which muscles got an estimate (their forces in ``forces``, flags in ``flags``).
         Muscles not ``present`` are left alone (the caller rejects them with its reason).
         """
-        absolute = np.asarray(absolute, float)
+        absolute = np.asarray(readings, float) + self._offset if self._offsets else np.asarray(readings, float)
         received = self._everyone if present is None else present
         self._counts[:, 0] += received
         valid = self._received(received, (absolute >= 0) & (absolute <= ABSURD_PRESSURE), "pressure",

@@ -49,7 +49,8 @@ class Fit:
 
 
 def domain_of(fmap: ForceMap) -> Domain:
-    return Domain(float(fmap.length.min()), float(fmap.length.max()))
+    """The identified length and pressure ranges of a map (not extrapolating until judged: :class:`ModelReport`)."""
+    return Domain(float(fmap.length.min()), float(fmap.length.max()), float(fmap.pressure.max()))
 
 
 def physical_force(model: Model, theta: np.ndarray, spec: MuscleSpec, domain: Domain,
@@ -215,6 +216,12 @@ class ModelReport:
     def cv_err(self) -> float:
         """Worst held-out err of the shipped objective [%]."""
         return float(self.cv[self.shipped_objective].max())
+
+    @property
+    def edge_cv_err(self) -> float:
+        """Worst held-out err of the shipped objective on the map's shortest and longest length [%]."""
+        errors = self.cv[self.shipped_objective]
+        return float(max(errors[0], errors[-1]))
 
 
 def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...]) -> tuple[dict[str, ModelReport], str]:

@@ -21,6 +21,8 @@ PAIRINGS = ("every_input", "approximate_time")
 INPUT_MODES = ("per_muscle", "combined")
 #: Executors a node can spin on (see :mod:`pma_model_ros.nodes.startup`).
 EXECUTORS = ("single", "events")
+#: What a FluidPressure's ``fluid_pressure`` holds: absolute (the message's definition) or gauge pressure.
+PRESSURE_REFERENCES = ("absolute", "gauge")
 
 
 @dataclass(frozen=True)
@@ -28,7 +30,7 @@ class ParameterSpec:
     """One parameter: ``default`` None means required (from the parameter file)."""
 
     name: str
-    kind: str                 #: ``double``, ``string``, ``double[]`` or ``string[]``
+    kind: str                 #: ``double``, ``string``, ``bool``, ``double[]`` or ``string[]``
     default: object
     description: str
     unit: str = ""
@@ -74,17 +76,26 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
                   per_muscle=True),
     ParameterSpec("length_range", "double[]", None, "[min, max] length the models were identified on (validity "
                   "domain)", "m", per_muscle=True),
+    ParameterSpec("pressure_range", "double[]", [], "[0, max] gauge pressure the models were identified on (empty: "
+                  "up to `muscle.max_pressure`)", "Pa gauge", per_muscle=True),
     ParameterSpec("models.<model>.params", "double[]", None, "identified parameters of each model (SI units)",
                   per_muscle=True),
-    ParameterSpec("models.<model>.{objective, err, rmse, r2, cv_err}", "string, double", None,
+    ParameterSpec("models.<model>.extrapolates", "bool", False, "serve the model's own value outside the identified "
+                  "ranges, flagged EXTRAPOLATED (else the nearest identified point, flagged out of range); set by "
+                  "`make-config` where the held-out error on the map's edge lengths is ≤ 10 %", per_muscle=True),
+    ParameterSpec("models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err}", "string, double", None,
                   "identification results: objective, max error on the map (eq. 23) [% of max force], RMSE [N], "
-                  "R², worst leave-one-length-out error [% of max force]", per_muscle=True, read_only=True),
+                  "R², worst leave-one-length-out error, the same on the shortest and longest length "
+                  "[% of max force]", per_muscle=True, read_only=True),
     ParameterSpec("joint_name", "string", "", "JointState entry of this muscle (empty: `muscle.name`; with "
                   "`muscles`: the muscle's name)", per_muscle=True),
     ParameterSpec("frame_id", "string", "", "header.frame_id of `force_estimate` (empty: `joint_name`)",
                   per_muscle=True),
     ParameterSpec("ambient_pressure", "double", STANDARD_ATMOSPHERE, "ambient pressure; gauge = `fluid_pressure` "
                   "− `ambient_pressure`", "Pa absolute", (0.0, 2e5)),
+    ParameterSpec("pressure_reference", "string", "absolute", "what `fluid_pressure` of `pressure` and "
+                  "`pressure_command` holds: `absolute` (the message's definition) or `gauge` (sensors that "
+                  "publish gauge)", choices=PRESSURE_REFERENCES),
     ParameterSpec("max_input_age", "double", 0.1, "inputs whose stamp differs from the node clock by more than "
                   "this are stale", "s", (1e-3, 3600.0)),
     ParameterSpec("pairing", "string", "every_input", "when to estimate: `every_input` (each valid input, with "

@@ -7,8 +7,10 @@ Layout (every value SI)::
         muscle: {name, nominal_length, inner_diameter, membrane_thickness, fiber_angle, max_pressure}
         model: martens                 # the default model
         length_range: [0.198, 0.25]    # identified length range [m]
+        pressure_range: [0.0, 650000.0]   # identified gauge pressure range [Pa] (absent: up to the rated one)
         models:
-          martens: {params: [...], objective: minimax, err: 4.2, rmse: .., r2: .., cv_err: 8.2}
+          martens: {params: [...], objective: minimax, err: 4.2, rmse: .., r2: .., cv_err: 8.2,
+                    edge_cv_err: 8.2, extrapolates: true}   # absent extrapolates: false
 
 Node settings (``ambient_pressure``, ``joint_name``, ...) may sit beside these
 keys; this module reads only the muscle and its models.
@@ -16,6 +18,7 @@ keys; this module reads only the muscle and its models.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from pathlib import Path
 
 import yaml
@@ -23,14 +26,14 @@ import yaml
 from .engine import Config
 from .force_map import load_yaml_mapping, read_user_file
 from .identification import Fit, ModelReport
-from .models import Domain, get_model
+from .models import EDGE_CV_LIMIT, Domain, get_model
 from .muscle import MuscleSpec
 from .muscle_model import MuscleModel
 from .node_parameters import SPECS
 
 _ROUND = 12  # significant digits written; far below any fit's resolution
 #: Node settings written into generated files, beside the muscle (documented in the README).
-NODE_DEFAULTS = {name: SPECS[name].default for name in ("ambient_pressure", "max_input_age")}
+NODE_DEFAULTS = {name: SPECS[name].default for name in ("ambient_pressure", "pressure_reference", "max_input_age")}
 
 
 @dataclass(frozen=True)
@@ -54,8 +57,10 @@ def fit_entry(fit: Fit) -> dict:
 
 
 def model_entry(report: ModelReport) -> dict:
-    """:func:`fit_entry` of the shipped fit plus its worst held-out error ``cv_err``."""
-    return fit_entry(report.shipped) | {"cv_err": _num(report.cv_err)}
+    """:func:`fit_entry` of the shipped fit plus its worst held-out errors, overall (``cv_err``) and on the
+    map's edge lengths (``edge_cv_err``), and whether that lets it extrapolate (:class:`~.models.Domain`)."""
+    return fit_entry(report.shipped) | {"cv_err": _num(report.cv_err), "edge_cv_err": _num(report.edge_cv_err),
+                                        "extrapolates": report.edge_cv_err <= EDGE_CV_LIMIT}
 
 
 def build_parameters(spec: MuscleSpec, default: str, domain: Domain, models: dict[str, dict]) -> dict:
@@ -64,6 +69,7 @@ def build_parameters(spec: MuscleSpec, default: str, domain: Domain, models: dic
         "muscle": {k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()},
         "model": default,
         "length_range": [_num(domain.length_min), _num(domain.length_max)],
+        **({"pressure_range": [0.0, _num(domain.pressure_max)]} if math.isfinite(domain.pressure_max) else {}),
         "models": models,
         **NODE_DEFAULTS,
         "joint_name": spec.name,
@@ -95,10 +101,16 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     length_range = parameters.get("length_range")
     if not (isinstance(length_range, list) and len(length_range) == 2):
         raise ValueError(f"length_range must be [min, max] in m, got {length_range!r}")
+    pressure_range = parameters.get("pressure_range", [0.0, math.inf])
+    if not (isinstance(pressure_range, list) and len(pressure_range) == 2 and pressure_range[0] == 0):
+        raise ValueError(f"pressure_range must be [0, max] in Pa gauge, got {pressure_range!r}")
+    extrapolates = models[name].get("extrapolates", False)
+    if not isinstance(extrapolates, bool):
+        raise ValueError(f"models.{name}.extrapolates must be true or false, got {extrapolates!r}")
     try:
-        domain = Domain(*(float(v) for v in length_range))
+        domain = Domain(*(float(v) for v in length_range), float(pressure_range[1]), extrapolates)
     except (TypeError, ValueError, OverflowError) as err:
-        raise ValueError(f"length_range: {err}") from None
+        raise ValueError(f"length_range/pressure_range: {err}") from None
     return MuscleModel(spec, get_model(name), models[name].get("params", []), domain)
 
 
@@ -110,7 +122,7 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
         ambient, max_age = float(values["ambient_pressure"]), float(values["max_input_age"])
     except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f"ambient_pressure/max_input_age must be numbers: {err}") from None
-    config = Config(muscle, ambient, max_age)
+    config = Config(muscle, ambient, max_age, values["pressure_reference"])
     joint = str(parameters.get("joint_name") or muscle.spec.name)
     return NodeSettings(config, joint, str(parameters.get("frame_id") or joint))
 

@@ -25,14 +25,14 @@ from ..core.models import MODELS, get_model
 from ..core.node_parameters import PARAMETERS, SPECS, ParameterSpec
 from ..core.param_file import NodeSettings, all_node_settings
 
-TYPES = {"double": Parameter.Type.DOUBLE, "string": Parameter.Type.STRING, "double[]": Parameter.Type.DOUBLE_ARRAY,
-         "string[]": Parameter.Type.STRING_ARRAY}
+TYPES = {"double": Parameter.Type.DOUBLE, "string": Parameter.Type.STRING, "bool": Parameter.Type.BOOL,
+         "double[]": Parameter.Type.DOUBLE_ARRAY, "string[]": Parameter.Type.STRING_ARRAY}
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
 REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith("models.")]
 _MUSCLE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 #: models.<name>.<entry>: identification results, read-only information (see the table's models.* row).
 MODEL_INFO = {"objective": Parameter.Type.STRING, "err": Parameter.Type.DOUBLE, "rmse": Parameter.Type.DOUBLE,
-              "r2": Parameter.Type.DOUBLE, "cv_err": Parameter.Type.DOUBLE}
+              "r2": Parameter.Type.DOUBLE, "cv_err": Parameter.Type.DOUBLE, "edge_cv_err": Parameter.Type.DOUBLE}
 
 
 def descriptor(spec: ParameterSpec, description: str | None = None) -> ParameterDescriptor:
@@ -69,10 +69,12 @@ def _declare_muscle(node: Node, prefix: str) -> None:
     for spec in PARAMETERS:
         if spec.per_muscle and not spec.name.startswith("models."):
             _declare(node, spec, prefix + spec.name)
-    params, info = SPECS["models.<model>.params"], SPECS["models.<model>.{objective, err, rmse, r2, cv_err}"]
+    params, info = SPECS["models.<model>.params"], SPECS["models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err}"]
+    extrapolates = SPECS["models.<model>.extrapolates"]
     for model in MODELS.values():
         node.declare_parameter(f"{prefix}models.{model.name}.params", TYPES["double[]"], descriptor(
             params, f"identified parameters {list(model.param_names)} of {model.name} ({model.equation}), SI units"))
+        node.declare_parameter(f"{prefix}models.{model.name}.extrapolates", TYPES["bool"], descriptor(extrapolates))
         for entry, kind in MODEL_INFO.items():
             node.declare_parameter(f"{prefix}models.{model.name}.{entry}", kind, descriptor(info))
 
