@@ -1,0 +1,164 @@
+"""joint_node's callbacks called in-process, on a private rclpy Context: no DDS, no timing.
+
+The node is built from the example joint file; the expected torques and stiffnesses come from the single
+muscles' forces (test/test_core_joint.py checks those by hand), the pressure commands from the core inverse.
+"""
+import copy
+import math
+
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import FluidPressure, JointState
+
+from conftest import REPO
+from node_messages import AMBIENT
+from pma_model_ros.core.joint_file import load_joints
+from pma_model_ros.nodes.joint_node import JointNode
+from pma_model_ros.nodes.startup import StartupError
+
+EXAMPLE = REPO / "config" / "example_joint.yaml"
+ELBOW = load_joints(EXAMPLE)[0]
+
+
+@pytest.fixture
+def make_node():
+    made = []
+
+    def make(**overrides):
+        context = rclpy.Context()
+        rclpy.init(context=context, args=["--ros-args", "--params-file", str(EXAMPLE)])
+        overrides = {"config_dir": str(REPO / "config")} | overrides
+        node = JointNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        made.append((node, context))
+        return node
+    yield make
+    for node, context in made:
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
+def record(publisher) -> list:
+    sent = []
+    publisher.publish = lambda msg: sent.append(deserialize_message(msg, publisher.msg_type)
+                                                if isinstance(msg, bytes) else copy.deepcopy(msg))
+    return sent
+
+
+def joint_state(node, theta, name="elbow", velocity=0.0):
+    msg = JointState(name=[name], position=[theta], velocity=[velocity])
+    msg.header.stamp = node.get_clock().now().to_msg()
+    return msg
+
+
+def pressure(node, absolute):
+    msg = FluidPressure(fluid_pressure=absolute)
+    msg.header.stamp = node.get_clock().now().to_msg()
+    return msg
+
+
+def command(**efforts):
+    return JointState(name=list(efforts), effort=list(efforts.values()))
+
+
+def test_estimate_is_the_worked_example(make_node):
+    node = make_node()
+    torques, stiffnesses = record(node._torque_pub), record(node._stiffness_pub)
+    node._on_states(joint_state(node, 0.5))
+    assert torques == []                                              # no pressures yet
+    node._on_pressure(0, 0, pressure(node, AMBIENT + 400e3))          # flexor
+    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))          # extensor
+    state = joint_state(node, 0.5)
+    node._on_states(state)
+    expected = ELBOW.forward(0.5, 400e3, 300e3)
+    assert torques[-1].name == ["elbow"] and torques[-1].header.stamp == state.header.stamp
+    assert torques[-1].effort[0] == pytest.approx(float(expected.torque), rel=1e-9)
+    assert round(torques[-1].effort[0], 3) == -0.693 and round(stiffnesses[-1].effort[0], 2) == 3.84
+    assert stiffnesses[-1].effort[0] == pytest.approx(float(expected.stiffness), rel=1e-9)
+
+
+def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
+    node = make_node()
+    torques, diagnostics = record(node._torque_pub), record(node._diag_pub)
+    old = pressure(node, AMBIENT + 400e3)
+    old.header.stamp.sec -= 5
+    node._on_pressure(0, 0, old)
+    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
+    node._on_states(joint_state(node, 0.0))
+    assert torques == []
+    node.publish_status()
+    status = diagnostics[-1].status[0]
+    assert status.level == b"\x02" and "no estimate yet" in status.message
+
+
+def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_node):
+    node = make_node()
+    flexor, extensor = (record(p) for p in node._command_pubs[0])
+    node._on_states(joint_state(node, -0.3))
+    node._on_torque(command(elbow=2.5))
+    expected = ELBOW.pressures_one(-0.3, 2.5, 300e3, "min")           # the file's co-contraction: min 300 kPa
+    assert flexor[-1].fluid_pressure == pytest.approx(expected.pressures[0] + AMBIENT, rel=1e-12)
+    assert extensor[-1].fluid_pressure == pytest.approx(300e3 + AMBIENT, rel=1e-12)
+    assert ELBOW.forward(-0.3, flexor[-1].fluid_pressure - AMBIENT,
+                         extensor[-1].fluid_pressure - AMBIENT).torque == pytest.approx(2.5, rel=1e-9)
+
+
+def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
+    node = make_node()
+    flexor, extensor = (record(p) for p in node._command_pubs[0])
+    node._on_states(joint_state(node, 0.2))
+    node._on_level(node.engine.stiffness, command(elbow=4.5))
+    node._on_torque(command(elbow=1.0))
+    got = ELBOW.forward(0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT)
+    assert (float(got.torque), float(got.stiffness)) == pytest.approx((1.0, 4.5), rel=1e-9)
+    node._on_level(node.engine.cocontraction, command(elbow=400e3))
+    node._on_torque(command(elbow=-1.0))
+    assert flexor[-1].fluid_pressure == pytest.approx(400e3 + AMBIENT, rel=1e-12)
+
+
+def test_out_of_reach_command_saturates_and_warns(make_node):
+    node = make_node()
+    flexor, diagnostics = record(node._command_pubs[0][0]), record(node._diag_pub)
+    node._on_pressure(0, 0, pressure(node, AMBIENT + 300e3))
+    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
+    node._on_states(joint_state(node, 0.0))
+    node.publish_status()
+    assert diagnostics[-1].status[0].level == b"\x00"
+    node._on_torque(command(elbow=100.0))
+    assert flexor[-1].fluid_pressure == pytest.approx(800e3 + AMBIENT)
+    node.publish_status()
+    status = diagnostics[-1].status[0]
+    assert status.level == b"\x01" and "SATURATED" in status.message
+
+
+@pytest.mark.parametrize("message, problem", [
+    (JointState(name=["elbow"], position=[]), "1 names, 0 positions"),
+    (JointState(name=["elbow"], position=[math.nan]), "angle is nan rad"),
+    (JointState(name=["elbow"], position=[9.0]), "outside its geometry"),
+])
+def test_bad_joint_states_are_errors(make_node, message, problem):
+    node = make_node()
+    diagnostics = record(node._diag_pub)
+    node._on_states(message)
+    node.publish_status()
+    status = diagnostics[-1].status[0]
+    assert status.level == b"\x02" and problem in status.message
+
+
+def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
+    node = make_node()
+    diagnostics = record(node._diag_pub)
+    node._on_torque(command(elbow=1.0))
+    node.publish_status()
+    assert "before any angle" in diagnostics[-1].status[0].message
+    node._on_pressure(0, 1, pressure(node, -3.0))
+    node.publish_status()
+    assert "muscle 'extensor': negative absolute pressure" in diagnostics[-1].status[0].message
+
+
+def test_bad_parameters_fail_at_startup(make_node):
+    with pytest.raises(StartupError, match="joint 'elbow': positive must name"):
+        make_node(**{"elbow.positive": "biceps"})
+    with pytest.raises(StartupError, match="cocontraction_mode"):
+        make_node(**{"elbow.cocontraction_mode": "max"})
