@@ -223,7 +223,7 @@ def add_joint_commands(sub) -> None:
 
 
 #: Figures of ``pma-model plot`` and what each needs; ``all`` makes every one whose input is given.
-PLOTS = {"force-map": "--config", "error-map": "--config", "models": None, "timeseries": "--bag"}
+PLOTS = {"force-map": "--config", "error-map": "--config", "models": None, "timeseries": "--bag", "joint": "--config"}
 
 
 def cmd_plot(args: argparse.Namespace) -> None:
@@ -240,6 +240,15 @@ def cmd_plot(args: argparse.Namespace) -> None:
         wanted.remove(name)
     written = []
     for config in args.config or ():
+        if "joints" in read_parameters(config):   # a joint file (config/example_joint.yaml): its joint figures
+            if "joint" not in wanted:
+                continue
+            from .core.joint_file import load_joints
+            for joint in load_joints(config):
+                written += figures.save(figures.joint_figure(joint), args.out_dir, f"joint_{joint.name}", args.format)
+            continue
+        if args.figure == "joint":
+            raise CliError(f"plot joint needs a joint file (with 'joints:'), got {config}")
         model = muscle_model(read_parameters(config), args.model)
         fmap = shipped_force_map(model.spec.name)
         stem = f"{model.spec.name.lower().replace('-', '_')}_{model.model.name}"
@@ -291,9 +300,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="length rate [m/s]; its sign picks the hysteresis branch")
         p.add_argument("--model", default=None, help="override the file's default model")
         p.set_defaults(func=func)
-    p = sub.add_parser("plot", help="figures: force map, error map, model comparison, bag time series")
+    p = sub.add_parser("plot", help="figures: force map, error map, model comparison, bag time series, joint")
     p.add_argument("figure", choices=(*PLOTS, "all"))
-    p.add_argument("--config", nargs="+", help="parameter file(s) of mapped muscles, for force-map and error-map")
+    p.add_argument("--config", nargs="+", help="parameter file(s) of mapped muscles, for force-map and error-map; "
+                                               "joint files, for joint")
     p.add_argument("--model", default=None, help="override the files' default model")
     p.add_argument("--bag", help="bag with <ns>/force and <ns>/force_estimate (pma-model bag estimate), for timeseries")
     p.add_argument("--namespace", default=None, help="of the muscle's topics in --bag (default: the only one)")
