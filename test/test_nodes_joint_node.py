@@ -15,6 +15,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from conftest import REPO
 from node_messages import AMBIENT
 from pma_model_ros.core.joint_file import load_joints
+from pma_model_ros.core.param_file import read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.startup import StartupError
 
@@ -26,9 +27,9 @@ ELBOW = load_joints(EXAMPLE)[0]
 def make_node():
     made = []
 
-    def make(**overrides):
+    def make(params_file=EXAMPLE, **overrides):
         context = rclpy.Context()
-        rclpy.init(context=context, args=["--ros-args", "--params-file", str(EXAMPLE)])
+        rclpy.init(context=context, args=["--ros-args", "--params-file", str(params_file)])
         overrides = {"config_dir": str(REPO / "config")} | overrides
         node = JointNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
         made.append((node, context))
@@ -162,3 +163,40 @@ def test_bad_parameters_fail_at_startup(make_node):
         make_node(**{"elbow.positive": "biceps"})
     with pytest.raises(StartupError, match="cocontraction_mode"):
         make_node(**{"elbow.cocontraction_mode": "max"})
+
+
+def arm_file(tmp_path, n=4):
+    """A joint file of ``n`` copies of the example elbow, muscles ``j<k>_flexor``/``j<k>_extensor``."""
+    import yaml
+    elbow = read_parameters(EXAMPLE)["elbow"]
+    joints = {}
+    for k in range(n):
+        joints[f"j{k}"] = {key: copy.deepcopy(v) for key, v in elbow.items() if key not in ("flexor", "extensor")} | {
+            "muscles": [f"j{k}_flexor", f"j{k}_extensor"], "positive": f"j{k}_flexor",
+            f"j{k}_flexor": dict(elbow["flexor"]), f"j{k}_extensor": dict(elbow["extensor"])}
+    path = tmp_path / "arm.yaml"
+    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"joints": list(joints), **joints}}}))
+    return path
+
+
+def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tmp_path):
+    node = make_node(params_file=arm_file(tmp_path))
+    torques, stiffnesses = record(node._torque_pub), record(node._stiffness_pub)
+    pressures = [(100e3 * (k + 2), 100e3 * (5 - k)) for k in range(4)]
+    for k, pair in enumerate(pressures):
+        for m in (0, 1):
+            node._on_pressure(k, m, pressure(node, AMBIENT + pair[m]))
+    angles = [-0.6, -0.2, 0.2, 0.6]
+    msg = JointState(name=["j3", "j0", "j2", "j1"], position=[angles[3], angles[0], angles[2], angles[1]],
+                     velocity=[0.0] * 4)
+    msg.header.stamp = node.get_clock().now().to_msg()
+    node._on_states(msg)
+    assert len(torques) == 1 and torques[0].name == msg.name          # in the order of joint_states
+    for k in range(4):
+        expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f"j{k}")
+        assert torques[0].effort[i] == pytest.approx(float(expected.torque), rel=1e-9)
+        assert stiffnesses[0].effort[i] == pytest.approx(float(expected.stiffness), rel=1e-9)
+    msg.name, msg.position = ["j0", "j1", "j2", "j3"], angles                # the node's order: its prebuilt message
+    node._on_states(msg)
+    assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
+        [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9)
