@@ -146,14 +146,16 @@ def _joint(args: argparse.Namespace):
 def _angle(joint, angle: float) -> float:
     low, high = joint.limits
     if not (math.isfinite(angle) and low <= angle <= high):
-        raise CliError(f"--angle {angle:g} rad is outside the joint limits [{low:g}, {high:g}] rad (radians, not degrees)")
+        raise CliError(f"--angle {angle:g} rad is outside the joint limits [{low:g}, {high:g}] rad "
+                       "(radians, not degrees)")
     return angle
 
 
 def cmd_joint_torque(args: argparse.Namespace) -> None:
     joint = _joint(args)
     theta = _angle(joint, args.angle)
-    p = [_finite("--pressures", v, -1e7, 1e7, "Pa", "gauge pressures in Pa (300000, not 3 bar)") for v in args.pressures]
+    p = [_finite("--pressures", v, -1e7, 1e7, "Pa", "gauge pressures in Pa (300000, not 3 bar)")
+         for v in args.pressures]
     result = joint.forward(theta, p[0], p[1], args.velocity)
     print(f"torque {float(result.torque):.6g} N·m  stiffness {float(result.stiffness):.6g} N·m/rad")
     for k, name in enumerate(joint.muscle_names):
@@ -169,8 +171,10 @@ def cmd_joint_pressures(args: argparse.Namespace) -> None:
         result = joint.pressures_one(theta, torque, stiffness=_finite("--stiffness", args.stiffness, 0.0, 1e7,
                                                                       "N·m/rad", "stiffness in N·m/rad"))
     else:
-        level = _finite("--cocontraction", args.cocontraction, 0.0, 1e7, "Pa", "gauge pressure in Pa")
-        result = joint.pressures_one(theta, torque, level, args.mode)
+        block = read_parameters(args.config)[joint.name]   # the file's defaults, as joint_node's
+        level = block.get("cocontraction", 0.0) if args.cocontraction is None else args.cocontraction
+        level = _finite("--cocontraction", level, 0.0, 1e7, "Pa", "gauge pressure in Pa")
+        result = joint.pressures_one(theta, torque, level, args.mode or block.get("cocontraction_mode", "min"))
     print("  ".join(f"{name} {p:.6g} Pa" for name, p in zip(joint.muscle_names, result.pressures))
           + f"  (gauge)  flags {describe(result.flags)}")
     print(f"torque {result.torque:.6g} N·m  stiffness {result.stiffness:.6g} N·m/rad  "
@@ -216,10 +220,11 @@ def add_joint_commands(sub) -> None:
             p.add_argument("--torque", required=True, type=float, help="wanted torque [N·m]")
             level = p.add_mutually_exclusive_group()
             level.add_argument("--stiffness", type=float, help="wanted stiffness [N·m/rad]")
-            level.add_argument("--cocontraction", type=float, default=100e3,
-                               help="co-contraction level [Pa gauge] (default 100000)")
-            p.add_argument("--mode", choices=("min", "sum"), default="min",
-                           help="co-contraction level is the lower pressure (min) or the pressure sum")
+            level.add_argument("--cocontraction", type=float, default=None,
+                               help="co-contraction level [Pa gauge] (default: the file's cocontraction, else 0)")
+            p.add_argument("--mode", choices=("min", "sum"), default=None,
+                           help="co-contraction level is the lower pressure (min) or the pressure sum "
+                                "(default: the file's cocontraction_mode, else min)")
 
 
 #: Figures of ``pma-model plot`` and what each needs; ``all`` makes every one whose input is given.

@@ -31,7 +31,8 @@ class Settings:
 
     def __post_init__(self) -> None:
         if self.cocontraction_mode not in COCONTRACTION_MODES:
-            raise ValueError(f"cocontraction_mode must be one of {COCONTRACTION_MODES}, got {self.cocontraction_mode!r}")
+            raise ValueError(f"cocontraction_mode must be one of {COCONTRACTION_MODES}, "
+                             f"got {self.cocontraction_mode!r}")
         if not (math.isfinite(self.cocontraction) and self.cocontraction >= 0):
             raise ValueError(f"cocontraction must be a gauge pressure >= 0 Pa, got {self.cocontraction!r}")
 
