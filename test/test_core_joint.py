@@ -194,3 +194,20 @@ def test_geometry_check_names_the_angle():
 def test_lever_arm_must_stay_positive():
     with pytest.raises(ValueError, match="lever arm r = .* at θ = -1 rad"):
         dataclasses.replace(EXAMPLE, transmission=Transmission((0.01, 0.02)))
+
+
+def test_out_of_reach_cocontraction_is_saturated_at_the_nearest_level():
+    solution = EXAMPLE.pressures_one(0.0, 0.0, 900e3)                  # above the rated 800 kPa
+    assert solution.flags & Flag.SATURATED and solution.pressures == (800e3, 800e3)
+    solution = EXAMPLE.pressures_one(0.0, 0.0, 2e6, "sum")              # above 800 + 800 kPa
+    assert solution.flags & Flag.SATURATED and solution.pressures == (800e3, 800e3)
+
+
+def test_pressures_broadcast_over_samples():
+    solutions = EXAMPLE.pressures(np.array([-0.5, 0.0, 0.5]), 1.0, np.array([[300e3], [400e3]]))
+    assert len(solutions) == 6
+    for solution, (theta, level) in zip(solutions, [(t, c) for c in (300e3, 400e3) for t in (-0.5, 0.0, 0.5)]):
+        assert min(solution.pressures) == level
+        assert float(EXAMPLE.forward(theta, *solution.pressures).torque) == pytest.approx(1.0, rel=1e-9)
+    (stiff,) = EXAMPLE.pressures(0.0, 0.0, stiffness=4.5)
+    assert stiff.stiffness == pytest.approx(4.5, rel=1e-9)

@@ -200,3 +200,10 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
     node._on_states(msg)
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
         [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9)
+
+
+def test_parameter_changes_are_refused(make_node):
+    node = make_node()
+    result = node.set_parameters([Parameter("elbow.cocontraction", value=200e3)])[0]
+    assert not result.successful and "start-up" in result.reason
+    assert node.get_parameter("elbow.cocontraction").value == 300e3

@@ -213,32 +213,35 @@ class Joint:
         m0, m1, r, _ = self.at(theta)
         return r * (m0.force(0.0) - m1.force(m1.p_max)), r * (m0.force(m0.p_max) - m1.force(0.0))
 
-    def pressures_one(self, theta: float, torque: float, cocontraction: float | None = None, mode: str = "min",
+    def pressures_one(self, theta: float, torque: float, cocontraction: float = 0.0, mode: str = "min",
                       stiffness: float | None = None) -> Pressures:
         """Gauge pressures [Pa] for the wanted ``torque`` [N·m] at ``theta`` [rad], with either a co-contraction
         level [Pa] (``mode`` 'min': the lower pressure, closed form; 'sum': the pressure sum, brentq) or a wanted
         ``stiffness`` [N·m/rad] (brentq along the pairs giving the torque).  Out of reach: the nearest reachable
-        torque (then stiffness), flagged SATURATED."""
+        level, torque, then stiffness, flagged SATURATED."""
         if mode not in COCONTRACTION_MODES:
             raise ValueError(f"co-contraction mode must be one of {COCONTRACTION_MODES}, got {mode!r}")
         m0, m1, r, r_slope = self.at(theta)
         want = torque / r   # wanted F0 - F1 [N]
         if stiffness is not None:
             p0, p1, span = _for_stiffness(m0, m1, r, r_slope, want, stiffness)
+            level_ok = math.isfinite(stiffness)
         elif mode == "min":
             p0, p1, span = _for_lower(m0, m1, want, cocontraction)
+            level_ok = 0.0 <= cocontraction <= min(m0.p_max, m1.p_max)
         else:
             p0, p1, span = _for_sum(m0, m1, want, cocontraction)
+            level_ok = 0.0 <= cocontraction <= m0.p_max + m1.p_max
         got, k = self.torque_stiffness(m0, m1, r, r_slope, p0, p1)
         scale = r * (m0.force(m0.p_max) + m1.force(m1.p_max))
         flags = int(m0.flags | m1.flags)
         missed = abs(got - torque) > TOLERANCE * scale or (
             stiffness is not None and abs(k - stiffness) > TOLERANCE * max(abs(stiffness), 1.0))
-        if missed or not (math.isfinite(torque) and math.isfinite(cocontraction if stiffness is None else stiffness)):
+        if missed or not (math.isfinite(torque) and level_ok):
             flags |= _SATURATED
         return Pressures((p0, p1), flags, got, k, (r * span[0], r * span[1]))
 
-    def pressures(self, theta: ArrayLike, torque: ArrayLike, cocontraction: ArrayLike | None = None,
+    def pressures(self, theta: ArrayLike, torque: ArrayLike, cocontraction: ArrayLike = 0.0,
                   mode: str = "min", stiffness: ArrayLike | None = None) -> list[Pressures]:
         """:meth:`pressures_one` of each sample of the broadcast inputs (flattened)."""
         level = stiffness if stiffness is not None else cocontraction

@@ -1,7 +1,7 @@
 """joint_node: torque and stiffness estimates and pressure commands of antagonistic joints.
 
 Parameters: a joint file (``config/example_joint.yaml``, layout in :mod:`pma_model_ros.core.joint_file`),
-read at start-up.  Topics (relative, so a namespace applies):
+read at start-up (later changes are refused).  Topics (relative, so a namespace applies):
 
 * in ``joint_states`` (sensor_msgs/JointState: position θ [rad], velocity [rad/s]; entries by joint name) and
   each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa);
@@ -25,6 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
+from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.cdr import StampedTemplate, sentinels
@@ -69,6 +70,8 @@ class JointNode(Node):
                                       hold=DIAGNOSTIC_PERIOD)
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
+        self.add_on_set_parameters_callback(lambda _changes: SetParametersResult(
+            successful=False, reason="joint_node reads its parameters at start-up: restart it to change them"))
         self._ros_clock = self.get_clock().handle
         self._torque_pub = self.create_publisher(JointState, "torque_estimate", 10)
         self._stiffness_pub = self.create_publisher(JointState, "stiffness_estimate", 10)
