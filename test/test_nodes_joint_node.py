@@ -5,15 +5,18 @@ muscles' forces (test/test_core_joint.py checks those by hand), the pressure com
 """
 import copy
 import math
+import subprocess
 
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
+import yaml
 
 from conftest import REPO
 from node_messages import AMBIENT
+from pma_model_ros import node_process
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
@@ -167,7 +170,6 @@ def test_bad_parameters_fail_at_startup(make_node):
 
 def arm_file(tmp_path, n=4):
     """A joint file of ``n`` copies of the example elbow, muscles ``j<k>_flexor``/``j<k>_extensor``."""
-    import yaml
     elbow = read_parameters(EXAMPLE)["elbow"]
     joints = {}
     for k in range(n):
@@ -207,3 +209,18 @@ def test_parameter_changes_are_refused(make_node):
     result = node.set_parameters([Parameter("elbow.cocontraction", value=200e3)])[0]
     assert not result.successful and "start-up" in result.reason
     assert node.get_parameter("elbow.cocontraction").value == 300e3
+
+
+def test_a_new_declaration_is_no_change(make_node):
+    """startup.run declares ``executor`` after the node is built."""
+    node = make_node()
+    assert node.declare_parameter("executor", "events").value == "events"
+
+
+def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
+    """Started as a process, without ``config_dir`` the example's muscle files are not found from the repo root."""
+    proc = subprocess.run(node_process.command("joint_node", "/bad_joint", EXAMPLE), capture_output=True, text=True,
+                          timeout=60, cwd=REPO)
+    assert proc.returncode == 1
+    lines = (proc.stdout + proc.stderr).strip().splitlines()
+    assert len(lines) == 1 and "joint 'elbow', muscle 'flexor'" in lines[0] and "dmsp_10_250.yaml" in lines[0]

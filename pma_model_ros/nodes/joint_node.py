@@ -24,6 +24,7 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
@@ -70,8 +71,7 @@ class JointNode(Node):
                                       hold=DIAGNOSTIC_PERIOD)
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
-        self.add_on_set_parameters_callback(lambda _changes: SetParametersResult(
-            successful=False, reason="joint_node reads its parameters at start-up: restart it to change them"))
+        self.add_on_set_parameters_callback(self._refuse_changes)
         self._ros_clock = self.get_clock().handle
         self._torque_pub = self.create_publisher(JointState, "torque_estimate", 10)
         self._stiffness_pub = self.create_publisher(JointState, "stiffness_estimate", 10)
@@ -97,6 +97,14 @@ class JointNode(Node):
         self.get_logger().info("; ".join(f"joint '{j.name}': {j.muscle_names[0]} ({j.muscles[0].model.name}) "
                                          f"shortens for positive angle, {j.muscle_names[1]} ({j.muscles[1].model.name})"
                                          for j in found))
+
+    def _refuse_changes(self, changes: list[Parameter]) -> SetParametersResult:
+        """Parameters are read at start-up: a change of a declared one is refused (a declaration, e.g. the
+        ``executor`` by :func:`~.startup.run`, is not a change)."""
+        if any(self.has_parameter(p.name) for p in changes):
+            return SetParametersResult(successful=False,
+                                       reason="joint_node reads its parameters at start-up: restart it to change them")
+        return SetParametersResult(successful=True)
 
     def now(self) -> float:
         """The node clock (ROS time) [s], without building an rclpy Time."""
