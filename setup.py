@@ -33,6 +33,8 @@ setup(
             'pma-model = pma_model_ros.cli:main',
             'model_node = pma_model_ros.nodes.model_node:main',
             'simulator_node = pma_model_ros.nodes.simulator_node:main',
+            'joint_node = pma_model_ros.nodes.joint_node:main',
+            'joint_simulator_node = pma_model_ros.nodes.joint_simulator_node:main',
         ],
     },
 )

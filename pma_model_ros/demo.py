@@ -131,7 +131,7 @@ def run(duration: float, config: Path) -> int:
           f"{duration:g} s\n")
     sim_params = dict(SIMULATOR, sweep_period=duration, muscle=model.spec.name)
     with tempfile.TemporaryDirectory(prefix="pma_demo_") as tmp:
-        logs = {name: open(Path(tmp) / f"{name}.log", "w+") for name in node_process.NODES}
+        logs = {name: open(Path(tmp) / f"{name}.log", "w+") for name in ("simulator_node", "model_node")}
         procs = {"simulator_node": node_process.start(
                      node_process.command("simulator_node", NAMESPACE, params=sim_params), logs["simulator_node"]),
                  "model_node": node_process.start(

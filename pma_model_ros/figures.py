@@ -23,6 +23,7 @@ from .bags.synthetic import topic
 from .core.flags import Flag
 from .core.force_map import ForceMap
 from .core.identification import max_error_percent
+from .core.joint import Joint, envelope
 from .core.muscle_model import MuscleModel
 
 FORMATS = ("png", "svg")
@@ -220,6 +221,47 @@ def timeseries_figure(time: np.ndarray, measured: np.ndarray, estimated: np.ndar
     bottom.set_title(f"error: max |estimated − measured| {np.abs(error).max():.1f} N, "
                      f"RMS {np.sqrt(np.mean(error**2)):.1f} N over {time.size} stamps", loc="left", fontsize=10)
     bottom.set(xlabel="time t [s]", ylabel="estimated −\nmeasured [N]", xlim=(time[0], time[-1]))
+    return fig
+
+
+#: Co-contraction levels (the lower pressure [Pa gauge]) of the joint figure's envelope.
+JOINT_LEVELS = (0.0, 200e3, 400e3, 600e3)
+
+
+@matplotlib.rc_context(STYLE)
+def joint_figure(joint: Joint) -> Figure:
+    """Left: the reachable torque over the joint range, in all and at co-contraction levels (lower pressure).
+    Right: the stiffness K [N·m/rad] at zero torque over angle and co-contraction level."""
+    fig = _figure(3.8)
+    left, right = fig.subplots(1, 2)
+    angles = np.linspace(*joint.limits, 81)
+    env = envelope(joint, angles, JOINT_LEVELS)
+    left.fill_between(angles, env["torque_min"], env["torque_max"], color="0.9", label="any pressures")
+    for level, low, high, color in zip(JOINT_LEVELS, env["level_min"], env["level_max"],
+                                       _length_colors(len(JOINT_LEVELS))):
+        left.plot(angles, high, color=color, lw=1.4, label=f"lower pressure {level / 1e3:.0f} kPa")
+        left.plot(angles, low, color=color, lw=1.4, ls="--")
+    left.axhline(0.0, color="0.3", lw=0.8)
+    left.set(xlabel="joint angle θ [rad]", ylabel="torque τ [N·m]",
+             title="reachable torque (max solid, min dashed)")
+    left.legend(loc="upper center", fontsize=7.5)
+    p_max = min(m.spec.max_pressure for m in joint.muscles)
+    levels = np.linspace(0.0, p_max, 81)
+    grid = np.linspace(*joint.limits, 81)
+    stiffness = np.array([[joint.pressures_one(theta, 0.0, level).stiffness for theta in grid] for level in levels])
+    stiffness = np.ma.masked_where(stiffness <= 0, stiffness)   # both muscles slack
+    right.set_facecolor(SLACK_SHADE)
+    mesh = right.pcolormesh(grid, _kpa(levels), stiffness, shading="nearest", cmap="viridis")
+    right.contour(grid, _kpa(levels), stiffness, levels=np.arange(2.0, stiffness.max(), 1.0), colors="white",
+                  linewidths=0.6)
+    right.text(0.5, 0.06, "both muscles slack: K = 0", transform=right.transAxes, ha="center", fontsize=8)
+    fig.colorbar(mesh, ax=right, label="stiffness K = −dτ/dθ [N·m/rad]")
+    right.set(xlabel="joint angle θ [rad]", ylabel="co-contraction: lower pressure [kPa]",
+              title="stiffness at zero torque")
+    right.grid(False)
+    names = " / ".join(f"{n} ({m.spec.name}, {m.model.name})" for n, m in zip(joint.muscle_names, joint.muscles))
+    fig.suptitle(f"joint '{joint.name}': {names}, r = {joint.transmission.radius(0.0) * 1e3:g} mm at 0 rad",
+                 fontsize=10)
     return fig
 
 

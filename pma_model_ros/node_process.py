@@ -7,7 +7,7 @@ import subprocess
 import sys
 from typing import IO
 
-NODES = ("model_node", "simulator_node")
+NODES = ("model_node", "simulator_node", "joint_node", "joint_simulator_node")
 
 
 def command(node: str, namespace: str, params_file: str | Path | None = None,

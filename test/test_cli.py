@@ -85,3 +85,64 @@ def test_config_must_be_the_named_regular_file(capsys, path, message):
     assert main(["force", "--config", path, "--pressure", "300000", "--length", "0.23"]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+JOINT = str(REPO / "config" / "example_joint.yaml")
+
+
+def test_joint_torque_prints_the_worked_example(capsys):
+    """The README's worked example; the numbers are checked by hand in test/test_core_joint.py."""
+    assert main(["joint", "torque", "--config", JOINT, "--angle", "0.5", "--pressures", "400000", "300000"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "torque -0.69331 N·m  stiffness 3.83917 N·m/rad"
+    assert lines[1].startswith("flexor: length 0.2265 m") and lines[2].startswith("extensor: length 0.2415 m")
+
+
+def test_joint_pressures_round_trip_through_torque(capsys):
+    assert main(["joint", "pressures", "--config", JOINT, "--angle", "-0.3", "--torque", "2.5",
+                 "--cocontraction", "150000"]) == 0
+    first = capsys.readouterr().out.split()
+    flexor, extensor = float(first[1]), float(first[4])
+    assert extensor == 150000.0 and flexor > extensor
+    assert main(["joint", "torque", "--config", JOINT, "--angle", "-0.3", "--pressures", repr(flexor),
+                 repr(extensor)]) == 0
+    assert float(capsys.readouterr().out.split()[1]) == pytest.approx(2.5, rel=1e-5)   # printed to 6 digits
+
+
+def test_joint_pressures_for_a_stiffness_and_out_of_reach(capsys):
+    assert main(["joint", "pressures", "--config", JOINT, "--angle", "0", "--torque", "0", "--stiffness", "4.5"]) == 0
+    out = capsys.readouterr().out
+    assert "flags OK" in out and "stiffness 4.5 N·m/rad" in out
+    assert main(["joint", "pressures", "--config", JOINT, "--angle", "0", "--torque", "50"]) == 0
+    out = capsys.readouterr().out
+    assert "flags SATURATED" in out and "flexor 650000 Pa" in out   # the map's top: hildebrandt does not extrapolate
+
+
+def test_joint_envelope_is_symmetric_for_a_symmetric_joint(capsys):
+    assert main(["joint", "envelope", "--config", JOINT, "--steps", "5"]) == 0
+    rows = [list(map(float, line.split())) for line in capsys.readouterr().out.splitlines()[2:]]
+    assert [r[0] for r in rows] == [-1.0, -0.5, 0.0, 0.5, 1.0]
+    for row, mirror in zip(rows, rows[::-1]):   # two equal muscles at equal lengths: τ(-θ) ranges mirror τ(θ)
+        assert row[1] == pytest.approx(-mirror[2], rel=1e-9) and row[3:] == pytest.approx(mirror[3:], rel=1e-9)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["torque", "--angle", "30", "--pressures", "1e5", "1e5"], "radians, not degrees"),
+    (["torque", "--angle", "0", "--pressures", "3", "nan"], "gauge pressures in Pa"),
+    (["pressures", "--angle", "0", "--torque", "1", "--cocontraction", "-5"], "--cocontraction"),
+    (["pressures", "--angle", "0", "--torque", "1", "--joint", "knee"], "choose one of elbow"),
+    (["envelope", "--steps", "1"], "--steps 1"),
+])
+def test_bad_joint_queries_exit_2_without_traceback(args, message):
+    cmd = [sys.executable, "-m", "pma_model_ros.cli", "joint", args[0], "--config", JOINT, *args[1:]]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and message in proc.stderr
+    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
+
+
+def test_bad_joint_file_exits_2(tmp_path, capsys):
+    bad = tmp_path / "joint.yaml"
+    bad.write_text("/**:\n  ros__parameters:\n    joints: [elbow]\n")
+    assert main(["joint", "envelope", "--config", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "joint 'elbow': no parameters under 'elbow:'" in err and err.count("\n") == 1

@@ -8,7 +8,7 @@ from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.force_map import shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import domain_of, max_error_percent
-from pma_model_ros.core.models import MODELS, force_raw, get_model
+from pma_model_ros.core.models import MODELS, coefficient_slopes, force_raw, get_model
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis, to_si
 
@@ -120,3 +120,19 @@ def test_a_model_that_does_not_extrapolate_is_held_at_the_domain_edge():
     out, top = m.force(2e6, 0.24), m.force(650e3, 0.24)
     assert float(out.force) == float(top.force) and out.flags & Flag.PRESSURE_OUT_OF_RANGE
     assert float(m.force(-5e4, 0.25).force) == float(m.force(0.0, 0.25).force)
+
+
+@pytest.mark.parametrize("path", sorted(CONFIGS.values()), ids=lambda p: p.stem)
+def test_coefficient_slopes_are_the_length_derivatives(path):
+    """Each model's analytic (dq2, dq1, dq0)/dL against a central difference of its coefficients."""
+    parameters = read_parameters(path)
+    for name in parameters["models"]:
+        m = muscle_model(parameters, name)
+        L = np.linspace(m.domain.length_min, min(m.domain.length_max, m.spec.nominal_length), 9)
+        for branch in (0.0, 1.0, -1.0):
+            h = 1e-6
+            up = np.array(m.model.coefficients(m.theta, m.spec, m.domain, L + h, branch)) + np.zeros_like(L)
+            down = np.array(m.model.coefficients(m.theta, m.spec, m.domain, L - h, branch)) + np.zeros_like(L)
+            slopes = np.array(coefficient_slopes(m.model, m.theta, m.spec, m.domain, L, branch)) + np.zeros_like(L)
+            for fd, got in zip((up - down) / (2 * h), slopes):
+                assert got == pytest.approx(fd, rel=1e-6, abs=1e-6 * np.abs(fd).max() + 1e-300), name

@@ -125,3 +125,13 @@ def test_plot_cli_errors_are_one_line_exit_2(tmp_path, estimated_bag, args, mess
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_plot_joint_writes_the_joint_figure(tmp_path, capsys):
+    joint_file = str(CONFIGS["DMSP-10-250"].parent / "example_joint.yaml")
+    assert main(["plot", "joint", "--config", joint_file, "--out-dir", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.split() == ["wrote", str(tmp_path / "joint_elbow.png"),
+                                               "wrote", str(tmp_path / "joint_elbow.svg")]
+    assert_written([tmp_path / "joint_elbow.png", tmp_path / "joint_elbow.svg"], "joint_elbow")
+    assert main(["plot", "joint", "--config", str(CONFIGS["DMSP-10-250"]), "--out-dir", str(tmp_path)]) == 2
+    assert "plot joint needs a joint file" in capsys.readouterr().err

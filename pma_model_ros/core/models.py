@@ -223,3 +223,84 @@ def force_raw(model: Model, theta: np.ndarray, spec: MuscleSpec, domain: Domain,
     pressure, length = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
     q2, q1, q0 = model.coefficients(theta, spec, domain, length, branch)
     return (q2 * pressure + q1) * pressure + q0
+
+
+# --- Length derivatives of the coefficients (joint stiffness, pma_model_ros.core.joint) -----------------------
+# Each returns (dq2/dL, dq1/dL, dq0/dL) with the arguments of ``Model.coefficients``: analytic, so that
+# dF/dL = dq2/dL p^2 + dq1/dL p + dq0/dL at fixed pressure.  Checked against finite differences in
+# test/test_core_models.py.
+
+def _mckibben_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    """q1 = -dV/dL = -(L_F^2 - 3 L^2) / (4 pi n^2): dq1/dL = 6 L / (4 pi n^2)."""
+    n = geo.turns(spec)
+    return _zeros(length), 6 * length / (4 * math.pi * n**2), _zeros(length)
+
+
+def _andrikopoulos_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    c0, c1 = theta
+    th0 = spec.fiber_angle
+    factor = 1 - c1 * _contraction(spec, length)   # d kappa / dL = -1 / L0
+    slope = c0 * math.pi * spec.inner_diameter**2 / 4 * 6 * c1 * factor / (ew.tan(th0) ** 2 * spec.nominal_length)
+    return _zeros(length), slope, _zeros(length)
+
+
+def _sarosi_term_slopes(theta, spec, length) -> tuple[np.ndarray, np.ndarray]:
+    c0, c1, c2, d0, d1, d2 = theta
+    growth = ew.exp(c2 * _contraction(spec, length))
+    return -(c0 * c2 * growth + d0) / spec.nominal_length, -c1 * c2 * growth / spec.nominal_length
+
+
+def _sarosi_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    s1, s0 = _sarosi_term_slopes(theta, spec, length)
+    return _zeros(length), s1, s0
+
+
+def _sarosi_hysteresis_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    up1, up0 = _sarosi_term_slopes(theta[:6], spec, length)
+    lo1, lo0 = _sarosi_term_slopes(theta[6:], spec, length)
+    w_up = (1 + ew.clip(ew.asarray(branch), -1.0, 1.0)) / 2
+    return _zeros(length), w_up * up1 + (1 - w_up) * lo1, w_up * up0 + (1 - w_up) * lo0
+
+
+def _hildebrandt_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    c0, c1, c2, d0, d1, d2, d3, d4 = theta
+    counter = d1 + 2 * d2 * length + 3 * d3 * length**2 + 2 / 3 * d4 / ew.cbrt(length)
+    return _zeros(length), c1 + 2 * c2 * length, -counter
+
+
+def _wickramatunge_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    c0, c1, c2, c3 = theta
+    dl = length - domain.length_min
+    return c3 + _zeros(length), 2 * c2 * dl, 3 * c1 * dl**2 + c0
+
+
+def _martens_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    """Product rule on q0 = F_PE dD/dL - F_L, with d2D/dL2 = -L_F^2 / (n pi root^3), root = sqrt(L_F^2 - L^2)."""
+    c0, c1, c2, c3, d0 = theta
+    angle = spec.fiber_angle + d0
+    lf, n = geo.fiber_length(spec, angle), geo.turns(spec, angle)
+    modulus = ((c3 * length + c2) * length + c1) * length + c0
+    modulus_slope = (3 * c3 * length + 2 * c2) * length + c1
+    dia, dia_slope, _ = geo.braid(spec, length, angle)
+    root = ew.sqrt(lf**2 - length**2)
+    dia_curve = -lf**2 / (n * math.pi * root**3)
+    d0_, h0, l0 = spec.inner_diameter, spec.membrane_thickness, spec.nominal_length
+    f_pe = modulus * (dia - d0_) / d0_ * h0 * length * math.pi
+    f_pe_slope = math.pi * h0 / d0_ * (modulus_slope * (dia - d0_) * length + modulus * dia_slope * length
+                                       + modulus * (dia - d0_))
+    f_l_slope = math.pi * h0 / l0 * (modulus_slope * (length - l0) * dia + modulus * dia
+                                     + modulus * (length - l0) * dia_slope)
+    return _zeros(length), 6 * length / (4 * math.pi * n**2), f_pe_slope * dia_slope + f_pe * dia_curve - f_l_slope
+
+
+#: model name -> analytic (dq2/dL, dq1/dL, dq0/dL), same arguments as ``Model.coefficients``.
+SLOPES: dict[str, Callable[..., Coefficients]] = {
+    "mckibben": _mckibben_slopes, "andrikopoulos": _andrikopoulos_slopes, "wickramatunge": _wickramatunge_slopes,
+    "hildebrandt": _hildebrandt_slopes, "sarosi": _sarosi_slopes, "martens": _martens_slopes,
+    "sarosi_hysteresis": _sarosi_hysteresis_slopes,
+}
+
+
+def coefficient_slopes(model: Model, theta, spec: MuscleSpec, domain: Domain, length, branch=0.0) -> Coefficients:
+    """(dq2/dL, dq1/dL, dq0/dL) of ``model`` at ``length`` [m]: [N/(Pa^2 m)], [N/(Pa m)], [N/m]."""
+    return SLOPES[model.name](theta, spec, domain, length, branch)
