@@ -15,6 +15,7 @@ from pma_model_ros.bags.bag_io import (FLUID_PRESSURE, JOINT_STATE, SENSOR_DATA,
 from pma_model_ros.bags.estimate import WrenchStampedCdr, estimate_bag
 from pma_model_ros.bags.synthetic import START_NS, record_simulation
 from pma_model_ros.core.engine import Engine
+from pma_model_ros.core.hysteresis import branches
 from pma_model_ros.core.param_file import node_settings, read_parameters
 
 T = TYPESTORE.types
@@ -218,8 +219,10 @@ def test_multi_muscle_parameter_file(tmp_path, mode):
     summary = estimate_bag(tmp_path / "in", all_node_settings(parameters), tmp_path / "out", names=names,
                            combined=mode == "combined", progress=False)
     models = [muscle_model(parameters, n) for n in names]
-    expected = {t: [float(m.force(g, L, r).force) for m, g, L, r in zip(models, gauge, length, rate)]
-                for t, gauge, length, rate in inputs}
+    # a hysteresis branch follows each muscle's length series (play operator, the default 0.5 mm deadband)
+    branch = np.array([branches([length[i] for _, _, length, _ in inputs], 0.5e-3) for i in range(len(names))]).T
+    expected = {t: [float(m.force(g, L, b).force) for m, g, L, b in zip(models, gauge, length, branch[k])]
+                for k, (t, gauge, length, _) in enumerate(inputs)}
     got: dict[int, dict[str, float]] = {}
     for topic, time_ns, msg in read(tmp_path / "out"):
         if topic == f"{NS}/force_estimates":

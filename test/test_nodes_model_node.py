@@ -94,8 +94,9 @@ def test_gauge_sensor_readings_and_commands(make_node):
 
 def expected_forces(inputs: dict) -> dict[str, float]:
     example = read_parameters(EXAMPLE)
+    # after one length sample a hysteresis branch is unknown (it follows the motion, not the rate): branch 0
     return {name: float(muscle_model(read_parameters(REPO / 'config' / f'{cfg}.yaml'), example[name]['model'])
-                        .force(p, L, rate).force) for name, (cfg, p, L, rate) in inputs.items()}
+                        .force(p, L, 0.0).force) for name, (cfg, p, L, rate) in inputs.items()}
 
 
 INPUTS = {'biceps': ('dmsp_20_300', 400e3, 0.26, 0.0), 'triceps': ('dmsp_20_300', 250e3, 0.28, -0.02),

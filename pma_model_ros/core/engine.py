@@ -34,6 +34,7 @@ from typing import Sequence
 import numpy as np
 
 from .flags import Flag, describe
+from .hysteresis import play
 from .muscle_bank import MuscleBank
 from .muscle_model import VENTED_BAND, MuscleModel, Operating, force_at
 from .node_parameters import SPECS
@@ -123,11 +124,17 @@ class Config:
     ambient_pressure: float = SPECS["ambient_pressure"].default  #: [Pa] absolute; gauge = absolute - ambient
     max_input_age: float = SPECS["max_input_age"].default        #: [s] inputs with |now - stamp| above this are stale
     pressure_reference: str = SPECS["pressure_reference"].default  #: what pressure readings and commands hold
+    hysteresis_input: str = SPECS["hysteresis.input"].default      #: what a hysteresis model's branch follows
+    deadband: float | None = None   #: of the play operator [m or Pa gauge]; None: the input's default
 
     def __post_init__(self) -> None:
         SPECS["ambient_pressure"].check(self.ambient_pressure)
         SPECS["max_input_age"].check(self.max_input_age)
         SPECS["pressure_reference"].check(self.pressure_reference)
+        SPECS["hysteresis.input"].check(self.hysteresis_input)
+        if self.deadband is None:
+            object.__setattr__(self, "deadband", SPECS[f"hysteresis.{self.hysteresis_input}_deadband"].default)
+        SPECS[f"hysteresis.{self.hysteresis_input}_deadband"].check(self.deadband)
 
     @property
     def reading_offset(self) -> float:
@@ -159,6 +166,7 @@ class Engine:
         self.hold, self.approximate, self.slop = hold, pairing == "approximate_time", slop
         self._pressure, self._p_stamp = np.full(n, math.nan), np.full(n, math.nan)   # absolute [Pa], [s]
         self._length, self._rate, self._l_stamp = np.full(n, math.nan), np.full(n, math.nan), np.full(n, math.nan)
+        self._branch, self._anchor = np.zeros(n), np.full(n, math.nan)   # hysteresis play operator (core.hysteresis)
         self._p_tag, self._l_tag = np.full(n, None, object), np.full(n, None, object)
         self._p_new, self._l_new = np.zeros(n, bool), np.zeros(n, bool)   # not yet paired (approximate_time)
         self._counts = np.zeros((n, len(COUNTERS)), np.int64)
@@ -184,8 +192,13 @@ class Engine:
         self._ambient = np.array([c.ambient_pressure for c in configs])
         self._offset = np.array([c.reading_offset for c in configs])   # reading + offset = absolute [Pa]
         self._offsets = bool(self._offset.any())
+        hysteresis = np.array([c.model.model.hysteresis for c in configs])
+        by_pressure = np.array([c.hysteresis_input == "pressure" for c in configs])
+        self._follow_length, self._follow_pressure = hysteresis & ~by_pressure, hysteresis & by_pressure
+        self._deadband = np.array([c.deadband for c in configs])
+        self._any_length, self._any_pressure = bool(self._follow_length.any()), bool(self._follow_pressure.any())
         self._age = np.array([c.max_input_age for c in configs])
-        op = bank.operating(self._length, self._rate)   # a length the new geometry cannot take: INVALID_INPUT
+        op = bank.operating(self._length, self._branch)   # a length the new geometry cannot take: INVALID_INPUT
         self._lflags, self._q = op.flags.astype(np.uint16), np.array([op.q2, op.q1, op.q0], float)
         self.bank, self.configs = bank, tuple(configs)   # last: the scalar path reads these
 
@@ -200,7 +213,21 @@ class Engine:
         if not 0 <= absolute <= ABSURD_PRESSURE:   # NaN too
             return self._invalid(k, "pressure", pressure_problem(absolute), now)
         self._pressure[k], self._p_stamp[k], self._p_tag[k], self._p_new[k] = absolute, stamp, tag, True
+        if self._any_pressure and self._follow_pressure[k]:
+            self._play(k, absolute - self._ambient.item(k))
         return self._estimate(k, now)
+
+    def _play(self, k: int, value: float) -> float:
+        """Muscle ``k``'s hysteresis branch after its followed signal reads ``value``; a change of branch
+        recomputes the coefficients at the length held."""
+        before = self._branch.item(k)
+        branch, self._anchor[k] = play(before, self._anchor.item(k), value, self._deadband.item(k))
+        self._branch[k] = branch
+        length = self._length.item(k)
+        if branch != before and length == length and self._follow_pressure[k]:
+            flags, q2, q1, q0 = self.configs[k].model.operating_one(length, branch)
+            self._lflags[k], self._q[0, k], self._q[1, k], self._q[2, k] = flags, q2, q1, q0
+        return branch
 
     def length(self, k: int, length: float, rate: float | None, stamp: float, now: float,
                tag: object = None) -> float | None:
@@ -211,7 +238,8 @@ class Engine:
         if not 0 < length < model.max_length:      # NaN too
             return self._invalid(k, "muscle_state", length_problem(length, model.max_length), now)
         rate = rate if rate is not None and math.isfinite(rate) else math.nan
-        flags, q2, q1, q0 = model.operating_one(length, rate)
+        branch = self._play(k, length) if self._any_length and self._follow_length[k] else self._branch.item(k)
+        flags, q2, q1, q0 = model.operating_one(length, branch)
         self._length[k], self._rate[k], self._l_stamp[k], self._l_tag[k], self._l_new[k] = \
             length, rate, stamp, tag, True
         self._lflags[k], self._q[0, k], self._q[1, k], self._q[2, k] = flags, q2, q1, q0
@@ -288,7 +316,7 @@ class Engine:
         if not abs(now - l_stamp) <= self._age.item(k):   # never received (NaN) or stale
             self._counts[k, _NO_LENGTH] += 1
             return None
-        result = self.configs[k].model.pressure(force, self._length.item(k), self._rate.item(k))
+        result = self.configs[k].model.pressure(force, self._length.item(k), self._branch.item(k))
         self.flags = int(result.flags)
         if self.flags & _WARN_MASK:
             self._note(k, self.flags, now)
@@ -331,6 +359,15 @@ class Engine:
         store = slice(None) if valid is self._everyone else valid
         self._pressure[store], self._p_stamp[store], self._p_tag[store], self._p_new[store] = \
             absolute[store], stamp, tag, True
+        if self._any_pressure:
+            before = self._branch
+            self._branch, self._anchor = play(before, self._anchor, np.where(
+                valid & self._follow_pressure, absolute - self._ambient, math.nan), self._deadband)
+            changed = (self._branch != before) & ~np.isnan(self._length)
+            if changed.any():
+                op = self.bank.operating(self._length, self._branch)
+                self._lflags[changed] = op.flags[changed]
+                self._q[:, changed] = np.array([op.q2, op.q1, op.q0])[:, changed]
         return self._estimates(valid, now)
 
     def lengths(self, lengths: np.ndarray, rates: np.ndarray | None, stamp: float, now: float, tag: object = None,
@@ -344,7 +381,10 @@ class Engine:
         limits = self.bank.max_length
         valid = self._received(received, (lengths > 0) & (lengths < limits), "muscle_state",
                                lambda k: length_problem(lengths[k], limits[k]), now)
-        op = self.bank.operating(lengths, rates)
+        if self._any_length:
+            self._branch, self._anchor = play(self._branch, self._anchor, np.where(
+                valid & self._follow_length, lengths, math.nan), self._deadband)
+        op = self.bank.operating(lengths, self._branch)
         store = slice(None) if valid is self._everyone else valid
         self._length[store], self._rate[store], self._l_stamp[store], self._l_tag[store], self._l_new[store] = \
             lengths[store], rates[store], stamp, tag, True

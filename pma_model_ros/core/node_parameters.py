@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from .hysteresis import INPUTS as HYSTERESIS_INPUTS
 from .models import MODELS
 
 #: Standard atmosphere [Pa absolute]: the default ambient pressure.
@@ -87,6 +88,13 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
                   "identification results: objective, max error on the map (eq. 23) [% of max force], RMSE [N], "
                   "R², worst leave-one-length-out error, the same on the shortest and longest length "
                   "[% of max force]", per_muscle=True, read_only=True),
+    ParameterSpec("hysteresis.input", "string", "length", "what a hysteresis model's branch follows: `length` "
+                  "(lengthening +1 / shortening −1, Sárosi's loop) or `pressure` (filling +1 / venting −1)",
+                  choices=HYSTERESIS_INPUTS, per_muscle=True),
+    ParameterSpec("hysteresis.length_deadband", "double", 0.0005, "the branch changes when the length reverses by "
+                  "more than this from the extreme of its run (play operator)", "m", (0.0, 0.1), per_muscle=True),
+    ParameterSpec("hysteresis.pressure_deadband", "double", 5000.0, "the same, for `hysteresis.input: pressure`",
+                  "Pa", (0.0, 1e6), per_muscle=True),
     ParameterSpec("joint_name", "string", "", "JointState entry of this muscle (empty: `muscle.name`; with "
                   "`muscles`: the muscle's name)", per_muscle=True),
     ParameterSpec("frame_id", "string", "", "header.frame_id of `force_estimate` (empty: `joint_name`)",

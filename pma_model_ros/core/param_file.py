@@ -122,7 +122,13 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
         ambient, max_age = float(values["ambient_pressure"]), float(values["max_input_age"])
     except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f"ambient_pressure/max_input_age must be numbers: {err}") from None
-    config = Config(muscle, ambient, max_age, values["pressure_reference"])
+    hysteresis = parameters.get("hysteresis") or {}
+    if not isinstance(hysteresis, dict):
+        raise ValueError(f"hysteresis must be a mapping (input, length_deadband, pressure_deadband), got {hysteresis!r}")
+    follow = hysteresis.get("input", SPECS["hysteresis.input"].default)
+    SPECS["hysteresis.input"].check(follow)
+    config = Config(muscle, ambient, max_age, values["pressure_reference"], follow,
+                    hysteresis.get(f"{follow}_deadband"))
     joint = str(parameters.get("joint_name") or muscle.spec.name)
     return NodeSettings(config, joint, str(parameters.get("frame_id") or joint))
 
