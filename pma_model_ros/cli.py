@@ -94,8 +94,8 @@ def cmd_make_config(args: argparse.Namespace) -> None:
 
 def cmd_fit(args: argparse.Namespace) -> None:
     spec = read_spec_yaml(args.muscle)
-    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
     model = get_model(args.model)
+    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec, model.hysteresis)
     fit = fit_best(model, spec, fmap, args.objective)
     write_parameters(args.out, build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
                      f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` ({fit.objective}).")

@@ -51,7 +51,7 @@ def test_fit_from_csv(tmp_path, capsys):
 @pytest.mark.parametrize("content, message", [
     (None, "not found"),
     ("pressure,length,force\n1,2,3\n", "header"),
-    ("pressure_pa,length_m,force_n\n100000,0.25,abc\n", "not three numbers"),
+    ("pressure_pa,length_m,force_n\n100000,0.25,abc\n", "not 3 numbers"),
     ("pressure_pa,length_m,force_n\n100000,0.25,nan\n", "NaN"),
     ("pressure_pa,length_m,force_n\n100000,250,10\n200000,230,5\n300000,250,30\n", "metres"),
 ])

@@ -3,11 +3,13 @@ import math
 
 import numpy as np
 import pytest
+import yaml
 
 from conftest import CONFIGS
 from pma_model_ros.cli import PAPER_TABLE3, identify_muscle, main
 from pma_model_ros.core.force_map import MAPPED_MUSCLES, shipped_force_map
-from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 
 FITTED = ("andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens")
 
@@ -71,4 +73,33 @@ def test_regenerated_config_matches_committed(results, muscle, tmp_path):
             assert new[key] == pytest.approx(entry[key], rel=1e-4, abs=1e-3), (name, key)
         for key in ("cv_err", "edge_cv_err"):   # fits of 4-5 lengths: the held-out error varies ~1e-4 by platform
             assert new[key] == pytest.approx(entry[key], rel=1e-3), (name, key)
-        assert np.allclose(new.get("params", []), entry.get("params", []), rtol=1e-4, atol=0), name
+        # Ill-conditioned fits (hildebrandt's 8 parameters) land a few 1e-4 apart by platform: compare what the
+        # parameters serve, the force on the map, to 0.01 % of its max force.
+        fmap = shipped_force_map(muscle)
+        served = [muscle_model(parameters, name).force(fmap.pressure, fmap.length).force
+                  for parameters in (fresh, committed)]
+        assert np.max(np.abs(served[0] - served[1])) <= 1e-4 * fmap.max_force, name
+
+
+def test_two_branch_model_from_a_map_with_directions(tmp_path):
+    """Sárosi's published DMSP-10-100 branches (Tables 2 and 4) sampled on 0-600 kPa x 0-25 % contraction with
+    their direction; fitting sarosi_hysteresis to that CSV gives both branches back (0.5 % of max force)."""
+    truth = dmsp_10_100_hysteresis()
+    p, L = np.meshgrid(np.linspace(0, 6e5, 7), np.linspace(0.075, 0.1, 6))
+    rows = [(pi, Li, float(truth.force(pi, Li, d).force), d) for d in (1.0, -1.0) for pi, Li in zip(p.ravel(), L.ravel())]
+    csv = tmp_path / "map.csv"
+    csv.write_text("pressure_pa,length_m,force_n,direction\n" + "".join(f"{a},{b},{c},{d:+.0f}\n" for a, b, c, d in rows))
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(yaml.safe_dump(truth.spec.to_mapping()))
+    out = tmp_path / "fit.yaml"
+    assert main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "sarosi_hysteresis",
+                 "--out", str(out)]) == 0
+    fitted = muscle_model(read_parameters(out))
+    forces = np.array([r[2] for r in rows])
+    for d in (1.0, -1.0):
+        got = fitted.force(p.ravel(), L.ravel(), d).force
+        assert np.max(np.abs(got - truth.force(p.ravel(), L.ravel(), d).force)) <= 5e-3 * forces.max(), d
+    single = tmp_path / "single.csv"
+    single.write_text("pressure_pa,length_m,force_n\n" + "".join(f"{a},{b},{c}\n" for a, b, c, _ in rows))
+    assert main(["fit", "--data", str(single), "--muscle", str(spec), "--model", "sarosi_hysteresis",
+                 "--out", str(out)]) == 2   # no direction column: one line, exit 2

@@ -13,7 +13,12 @@ motion (friction and hysteresis make the force depend on the direction of motion
 pressure changes (air temperature, sensor lag), and the slope over a window, unlike a
 difference of neighbours, is not dominated by sensor noise.
 
-The kept samples are averaged in cells of ``PRESSURE_CELL`` x ``LENGTH_CELL`` (equal weight
+Each sample also carries the hysteresis branch it was reached on (the play operator of the length,
+:mod:`~pma_model_ros.core.hysteresis`, with model_node's default deadband): the direction of the last
+motion, so a two-branch model can be identified from the held points (``two_branches``: then the
+samples from before the muscle's first motion, branch unknown, are left out).
+
+The kept samples are averaged in cells of ``PRESSURE_CELL`` x ``LENGTH_CELL`` x branch (equal weight
 per region of the map however long the recording stayed there; far fewer points for the
 fit), measured forces below 0 N (noise on a slack muscle) are set to 0 N, and the result is
 a :class:`~pma_model_ros.core.force_map.ForceMap`: identification is then exactly that of a
@@ -28,7 +33,8 @@ import numpy as np
 
 from ..core.engine import seconds
 from ..core.force_map import ForceMap
-from ..core.node_parameters import STANDARD_ATMOSPHERE
+from ..core.hysteresis import branches
+from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
 from .bag_io import (FLUID_PRESSURE, JOINT_STATE, WRENCH_STAMPED, BagError, connections_of, deserialize, messages,
                      open_bag, topic)
 from .estimate import muscle_namespace
@@ -61,6 +67,7 @@ class Samples:
     pressure: np.ndarray
     length: np.ndarray
     force: np.ndarray
+    direction: np.ndarray   #: hysteresis branch of the length's motion so far: +1, -1, 0 before the first motion
 
 
 def window_slopes(t: np.ndarray, x: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:
@@ -141,16 +148,19 @@ def _align(series: dict[str, list[tuple[float, float]]], bag: str, joint: str, f
     t, force = t[keep], force[keep]
     pressure = np.interp(t, *arrays["pressure"].T)
     length = np.interp(t, *arrays["length"].T)
-    return Samples(t, pressure, length, force)
+    return Samples(t, pressure, length, force, branches(length, SPECS["hysteresis.length_deadband"].default))
 
 
 def cell_means(samples: Samples, mask: np.ndarray) -> ForceMap:
-    """The masked samples averaged per PRESSURE_CELL x LENGTH_CELL cell; negative forces set to 0 N."""
-    p, L, F = samples.pressure[mask], samples.length[mask], np.maximum(samples.force[mask], 0.0)
-    cells = np.column_stack([np.floor(p / PRESSURE_CELL), np.floor(L / LENGTH_CELL)])
+    """The masked samples averaged per PRESSURE_CELL x LENGTH_CELL x branch cell; negative forces set to 0 N.
+
+    The map carries each cell's direction where every masked sample's branch is known."""
+    p, L, F, d = (samples.pressure[mask], samples.length[mask], np.maximum(samples.force[mask], 0.0),
+                  samples.direction[mask])
+    cells = np.column_stack([np.floor(p / PRESSURE_CELL), np.floor(L / LENGTH_CELL), d])
     _, cell, count = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    p, L, F = (np.bincount(cell.ravel(), weights=v) / count for v in (p, L, F))
-    return ForceMap(p, L, F)
+    p, L, F, d = (np.bincount(cell.ravel(), weights=v) / count for v in (p, L, F, d))
+    return ForceMap(p, L, F, d if np.all(d != 0) else None)
 
 
 @dataclass(frozen=True)
@@ -162,10 +172,13 @@ class Calibration:
 
 def force_map_from_bag(bag: str | Path, joint: str, ambient_pressure: float = STANDARD_ATMOSPHERE,
                        criterion: QuasiStatic = QuasiStatic(), namespace: str | None = None,
-                       force_topic: str | None = None) -> Calibration:
-    """The force map of a recording's quasi-static samples (module docstring)."""
+                       force_topic: str | None = None, two_branches: bool = False) -> Calibration:
+    """The force map of a recording's quasi-static samples (module docstring); ``two_branches``: only samples
+    whose hysteresis branch is known, the map carrying each point's direction."""
     samples = read_samples(bag, joint, ambient_pressure, namespace, force_topic)
     mask = quasi_static(samples, criterion)
+    if two_branches:
+        mask &= samples.direction != 0
     if mask.sum() < 3:
         raise BagError(f"{bag}: only {int(mask.sum())} of {mask.size} samples are quasi-static "
                        f"(|dL/dt| <= {criterion.max_length_rate:g} m/s and |dp/dt| <= "

@@ -101,13 +101,14 @@ def add_fit_bag_options(p: argparse.ArgumentParser) -> None:
                                                                         "(default 50000)")
 
 
-def bag_force_map(args: argparse.Namespace, spec: MuscleSpec) -> ForceMap:
-    """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell."""
+def bag_force_map(args: argparse.Namespace, spec: MuscleSpec, two_branches: bool = False) -> ForceMap:
+    """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell (per hysteresis
+    branch with ``two_branches``)."""
     from .calibrate import QuasiStatic, force_map_from_bag
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)
     ambient = 0.0 if args.pressure_reference == "gauge" else args.ambient_pressure   # reading - ambient = gauge
     calibration = force_map_from_bag(args.bag, args.joint or spec.name, ambient, criterion,
-                                     args.namespace, args.force_topic)
+                                     args.namespace, args.force_topic, two_branches)
     print(f"{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static, "
           f"{calibration.force_map.force.size} cells")
     return calibration.force_map

@@ -1,8 +1,9 @@
 """Measured static force maps and shipped muscle data.
 
-A force map is a set of points (gauge pressure [Pa], length [m], force [N]).
-CSV files have the header ``pressure_pa,length_m,force_n``; lines starting with
-``#`` are comments.  The paper's Tables A1/A2 ship transcribed exactly.
+A force map is a set of points (gauge pressure [Pa], length [m], force [N]), and, for a
+hysteresis model, the direction of each point (+1 lengthening or filling, -1 shortening or venting).
+CSV files have the header ``pressure_pa,length_m,force_n`` (optionally ``,direction``); lines
+starting with ``#`` are comments.  The paper's Tables A1/A2 ship transcribed exactly.
 """
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ import yaml
 from .muscle import MuscleSpec
 
 COLUMNS = ("pressure_pa", "length_m", "force_n")
+#: The optional fourth column: the hysteresis branch of each point, +1 or -1.
+DIRECTION = "direction"
 #: Largest user file read [bytes]: far above any force map or parameter file, far below a memory problem.
 MAX_FILE_BYTES = 16 * 1024 * 1024
 SHIPPED_MUSCLES = {"DMSP-10-250": "dmsp_10_250", "DMSP-20-300": "dmsp_20_300", "DMSP-10-100": "dmsp_10_100"}
@@ -34,8 +37,15 @@ class ForceMap:
     pressure: np.ndarray   #: gauge pressure [Pa]
     length: np.ndarray     #: muscle length [m]
     force: np.ndarray      #: measured tension [N]
+    direction: np.ndarray | None = None   #: hysteresis branch of each point, +1 or -1 (None: not recorded)
 
     def __post_init__(self) -> None:
+        if self.direction is not None:
+            d = np.asarray(self.direction, float).ravel()
+            if d.size != np.asarray(self.force).size or not np.all(np.isin(d, (-1.0, 1.0))):
+                raise ValueError("direction must be +1 (lengthening or filling) or -1 (shortening or venting) "
+                                 "for every point")
+            object.__setattr__(self, "direction", d)
         p, L, F = (np.asarray(a, float).ravel() for a in (self.pressure, self.length, self.force))
         if not (p.size == L.size == F.size) or p.size < 3:
             raise ValueError("a force map needs at least 3 points with pressure, length and force each")
@@ -64,7 +74,8 @@ class ForceMap:
         return float(self.force.max())
 
     def subset(self, mask: np.ndarray) -> "ForceMap":
-        return ForceMap(self.pressure[mask], self.length[mask], self.force[mask])
+        return ForceMap(self.pressure[mask], self.length[mask], self.force[mask],
+                        None if self.direction is None else self.direction[mask])
 
 
 def read_user_file(path: str | Path, what: str) -> str:
@@ -100,14 +111,16 @@ def read_force_map_csv(path: str | Path) -> ForceMap:
 def _parse_csv(text: str, source: str) -> ForceMap:
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     reader = csv.DictReader(io.StringIO("\n".join(lines)))
-    if reader.fieldnames is None or [f.strip() for f in reader.fieldnames] != list(COLUMNS):
-        raise ValueError(f"{source}: header must be {','.join(COLUMNS)}, got {reader.fieldnames}")
+    header = [f.strip() for f in reader.fieldnames or []]
+    if header not in (list(COLUMNS), [*COLUMNS, DIRECTION]):
+        raise ValueError(f"{source}: header must be {','.join(COLUMNS)}[,{DIRECTION}], got {reader.fieldnames}")
+    columns = [raw for raw, name in zip(reader.fieldnames, header)]
     rows = []
     for number, row in enumerate(reader, start=2):
         try:
-            values = [float(row[c]) for c in COLUMNS]
+            values = [float(row[c]) for c in columns]
         except (TypeError, ValueError):
-            raise ValueError(f"{source}: data row {number} is not three numbers: {row}") from None
+            raise ValueError(f"{source}: data row {number} is not {len(columns)} numbers: {row}") from None
         if not all(math.isfinite(v) for v in values):
             raise ValueError(f"{source}: data row {number} has NaN or infinite values")
         rows.append(values)
@@ -115,7 +128,7 @@ def _parse_csv(text: str, source: str) -> ForceMap:
         raise ValueError(f"{source}: no data rows")
     data = np.array(rows)
     try:
-        return ForceMap(data[:, 0], data[:, 1], data[:, 2])
+        return ForceMap(data[:, 0], data[:, 1], data[:, 2], data[:, 3] if data.shape[1] == 4 else None)
     except ValueError as err:
         raise ValueError(f"{source}: {err}") from None
 

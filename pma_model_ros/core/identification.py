@@ -26,10 +26,12 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from .force_map import ForceMap
-from .models import Domain, Model, force_raw
+from .models import Domain, Model, force_raw, get_model
 from .muscle import MuscleSpec
 
 OBJECTIVES = ("least_squares", "minimax")
+#: The single-branch model each branch of a hysteresis model is.
+BRANCH_MODEL = {"sarosi_hysteresis": "sarosi"}
 _N_RANDOM_STARTS = 4
 _TIE = 1e-6
 
@@ -64,8 +66,8 @@ def max_error_percent(measured: np.ndarray, predicted: np.ndarray, max_force: fl
     return float(100 * np.max(np.abs(measured - predicted)) / max_force)
 
 
-def _fit_record(model, protocol, objective, theta, spec, domain, fmap, mask, clip) -> Fit:
-    f = force_raw(model, theta, spec, domain, fmap.pressure, fmap.length)
+def _fit_record(model, protocol, objective, theta, spec, domain, fmap, mask, clip, branch=0.0) -> Fit:
+    f = force_raw(model, theta, spec, domain, fmap.pressure, fmap.length, branch)
     f = np.maximum(f, 0.0) if clip else f
     resid = fmap.force[mask] - f[mask]
     total = np.sum((fmap.force[mask] - fmap.force[mask].mean()) ** 2)
@@ -96,8 +98,25 @@ def _paper_theta(model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain)
 
 def fit_best(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares",
              seed: int = 0) -> Fit:
-    """The ``best`` protocol on the whole map with the clipped model (module docstring)."""
+    """The ``best`` protocol on the whole map with the clipped model (module docstring); a hysteresis model
+    is :func:`fit_branches`."""
+    if model.hysteresis:
+        return fit_branches(model, spec, fmap, objective, seed)
     return fit_best_all(model, spec, fmap, (objective,), seed)[objective]
+
+
+def fit_branches(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares",
+                 seed: int = 0) -> Fit:
+    """A two-branch model (``sarosi_hysteresis``: upper then lower Sárosi eq. 19 parameters) from a map whose
+    points carry their ``direction``: the single-branch model fitted on each direction's points."""
+    if fmap.direction is None or not {-1.0, 1.0} <= set(fmap.direction.tolist()):
+        raise ValueError(f"model {model.name!r} needs a force map with a 'direction' column holding both +1 "
+                         "(lengthening or filling) and -1 (shortening or venting) points")
+    branch = get_model(BRANCH_MODEL[model.name])
+    up, down = (fit_best(branch, spec, fmap.subset(fmap.direction == d), objective, seed).theta for d in (1.0, -1.0))
+    theta = np.concatenate([up, down])
+    return _fit_record(model, "best", objective, theta, spec, domain_of(fmap), fmap,
+                       np.ones(fmap.force.size, bool), True, fmap.direction)
 
 
 def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,

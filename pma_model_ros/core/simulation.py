@@ -4,7 +4,8 @@ What ``simulator_node`` publishes and what the bag tools record without DDS: at 
 step, the pressure follows its target (a commanded pressure, or a triangle sweep over
 the map's pressures) with a first-order lag, the length follows a trajectory, and the
 tension is the ground truth (:class:`~.ground_truth.GroundTruth`, a pchip of the map)
-plus an optional hysteresis half-gap; Gaussian noise is added to what is "measured".
+plus an optional hysteresis half-gap whose sign is the branch of the length's play operator
+(:mod:`~.hysteresis`, the rule model_node follows); Gaussian noise is added to what is "measured".
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import numpy as np
 
 from .force_map import MAPPED_MUSCLES, shipped_force_map
 from .ground_truth import GroundTruth
+from .hysteresis import play
 from .node_parameters import SPECS, STANDARD_ATMOSPHERE
 
 TRAJECTORIES = ("constant", "sine", "sweep", "steps")
@@ -30,9 +32,12 @@ PARAMETERS = {
     "noise.length_std": (0.0, "standard deviation of the published length [m]", (0.0, 0.01)),
     "noise.force_std": (0.0, "standard deviation of the published force [N]", (0.0, 1e3)),
     "seed": (0, "seed of the noise generator", None),
-    "hysteresis_gap": (0.0, "half-gap of a hysteresis [N]: + when lengthening, - when shortening, faded out "
-                            "below this force (Sárosi's DMSP-10-100 branches differ by about 10 % of force)",
-                       (0.0, 1e4)),
+    "hysteresis_gap": (0.0, "half-gap of a hysteresis [N]: + on the lengthening branch, - on the shortening one "
+                            "(model_node's play operator: core/hysteresis.py), faded out below this force "
+                            "(Sárosi's DMSP-10-100 branches differ by about 10 % of force)", (0.0, 1e4)),
+    "hysteresis_deadband": (SPECS["hysteresis.length_deadband"].default,
+                            "the branch changes when the length reverses by more than this [m]",
+                            SPECS["hysteresis.length_deadband"].limits),
     "pressure_time_constant": (0.05, "first-order time constant toward the commanded pressure [s]", (0.0, 60.0)),
     "initial_pressure": (0.0, "gauge pressure [Pa] before any pressure_command ('constant' and 'sine')",
                          (0.0, 5e6)),
@@ -93,6 +98,7 @@ class SimulatedMuscle:
         self._pressure = float(params["initial_pressure"])  # gauge [Pa]
         self._command: float | None = None                  # commanded gauge pressure [Pa]
         self._start = self._last = start
+        self._branch, self._anchor = 0.0, math.nan   # hysteresis play operator on the length
 
     def command(self, absolute: float) -> None:
         """A pressure command [Pa absolute]; non-finite values are ignored."""
@@ -142,14 +148,16 @@ class SimulatedMuscle:
         """Advance through the increasing ``times`` [s] and read the sensors at each (force evaluated at once)."""
         p, n = self.params, len(times)
         tau = p["pressure_time_constant"]
-        state = np.empty((n, 3))   # gauge pressure, length, rate
+        state = np.empty((n, 4))   # gauge pressure, length, rate, hysteresis branch
         for i, now in enumerate(times):
             dt, self._last = max(now - self._last, 0.0), now
             t = now - self._start
             self._pressure += (self._target(t) - self._pressure) * (1.0 - math.exp(-dt / tau) if tau > 0 else 1.0)
-            state[i] = (self._pressure, *self._length(t))
-        gauge, length, rate = state.T
+            length, rate = self._length(t)
+            self._branch, self._anchor = play(self._branch, self._anchor, float(length), p["hysteresis_deadband"])
+            state[i] = (self._pressure, length, rate, self._branch)
+        gauge, length, rate, branch = state.T
         force = self.truth.force(gauge, length)
-        force += np.sign(rate) * np.minimum(p["hysteresis_gap"], force)
+        force += branch * np.minimum(p["hysteresis_gap"], force)
         noise = self._rng.normal(size=(n, 3)) * [p["noise.pressure_std"], p["noise.length_std"], p["noise.force_std"]]
         return Readings(gauge + p["ambient_pressure"] + noise[:, 0], length + noise[:, 1], rate, force + noise[:, 2])
