@@ -9,6 +9,7 @@ Two protocols:
     Nelder-Mead implements the same algorithm with the same defaults) from
     Table 1's start point.  Eqs. 22 and 23 run over the points with a measured
     force > 0 and the raw (unclipped) model: this is what reproduces Table 3.
+    Never calibrated: the paper's geometry as given.
 
 ``best``
     What ships: bounded multi-start fits (scipy ``least_squares``, trust region
@@ -16,17 +17,21 @@ Two protocols:
     objective ``least_squares`` (eq. 22) or ``minimax`` (eq. 23 itself, by
     SLSQP on the epigraph form, polished by Nelder-Mead).  Equal-cost
     solutions (an under-determined fit) are resolved towards Table 1's start.
+    Optionally with geometry calibration (:mod:`pma_model_ros.core.calibration`):
+    the rest length L0 and a pressure offset identified with the parameters.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import warnings
 
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
+from . import calibration as cal
+from .calibration import OFF, Calibration
 from .force_map import ForceMap
-from .models import Domain, Model, force_raw
+from .models import Domain, Model, force_raw, get_model
 from .muscle import MuscleSpec
 
 OBJECTIVES = ("least_squares", "minimax")
@@ -46,6 +51,18 @@ class Fit:
     err: float             #: eq. 23 [%]
     rmse: float            #: [N]
     r2: float              #: coefficient of determination [-]
+    spec: MuscleSpec       #: the geometry of the fit (L0 calibrated if ``calibration.length``)
+    calibration: Calibration = OFF
+    pressure_offset: float = 0.0   #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
+    #: 1-sigma of the calibrated quantities ("nominal_length" [m], "pressure_offset" [Pa]); inf: not identifiable
+    sigma: dict[str, float] = field(default_factory=dict)
+
+    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """The fitted model's physical force [N] at sensor pressure [Pa] and length [m], as identified (unclipped L)."""
+        model, theta = get_model(self.model), self.theta
+        if self.calibration.pressure:
+            model, theta = cal.shifted(model), np.r_[theta, self.pressure_offset]
+        return physical_force(model, theta, self.spec, self.domain, pressure, length)
 
 
 def domain_of(fmap: ForceMap) -> Domain:
@@ -63,14 +80,22 @@ def max_error_percent(measured: np.ndarray, predicted: np.ndarray, max_force: fl
     return float(100 * np.max(np.abs(measured - predicted)) / max_force)
 
 
-def _fit_record(model, protocol, objective, theta, spec, domain, fmap, mask, clip) -> Fit:
-    f = force_raw(model, theta, spec, domain, fmap.pressure, fmap.length)
+def quality(measured: np.ndarray, predicted: np.ndarray, max_force: float) -> tuple[float, float, float]:
+    """(eq. 23 [%], RMSE [N], R^2 [-]) of ``predicted`` against ``measured``."""
+    resid = measured - predicted
+    total = np.sum((measured - measured.mean()) ** 2)
+    return (max_error_percent(measured, predicted, max_force), float(np.sqrt(np.mean(resid**2))),
+            float(1 - np.sum(resid**2) / total) if total > 0 else float("nan"))
+
+
+def _fit_record(model, protocol, objective, theta, spec, domain, fmap, mask, clip,
+                calibration: Calibration = OFF, offset: float = 0.0, sigma: dict | None = None) -> Fit:
+    shifted = cal.shifted(model) if calibration.pressure else model
+    f = force_raw(shifted, np.r_[theta, offset] if calibration.pressure else theta, spec, domain,
+                  fmap.pressure, fmap.length)
     f = np.maximum(f, 0.0) if clip else f
-    resid = fmap.force[mask] - f[mask]
-    total = np.sum((fmap.force[mask] - fmap.force[mask].mean()) ** 2)
     return Fit(model.name, protocol, objective, np.asarray(theta, float), domain,
-               max_error_percent(fmap.force[mask], f[mask], fmap.max_force),
-               float(np.sqrt(np.mean(resid**2))), float(1 - np.sum(resid**2) / total))
+               *quality(fmap.force[mask], f[mask], fmap.max_force), spec, calibration, float(offset), sigma or {})
 
 
 def fit_paper(model: Model, spec: MuscleSpec, fmap: ForceMap) -> Fit:
@@ -94,55 +119,113 @@ def _paper_theta(model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain)
 
 
 def fit_best(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares",
-             seed: int = 0) -> Fit:
+             seed: int = 0, calibration: Calibration = OFF) -> Fit:
     """The ``best`` protocol on the whole map with the clipped model (module docstring)."""
-    return fit_best_all(model, spec, fmap, (objective,), seed)[objective]
+    return fit_best_all(model, spec, fmap, (objective,), seed, calibration)[objective]
 
 
 def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
-                 seed: int = 0) -> dict[str, Fit]:
+                 seed: int = 0, calibration: Calibration = OFF) -> dict[str, Fit]:
     """:func:`fit_best` for several objectives; the least-squares multi-start runs once for all."""
     unknown = set(objectives) - set(OBJECTIVES)
     if unknown:
         raise ValueError(f"unknown objective {sorted(unknown)}; choose from {OBJECTIVES}")
     domain = domain_of(fmap)
-    thetas = _best_thetas(model, spec, fmap, domain, objectives, seed)
+    problem = _Problem(model, spec, fmap, domain, calibration)
+    solutions = _best_solutions(problem, objectives, seed)
+    sigma = problem.sigma(solutions["least_squares"] if "least_squares" in solutions else solutions[objectives[0]])
+    identifiable = calibration.identifiable(sigma, spec.nominal_length)
+    if identifiable != calibration:   # identify only what the map can: the others stay as given
+        problem = _Problem(model, spec, fmap, domain, identifiable)
+        solutions = _best_solutions(problem, objectives, seed)
     everywhere = np.ones(fmap.force.size, bool)
-    return {obj: _fit_record(model, "best", obj, thetas[obj], spec, domain, fmap, everywhere, True)
-            for obj in objectives}
+    fits = {}
+    for obj, x in solutions.items():
+        theta, offset, fit_spec = problem.unpack(x)
+        fits[obj] = _fit_record(model, "best", obj, theta, fit_spec, domain, fmap, everywhere, True,
+                                identifiable, offset, sigma | problem.sigma(x))
+    return fits
 
 
-def _best_thetas(model, spec, fmap, domain, objectives, seed) -> dict[str, np.ndarray]:
-    if model.n_params == 0:
+class _Problem:
+    """The ``best`` fit's unknowns x = [model parameters, pressure offset [Pa]?, relative L0 correction?]."""
+
+    def __init__(self, model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain, calibration: Calibration):
+        self.model, self.spec, self.fmap, self.domain, self.calibration = model, spec, fmap, domain, calibration
+        self.evaluated = cal.shifted(model) if calibration.pressure else model
+        extra = [cal.LENGTH_BOUND] * calibration.length
+        self.lower = np.r_[self.evaluated.lower, [-b for b in extra]]
+        self.upper = np.r_[self.evaluated.upper, extra]
+        self.start = np.r_[self.evaluated.start, [0.0] * len(extra)]
+        n = model.n_params
+        #: size of each unknown for tie-breaking and difference steps: Table 1's start, else the bound
+        self.scale = np.r_[np.where(self.start[:n] != 0, np.abs(self.start[:n]), 1.0), self.upper[n:]]
+
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, float, MuscleSpec]:
+        """(model parameters, pressure offset [Pa], spec with the calibrated L0)."""
+        n = self.model.n_params
+        offset = float(x[n]) if self.calibration.pressure else 0.0
+        spec = cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1])) if self.calibration.length \
+            else self.spec
+        return x[:n], offset, spec
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        spec = cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1])) if self.calibration.length \
+            else self.spec
+        theta = x[:-1] if self.calibration.length else x
+        return self.fmap.force - physical_force(self.evaluated, theta, spec, self.domain, self.fmap.pressure,
+                                                self.fmap.length)
+
+    def random_start(self, paper: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Table 1-scaled start: the paper fit times 10^U(-0.5, 0.5); calibrated quantities U(-1/2, 1/2) bound."""
+        x = paper * 10 ** rng.uniform(-0.5, 0.5, paper.size)
+        n_extra = self.start.size - paper.size
+        return np.r_[x, self.upper[paper.size:] * rng.uniform(-0.5, 0.5, n_extra)] if n_extra else x
+
+    def sigma(self, x: np.ndarray) -> dict[str, float]:
+        """1-sigma of the calibrated L0 [m] and pressure offset [Pa] (:func:`calibration.standard_errors`)."""
+        if not self.calibration.any:
+            return {}
+        with np.errstate(all="ignore"):
+            errors = cal.standard_errors(cal.jacobian(self.residuals, x, self.scale), self.residuals(x))
+        out = {}
+        if self.calibration.pressure:
+            out["pressure_offset"] = float(errors[self.model.n_params])
+        if self.calibration.length:
+            out["nominal_length"] = float(errors[-1] * self.spec.nominal_length)
+        return out
+
+
+def _best_solutions(problem: _Problem, objectives: tuple[str, ...], seed: int) -> dict[str, np.ndarray]:
+    model, fmap, domain = problem.model, problem.fmap, problem.domain
+    if problem.start.size == 0:
         return {obj: np.zeros(0) for obj in objectives}
-    lower, upper = np.array(model.lower), np.array(model.upper)
-    start = np.array(model.start, float)
-    scale = np.where(start != 0, np.abs(start), 1.0)
-
-    def residuals(theta: np.ndarray) -> np.ndarray:
-        return fmap.force - physical_force(model, theta, spec, domain, fmap.pressure, fmap.length)
+    lower, upper, start, scale = problem.lower, problem.upper, problem.start, problem.scale
+    n_extra = start.size - model.n_params
 
     def inside(x: np.ndarray) -> np.ndarray:
         span = upper - lower
         return np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
 
     rng = np.random.default_rng(seed)
-    paper = _paper_theta(model, spec, fmap.subset(fmap.force > 0), domain)
-    starts = [start, paper] + [paper * 10 ** rng.uniform(-0.5, 0.5, paper.size) for _ in range(_N_RANDOM_STARTS)]
+    paper = _paper_theta(model, problem.spec, fmap.subset(fmap.force > 0), domain)
+    starts = [start, np.r_[paper, [0.0] * n_extra]] + [problem.random_start(paper, rng)
+                                                      for _ in range(_N_RANDOM_STARTS)]
     candidates = []
     for x0 in starts:
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            result = least_squares(residuals, inside(x0), bounds=(lower, upper), x_scale="jac", method="trf",
-                                   xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=5000)
+            result = least_squares(problem.residuals, inside(x0), bounds=(lower, upper), x_scale="jac",
+                                   method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=5000)
         cost = float(np.sum(result.fun**2))
         if np.isfinite(cost):
             candidates.append((cost, result.x))
     tied = _ties(candidates, start, scale)
-    thetas = {"least_squares": tied[0][1]}
+    solutions = {"least_squares": tied[0][1]}
     if "minimax" in objectives:
-        thetas["minimax"] = _ties([_minimax(residuals, theta, lower, upper) for _, theta in tied], start, scale)[0][1]
-    return thetas
+        solutions["minimax"] = _ties([_minimax(problem.residuals, x, lower, upper) for _, x in tied],
+                                     start, scale)[0][1]
+    return solutions
 
 
 def _ties(candidates: list, start: np.ndarray, scale: np.ndarray) -> list:
@@ -178,8 +261,8 @@ def _minimax(residuals, theta0: np.ndarray, lower: np.ndarray, upper: np.ndarray
     return worst(best) ** 2, best * scale
 
 
-def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap,
-                   objectives: tuple[str, ...] = OBJECTIVES) -> dict[str, np.ndarray]:
+def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
+                   calibration: Calibration = OFF) -> dict[str, np.ndarray]:
     """Leave-one-length-out: eq. 23 on each held-out length, normalised by the whole map's max force [%].
 
     Returns, per objective, one error per measured length in the order of ``fmap.lengths``.
@@ -187,8 +270,8 @@ def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap,
     errors: dict[str, list[float]] = {obj: [] for obj in objectives}
     for held_out in fmap.lengths:
         test = fmap.length == held_out
-        for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives).items():
-            predicted = physical_force(model, fit.theta, spec, fit.domain, fmap.pressure[test], fmap.length[test])
+        for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives, calibration=calibration).items():
+            predicted = fit.force(fmap.pressure[test], fmap.length[test])
             errors[obj].append(max_error_percent(fmap.force[test], predicted, fmap.max_force))
     return {obj: np.array(errs) for obj, errs in errors.items()}
 
@@ -217,16 +300,18 @@ class ModelReport:
         return float(self.cv[self.shipped_objective].max())
 
 
-def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...]) -> tuple[dict[str, ModelReport], str]:
+def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...],
+                 calibration: Calibration = OFF) -> tuple[dict[str, ModelReport], str]:
     """Identify every model both ways, cross-validate, and pick the default model.
 
     The shipped objective of each model and the default model are chosen by the
-    worst leave-one-length-out error, not by in-sample error.
+    worst leave-one-length-out error, not by in-sample error.  ``calibration``
+    applies to the ``best`` protocol only; the paper protocol keeps the given geometry.
     """
     reports = {}
     for model in models:
-        best = fit_best_all(model, spec, fmap)
-        cv = cross_validate(model, spec, fmap)
+        best = fit_best_all(model, spec, fmap, calibration=calibration)
+        cv = cross_validate(model, spec, fmap, calibration=calibration)
         shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
         reports[model.name] = ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
     default = min(reports, key=lambda name: reports[name].cv_err)
