@@ -79,6 +79,10 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec("models.<model>.{objective, err, rmse, r2, cv_err}", "string, double", None,
                   "identification results: objective, max error on the map (eq. 23) [% of max force], RMSE [N], "
                   "R², worst leave-one-length-out error [% of max force]", per_muscle=True, read_only=True),
+    ParameterSpec("models.<model>.{nominal_length, pressure_offset}", "double", None,
+                  "geometry calibration of a fit by `pma-model fit`: effective rest length L0 [m] (replaces "
+                  "`muscle.nominal_length` for this model) and pressure-sensor offset [Pa] (the model sees gauge "
+                  "pressure − offset); absent: `muscle.nominal_length` and 0", "m, Pa", per_muscle=True),
     ParameterSpec("joint_name", "string", "", "JointState entry of this muscle (empty: `muscle.name`; with "
                   "`muscles`: the muscle's name)", per_muscle=True),
     ParameterSpec("frame_id", "string", "", "header.frame_id of `force_estimate` (empty: `joint_name`)",

@@ -75,6 +75,9 @@ def _declare_muscle(node: Node, prefix: str) -> None:
             params, f"identified parameters {list(model.param_names)} of {model.name} ({model.equation}), SI units"))
         for entry, kind in MODEL_INFO.items():
             node.declare_parameter(f"{prefix}models.{model.name}.{entry}", kind, descriptor(info))
+        for entry in ("nominal_length", "pressure_offset"):
+            node.declare_parameter(f"{prefix}models.{model.name}.{entry}", Parameter.Type.DOUBLE,
+                                   descriptor(SPECS["models.<model>.{nominal_length, pressure_offset}"]))
 
 
 def _check_names(names: list[str], mode: str) -> None:
