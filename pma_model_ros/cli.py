@@ -17,7 +17,7 @@ from .core import sarosi
 from .core.calibration import Calibration
 from .core.flags import Flag, describe
 from .core.force_map import MAPPED_MUSCLES, read_force_map_csv, read_spec_yaml, shipped_force_map, shipped_spec
-from .core.identification import (OBJECTIVES, ModelReport, cross_validate_fit, domain_of, fit_best, fit_paper,
+from .core.identification import (OBJECTIVES, Fit, ModelReport, cross_validate_fit, domain_of, fit_best, fit_paper,
                                    identify_all, quality)
 from .core.models import TABLE3_MODELS, get_model
 from .core.param_file import build_parameters, model_entry, muscle_model, read_parameters, write_parameters
@@ -98,20 +98,20 @@ def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
         print(f"{name:<14}" + "".join(f"{e:>9.2f}" for e in errs) + f"{errs.max():>9.2f}")
 
 
-def _print_calibration(name: str, rep: ModelReport, given_length: float) -> None:
-    fit, sigma = rep.shipped, rep.shipped.sigma
-    if not sigma:
-        return
-    parts = []
+def describe_geometry(fit: Fit, given_length: float) -> str:
+    """The identified L0 and pressure offset of a calibrated fit with their uncertainty, or why each stayed as given."""
+    sigma, parts = fit.sigma, []
     if "nominal_length" in sigma:
-        parts.append(f"L0 {fit.spec.nominal_length:.4f} ±{sigma['nominal_length']:.4f} m (given {given_length:.4f})"
-                     if fit.calibration.length else
-                     f"L0 not identifiable (1-sigma {sigma['nominal_length']:.3g} m), kept {given_length:.4f} m")
+        spread = sigma["nominal_length"]
+        parts.append(f"L0 {fit.spec.nominal_length:.4f} ±{spread:.4f} m (given {given_length:.4f})"
+                     if fit.calibration.length else f"L0 kept {given_length:.4f} m: "
+                     + ("the model does not depend on it" if math.isinf(spread)
+                        else f"not identifiable (held-out err within 1 pp over ±{spread:.4f} m)"))
     if "pressure_offset" in sigma:
         parts.append(f"pressure offset {fit.pressure_offset / 1e3:+.2f} ±{sigma['pressure_offset'] / 1e3:.2f} kPa"
                      if fit.calibration.pressure else
-                     f"pressure offset not identifiable (1-sigma {sigma['pressure_offset'] / 1e3:.3g} kPa), kept 0")
-    print(f"  {name}: " + "; ".join(parts))
+                     f"pressure offset kept 0: not identifiable (1-sigma {sigma['pressure_offset'] / 1e3:.3g} kPa)")
+    return "; ".join(parts)
 
 
 def cmd_fit(args: argparse.Namespace) -> None:
@@ -132,9 +132,10 @@ def cmd_fit(args: argparse.Namespace) -> None:
         fit = rep.shipped
         print(f"{name:<14}{fit.objective:>14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}")
     if calibration.any:
-        print("\nidentified geometry (±1-sigma from the Jacobian at the optimum):")
+        print("\nidentified geometry (L0 by held-out error, ± half its range within 1 pp of that error; "
+              "pressure offset by least squares, ± 1-sigma from the Jacobian):")
         for name, rep in reports.items():
-            _print_calibration(name, rep, spec.nominal_length)
+            print(f"  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}")
     print("\nleave-one-length-out held-out err [%] per held-out length [m]")
     _held_out_table(fmap.lengths, reports)
     chosen = reports[default].shipped

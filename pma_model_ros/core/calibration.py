@@ -38,11 +38,13 @@ class Calibration:
     def any(self) -> bool:
         return self.length or self.pressure
 
-    def identifiable(self, sigma: dict[str, float], nominal_length: float) -> "Calibration":
-        """The calibrated quantities whose 1-sigma (``sigma``: "nominal_length" [m], "pressure_offset" [Pa])
-        is at most half their bound: what the map can identify; the others stay as given."""
-        return Calibration(self.length and sigma["nominal_length"] <= LENGTH_BOUND * nominal_length / 2,
-                           self.pressure and sigma["pressure_offset"] <= PRESSURE_BOUND / 2)
+    def identifiable(self, sigma: dict[str, float]) -> "Calibration":
+        """What a joint least-squares fit's 1-sigma (``sigma``: "nominal_length" [m], "pressure_offset" [Pa])
+        says the map can identify: the offset if its 1-sigma is at most a quarter of its bound (a 95 % interval
+        within half the bound), L0 if the model depends on it at all (finite 1-sigma; its value and range are
+        then chosen by held-out error, :mod:`pma_model_ros.core.identification`)."""
+        return Calibration(self.length and bool(np.isfinite(sigma["nominal_length"])),
+                           self.pressure and sigma["pressure_offset"] <= PRESSURE_BOUND / 4)
 
     def describe(self) -> str:
         parts = [f"rest length L0 (+-{100 * LENGTH_BOUND:g} %)"] * self.length + \

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import warnings
 
 import numpy as np
-from scipy.optimize import least_squares, minimize, minimize_scalar
+from scipy.optimize import least_squares, minimize
 
 from . import calibration as cal
 from .calibration import OFF, Calibration
@@ -37,7 +37,8 @@ from .muscle import MuscleSpec
 OBJECTIVES = ("least_squares", "minimax")
 _N_RANDOM_STARTS = 4
 _TIE = 1e-6
-_LENGTH_GRID = 9   #: grid points of the held-out choice of L0 over its bounds
+_LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
+_LENGTH_CANDIDATES = 5   #: of these, judged by the worst held-out err of multi-start fits
 
 
 @dataclass(frozen=True)
@@ -55,7 +56,8 @@ class Fit:
     spec: MuscleSpec       #: the geometry of the fit (L0 calibrated if ``calibration.length``)
     calibration: Calibration = OFF
     pressure_offset: float = 0.0   #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
-    #: 1-sigma of the calibrated quantities ("nominal_length" [m], "pressure_offset" [Pa]); inf: not identifiable
+    #: uncertainty of the calibration: "pressure_offset": 1-sigma [Pa] from the Jacobian (inf: not identifiable);
+    #: "nominal_length": half the L0 range [m] whose worst held-out err is within 1 pp of the chosen L0's
     sigma: dict[str, float] = field(default_factory=dict)
 
     def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -133,59 +135,74 @@ def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tup
         raise ValueError(f"unknown objective {sorted(unknown)}; choose from {OBJECTIVES}")
     domain = domain_of(fmap)
     problem = _Problem(model, spec, fmap, domain, calibration)
-    solutions = _best_solutions(problem, objectives, seed)
     sigma, applied = {}, calibration
-    if calibration.any:   # identify only what the map can (1-sigma of the joint fit); the others stay as given
-        sigma = problem.sigma(solutions.get("least_squares", solutions[objectives[0]]))
-        applied = calibration.identifiable(sigma, spec.nominal_length)
+    if calibration.any:   # identify only what the map can; the others stay as given
+        joint = _best_solutions(problem, ("least_squares",), seed)["least_squares"]
+        sigma = problem.sigma(joint)
+        applied = calibration.identifiable(sigma)
         if applied.length:
-            joint = solutions.get("least_squares", solutions[objectives[0]])
-            x0 = joint[:model.n_params + applied.pressure]
-            spec = cal.with_length(spec, spec.nominal_length * (1 + _held_out_length(model, spec, fmap, applied, x0)))
-        if applied != calibration or applied.length:
-            problem = _Problem(model, spec, fmap, domain, Calibration(False, applied.pressure))
-            solutions = _best_solutions(problem, objectives, seed)
-    freed = _Problem(model, spec, fmap, domain, applied)   # for the 1-sigma at the final point
+            correction, low, high = _held_out_length(model, spec, fmap, applied, seed)
+            sigma["nominal_length"] = (high - low) / 2 * spec.nominal_length
+            if high - low <= cal.LENGTH_BOUND:   # a held-out optimum narrower than half the bounds
+                spec = cal.with_length(spec, spec.nominal_length * (1 + correction))
+            else:
+                applied = Calibration(False, applied.pressure)
+        problem = _Problem(model, spec, fmap, domain, Calibration(False, applied.pressure))
+    solutions = _best_solutions(problem, objectives, seed)
     everywhere = np.ones(fmap.force.size, bool)
     fits = {}
     for obj, x in solutions.items():
         theta, offset, fit_spec = problem.unpack(x)
-        final = freed.sigma(np.r_[x, [0.0] * applied.length])
         fits[obj] = _fit_record(model, "best", obj, theta, fit_spec, domain, fmap, everywhere, True,
-                                applied, offset, sigma | final)
+                                applied, offset, sigma | problem.sigma(x))
     return fits
 
 
 def _held_out_length(model: Model, spec: MuscleSpec, fmap: ForceMap, calibration: Calibration,
-                     x0: np.ndarray) -> float:
-    """The relative correction of L0 [-] whose least-squares fits have the lowest worst leave-one-length-out err.
+                     seed: int) -> tuple[float, float, float]:
+    """The relative correction of L0 [-] chosen by leave-one-length-out error of least-squares fits, and the
+    range [low, high] of corrections whose held-out RMSE is within 10 % of the lowest.
 
     In-sample, the elastic terms of a model absorb a wrong L0 (the sum of squares keeps falling towards a
-    bound); the force at a length left out does not, so L0 is chosen by held-out error: a grid over the
-    bounds, then a bounded Brent search around the best grid point (to 1e-4 of L0).  Each fold is one
-    least-squares run from ``x0`` (the joint fit's model parameters and pressure offset).
+    bound); the force at a length left out does not, so L0 is chosen by held-out error, on a grid of
+    :data:`_LENGTH_GRID` corrections over the bounds.  Each fold starts from its multi-start fit at the given
+    L0 and follows its optimum along the grid (one least-squares run from the neighbouring grid point).  Of
+    the :data:`_LENGTH_CANDIDATES` corrections with the lowest held-out RMSE, the one whose multi-start fits
+    (:func:`cross_validate`, least squares) have the lowest worst held-out err (eq. 23) is chosen.
     """
     within = Calibration(False, calibration.pressure)
     folds = [(fmap.length == length, fmap.subset(fmap.length != length)) for length in fmap.lengths]
-
-    def worst(correction: float) -> float:
-        trial = cal.with_length(spec, spec.nominal_length * (1 + correction))
-        errors = []
-        for test, train in folds:
-            fold = _Problem(model, trial, train, domain_of(train), within)
-            cost, x = _solve(fold, x0)
-            if not np.isfinite(cost):
-                return np.inf
-            predicted = physical_force(fold.evaluated, x, trial, fold.domain, fmap.pressure[test], fmap.length[test])
-            errors.append(max_error_percent(fmap.force[test], predicted, fmap.max_force))
-        return max(errors)
-
     grid = np.linspace(-cal.LENGTH_BOUND, cal.LENGTH_BOUND, _LENGTH_GRID)
-    values = [worst(c) for c in grid]
-    i = int(np.argmin(values))
-    result = minimize_scalar(worst, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]), method="bounded",
-                             options={"xatol": 1e-4})
-    return float(result.x) if result.fun < values[i] else float(grid[i])
+    given = int(np.argmin(np.abs(grid)))
+
+    def problem(correction: float, train: ForceMap) -> _Problem:
+        trial = cal.with_length(spec, spec.nominal_length * (1 + correction))
+        return _Problem(model, trial, train, domain_of(train), within)
+
+    starts = [_best_solutions(problem(grid[given], train), ("least_squares",), seed)["least_squares"]
+              for _, train in folds]
+    squares = np.full(grid.size, np.inf)
+    for path in (range(given, grid.size), range(given, -1, -1)):
+        x = list(starts)
+        for i in path:
+            total = 0.0
+            for k, (test, train) in enumerate(folds):
+                fold = problem(grid[i], train)
+                cost, x_k = min(_solve(fold, x[k]), _solve(fold, fold.start), key=lambda c: c[0])
+                if not np.isfinite(cost):
+                    total = np.inf
+                    break
+                x[k] = x_k
+                predicted = physical_force(fold.evaluated, x_k, fold.spec, fold.domain, fmap.pressure[test],
+                                           fmap.length[test])
+                total += float(np.sum((fmap.force[test] - predicted) ** 2))
+            squares[i] = total
+    near = grid[squares <= squares.min() * 1.1**2]
+    candidates = grid[np.argsort(squares)[:_LENGTH_CANDIDATES]]
+    worst = [cross_validate(model, problem(c, fmap).spec, fmap, ("least_squares",), within)["least_squares"].max()
+             for c in candidates]
+    step = grid[1] - grid[0]   # the range of a grid point is its cell
+    return float(candidates[int(np.argmin(worst))]), float(near.min() - step / 2), float(near.max() + step / 2)
 
 
 def _solve(problem: "_Problem", x0: np.ndarray) -> tuple[float, np.ndarray]:
@@ -306,24 +323,28 @@ def _minimax(residuals, theta0: np.ndarray, lower: np.ndarray, upper: np.ndarray
 
 
 def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
-                   calibration: Calibration = OFF) -> dict[str, np.ndarray]:
+                   calibration: Calibration = OFF, truth: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Leave-one-length-out: eq. 23 on each held-out length, normalised by the whole map's max force [%].
 
-    Returns, per objective, one error per measured length in the order of ``fmap.lengths``.
+    Returns, per objective, one error per measured length in the order of ``fmap.lengths``.  ``truth``:
+    the forces [N] at the map's points to judge against (e.g. noise-free ones); default the map's own.
     """
+    truth = fmap.force if truth is None else truth
     errors: dict[str, list[float]] = {obj: [] for obj in objectives}
     for held_out in fmap.lengths:
         test = fmap.length == held_out
         for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives, calibration=calibration).items():
             predicted = fit.force(fmap.pressure[test], fmap.length[test])
-            errors[obj].append(max_error_percent(fmap.force[test], predicted, fmap.max_force))
+            errors[obj].append(max_error_percent(truth[test], predicted, truth.max()))
     return {obj: np.array(errs) for obj, errs in errors.items()}
 
 
-def cross_validate_fit(fit: Fit, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES) -> dict[str, np.ndarray]:
+def cross_validate_fit(fit: Fit, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
+                       truth: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """:func:`cross_validate` of a fit's model with its geometry: its calibrated L0 (chosen on the whole map by
     held-out error, :func:`_held_out_length`), the pressure offset identified again in each fold."""
-    return cross_validate(get_model(fit.model), fit.spec, fmap, objectives, Calibration(False, fit.calibration.pressure))
+    return cross_validate(get_model(fit.model), fit.spec, fmap, objectives,
+                          Calibration(False, fit.calibration.pressure), truth)
 
 
 @dataclass(frozen=True)
@@ -350,19 +371,19 @@ class ModelReport:
         return float(self.cv[self.shipped_objective].max())
 
 
-def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...],
-                 calibration: Calibration = OFF) -> tuple[dict[str, ModelReport], str]:
+def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...], calibration: Calibration = OFF,
+                 truth: np.ndarray | None = None) -> tuple[dict[str, ModelReport], str]:
     """Identify every model both ways, cross-validate, and pick the default model.
 
     The shipped objective of each model and the default model are chosen by the
     worst leave-one-length-out error, not by in-sample error.  ``calibration``
     applies to the ``best`` protocol only (held out: :func:`cross_validate_fit`); the paper
-    protocol keeps the given geometry.
+    protocol keeps the given geometry.  ``truth``: see :func:`cross_validate`.
     """
     reports = {}
     for model in models:
         best = fit_best_all(model, spec, fmap, calibration=calibration)
-        cv = cross_validate_fit(best["least_squares"], fmap)
+        cv = cross_validate_fit(best["least_squares"], fmap, truth=truth)
         shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
         reports[model.name] = ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
     default = min(reports, key=lambda name: reports[name].cv_err)
