@@ -7,7 +7,8 @@ Degradation of a shipped map (Martens & Boblan 2017, Tables A1/A2) with the pape
 the rest length L0 given ``dl`` wrong, the pressure sensor reading ``offset`` too high, Gaussian force noise
 of ``noise`` x the max force (fixed seed, clipped at 0 N), and one interior length missing.  Every error is
 eq. 23 against the *true* (noise-free) forces at the user's points (sensor pressures), normalised by the
-true max force; ``data`` columns judge against the noisy map itself, as a user would see it.
+true max force; ``data`` columns (in-sample, held-out) judge against the noisy map itself, as the user sees it.
+Objectives and the default model are chosen as a user's are: by held-out error on their own map.
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ import numpy as np
 from pma_model_ros.cli import describe_geometry
 from pma_model_ros.core.calibration import OFF, Calibration
 from pma_model_ros.core.force_map import MAPPED_MUSCLES, ForceMap, shipped_force_map, shipped_spec
-from pma_model_ros.core.identification import ModelReport, identify_all, max_error_percent
+from pma_model_ros.core.identification import ModelReport, cross_validate_fit, identify_all, max_error_percent
 from pma_model_ros.core.models import TABLE3_MODELS, get_model
 from pma_model_ros.core.muscle import MuscleSpec
 
@@ -39,7 +40,8 @@ class Degradation:
                 + (", a length missing" if self.missing else ""))
 
 
-SCENARIOS = (Degradation(), Degradation(-0.004, 10e3, 0.01, True), Degradation(+0.008, 10e3, 0.01, True))
+DEGRADED = tuple(Degradation(dl, 10e3, 0.01, True) for dl in (-0.004, +0.008, +0.004, -0.008))
+SCENARIOS = (Degradation(), *DEGRADED)
 
 
 def degrade(muscle: str, d: Degradation) -> tuple[MuscleSpec, ForceMap, np.ndarray]:
@@ -61,19 +63,21 @@ def spec_given(muscle: str, d: Degradation) -> float:
 
 @dataclass(frozen=True)
 class Outcome:
-    report: ModelReport
+    report: ModelReport    #: identified as a user would (objective and default by held-out error on their map)
     err_truth: float       #: in-sample eq. 23 against the true forces [%]
-    err_data: float        #: in-sample eq. 23 against the user's (noisy) map [%]
+    cv_truth: float        #: worst leave-one-length-out eq. 23 against the true forces [%]
 
 
 def identify(muscle: str, d: Degradation, calibration: Calibration, models: tuple[str, ...]) -> tuple[dict, str]:
     """Every model of ``models`` identified on the degraded map: ({name: Outcome}, default by held-out error)."""
     spec, user, truth = degrade(muscle, d)
-    reports, default = identify_all(spec, user, tuple(get_model(m) for m in models), calibration, truth)
+    reports, default = identify_all(spec, user, tuple(get_model(m) for m in models), calibration)
     out = {}
     for name, rep in reports.items():
-        predicted = rep.shipped.force(user.pressure, user.length)
-        out[name] = Outcome(rep, max_error_percent(truth, predicted, truth.max()), rep.shipped.err)
+        fit = rep.shipped
+        cv = cross_validate_fit(fit, user, (fit.objective,), truth)[fit.objective]
+        out[name] = Outcome(rep, max_error_percent(truth, fit.force(user.pressure, user.length), truth.max()),
+                            float(cv.max()))
     return out, default
 
 
@@ -81,22 +85,24 @@ def martens_table(muscle: str) -> None:
     truth = shipped_spec(muscle).nominal_length
     print(f"\n{muscle}, martens: err vs truth [%] (in-sample / worst held-out length); true L0 {truth:.3f} m, "
           "true offset +10 kPa where degraded")
-    print(f"{'map given to the fit':<44}{'calibration':>12}{'in-sample':>10}{'held-out':>10}{'data err':>10}  identified")
+    print(f"{'map given to the fit':<44}{'calibration':>12}{'in-sample':>10}{'held-out':>10}{'data':>10}"
+          f"{'data h-o':>10}  identified")
     for d in SCENARIOS:
         for calibration in (OFF, Calibration()):
             outcome = identify(muscle, d, calibration, ("martens",))[0]["martens"]
             rep = outcome.report
+            geometry = describe_geometry(rep.shipped, spec_given(muscle, d)) if calibration.any else ""
             print(f"{d.label():<44}{'ON' if calibration.any else 'off':>12}{outcome.err_truth:>10.2f}"
-                  f"{rep.cv_err:>10.2f}{outcome.err_data:>10.2f}  " + (describe_geometry(rep.shipped, spec_given(muscle, d)) if calibration.any else ""))
+                  f"{outcome.cv_truth:>10.2f}{rep.shipped.err:>10.2f}{rep.cv_err:>10.2f}  {geometry}")
 
 
 def default_table(muscle: str) -> None:
     print(f"\n{muscle}: every Table 3 model, calibrated, on the degraded maps; default by held-out error")
     print(f"{'map given to the fit':<44}{'default':>10}{'in-sample':>10}{'held-out':>10}  identified")
-    for d in SCENARIOS[1:]:
+    for d in DEGRADED[:2]:
         outcomes, default = identify(muscle, d, Calibration(), TABLE3_MODELS)
         o = outcomes[default]
-        print(f"{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.report.cv_err:>10.2f}  {describe_geometry(o.report.shipped, spec_given(muscle, d))}")
+        print(f"{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.cv_truth:>10.2f}  {describe_geometry(o.report.shipped, spec_given(muscle, d))}")
 
 
 def main() -> None:

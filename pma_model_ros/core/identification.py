@@ -371,19 +371,19 @@ class ModelReport:
         return float(self.cv[self.shipped_objective].max())
 
 
-def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...], calibration: Calibration = OFF,
-                 truth: np.ndarray | None = None) -> tuple[dict[str, ModelReport], str]:
+def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...],
+                 calibration: Calibration = OFF) -> tuple[dict[str, ModelReport], str]:
     """Identify every model both ways, cross-validate, and pick the default model.
 
     The shipped objective of each model and the default model are chosen by the
     worst leave-one-length-out error, not by in-sample error.  ``calibration``
     applies to the ``best`` protocol only (held out: :func:`cross_validate_fit`); the paper
-    protocol keeps the given geometry.  ``truth``: see :func:`cross_validate`.
+    protocol keeps the given geometry.
     """
     reports = {}
     for model in models:
         best = fit_best_all(model, spec, fmap, calibration=calibration)
-        cv = cross_validate_fit(best["least_squares"], fmap, truth=truth)
+        cv = cross_validate_fit(best["least_squares"], fmap)
         shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
         reports[model.name] = ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
     default = min(reports, key=lambda name: reports[name].cv_err)
