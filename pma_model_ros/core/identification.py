@@ -151,10 +151,10 @@ def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tup
     solutions = _best_solutions(problem, objectives, seed)
     everywhere = np.ones(fmap.force.size, bool)
     fits = {}
-    for obj, x in solutions.items():
-        theta, offset, fit_spec = problem.unpack(x)
+    for obj in objectives:
+        theta, offset, fit_spec = problem.unpack(solutions[obj])
         fits[obj] = _fit_record(model, "best", obj, theta, fit_spec, domain, fmap, everywhere, True,
-                                applied, offset, sigma | problem.sigma(x))
+                                applied, offset, sigma | problem.sigma(solutions[obj]))
     return fits
 
 
