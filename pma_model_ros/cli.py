@@ -18,7 +18,7 @@ from .core.calibration import Calibration
 from .core.flags import Flag, describe
 from .core.force_map import MAPPED_MUSCLES, read_force_map_csv, read_spec_yaml, shipped_force_map, shipped_spec
 from .core.identification import (OBJECTIVES, Fit, ModelReport, cross_validate_fit, domain_of, fit_best, fit_paper,
-                                   identify_all, quality)
+                                   fold_lengths, identify_all, length_folds, quality)
 from .core.models import TABLE3_MODELS, get_model
 from .core.param_file import build_parameters, model_entry, muscle_model, read_parameters, write_parameters
 
@@ -136,8 +136,9 @@ def cmd_fit(args: argparse.Namespace) -> None:
               "pressure offset by least squares, ± 1-sigma from the Jacobian):")
         for name, rep in reports.items():
             print(f"  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}")
-    print("\nleave-one-length-out held-out err [%] per held-out length [m]")
-    _held_out_table(fmap.lengths, reports)
+    print("\nleave-one-length-out held-out err [%] per held-out length [m]"
+          + (" (bands of lengths: their mean)" if len(length_folds(fmap)) < fmap.lengths.size else ""))
+    _held_out_table(fold_lengths(fmap), reports)
     chosen = reports[default].shipped
     write_parameters(args.out, build_parameters(chosen.spec, default, chosen.domain,
                                                 {name: model_entry(rep) for name, rep in reports.items()}),

@@ -38,6 +38,7 @@ OBJECTIVES = ("least_squares", "minimax")
 _N_RANDOM_STARTS = 4
 _TIE = 1e-6
 _LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
+_MAX_FOLDS = 8   #: most held-out groups of a cross-validation
 _LENGTH_CANDIDATES = 5   #: of these, judged by the worst held-out err of multi-start fits
 
 
@@ -171,7 +172,7 @@ def _held_out_length(model: Model, spec: MuscleSpec, fmap: ForceMap, calibration
     (:func:`cross_validate`, least squares) have the lowest worst held-out err (eq. 23) is chosen.
     """
     within = Calibration(False, calibration.pressure)
-    folds = [(fmap.length == length, fmap.subset(fmap.length != length)) for length in fmap.lengths]
+    folds = [(test, fmap.subset(~test)) for test in length_folds(fmap)]
     grid = np.linspace(-cal.LENGTH_BOUND, cal.LENGTH_BOUND, _LENGTH_GRID)
     given = int(np.argmin(np.abs(grid)))
 
@@ -322,17 +323,30 @@ def _minimax(residuals, theta0: np.ndarray, lower: np.ndarray, upper: np.ndarray
     return worst(best) ** 2, best * scale
 
 
+def length_folds(fmap: ForceMap) -> list[np.ndarray]:
+    """The held-out groups of points: each measured length, or, with more than :data:`_MAX_FOLDS` lengths (the
+    cells of a recording), :data:`_MAX_FOLDS` bands of neighbouring lengths, longest first."""
+    lengths = fmap.lengths
+    groups = [[length] for length in lengths] if lengths.size <= _MAX_FOLDS else np.array_split(lengths, _MAX_FOLDS)
+    return [np.isin(fmap.length, group) for group in groups]
+
+
+def fold_lengths(fmap: ForceMap) -> np.ndarray:
+    """The mean length [m] of each fold of :func:`length_folds`."""
+    return np.array([fmap.length[test].mean() for test in length_folds(fmap)])
+
+
 def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
                    calibration: Calibration = OFF, truth: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Leave-one-length-out: eq. 23 on each held-out length, normalised by the whole map's max force [%].
 
-    Returns, per objective, one error per measured length in the order of ``fmap.lengths``.  ``truth``:
+    Returns, per objective, one error per fold of :func:`length_folds` (per measured length, in the order of
+    ``fmap.lengths``, on a table's map).  ``truth``:
     the forces [N] at the map's points to judge against (e.g. noise-free ones); default the map's own.
     """
     truth = fmap.force if truth is None else truth
     errors: dict[str, list[float]] = {obj: [] for obj in objectives}
-    for held_out in fmap.lengths:
-        test = fmap.length == held_out
+    for test in length_folds(fmap):
         for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives, calibration=calibration).items():
             predicted = fit.force(fmap.pressure[test], fmap.length[test])
             errors[obj].append(max_error_percent(truth[test], predicted, truth.max()))
