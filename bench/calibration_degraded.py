@@ -1,6 +1,6 @@
 """Identification on degraded maps: the shipped maps measured the way a user's are, with and without calibration.
 
-Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models]`` (docs/calibration.md).  Not a test: it
+Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --write DIR]`` (docs/calibration.md).  Not a test: it
 prints tables (``test/test_core_calibration.py`` asserts the issue's targets on the same degradation).
 
 Degradation of a shipped map (Martens & Boblan 2017, Tables A1/A2) with the paper's geometry as the truth:
@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
+import yaml
 
 from pma_model_ros.cli import describe_geometry
 from pma_model_ros.core.calibration import OFF, Calibration
@@ -105,10 +107,28 @@ def default_table(muscle: str) -> None:
         print(f"{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.cv_truth:>10.2f}  {describe_geometry(o.report.shipped, spec_given(muscle, d))}")
 
 
+def write(directory: Path) -> None:
+    """The first degraded map of each muscle as a user's files: ``<muscle>_degraded.csv`` and ``.yaml`` (spec)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    for muscle in MAPPED_MUSCLES:
+        spec, user, _ = degrade(muscle, DEGRADED[0])
+        stem = directory / f"{muscle.lower().replace('-', '_')}_degraded"
+        stem.with_suffix(".csv").write_text(f"# {muscle} degraded: {DEGRADED[0].label()}\npressure_pa,length_m,force_n\n"
+                                            + "".join(f"{p:.6f},{L},{F:.6f}\n" for p, L, F in
+                                                      zip(user.pressure, user.length, user.force)))
+        stem.with_suffix(".yaml").write_text(yaml.safe_dump(spec.to_mapping(), sort_keys=False))
+        print(f"wrote {stem}.csv and .yaml")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--all-models", action="store_true", help="also the default model of every Table 3 model")
+    parser.add_argument("--write", type=Path, help="only write the first degraded map of each muscle into this "
+                                                  "directory (for pma-model fit)")
     args = parser.parse_args()
+    if args.write:
+        write(args.write)
+        return
     for muscle in reversed(MAPPED_MUSCLES):
         martens_table(muscle)
     if args.all_models:
