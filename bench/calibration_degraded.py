@@ -1,7 +1,8 @@
 """Identification on degraded maps: the shipped maps measured the way a user's are, with and without calibration.
 
-Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --write DIR]`` (docs/calibration.md).  Not a test: it
-prints tables (``test/test_core_calibration.py`` asserts the issue's targets on the same degradation).
+Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --write DIR]`` (docs/calibration.md).
+Not a test: it prints tables (``test/test_core_calibration.py`` asserts the issue's targets on the same kind of
+degradation with another seed and another missing length).
 
 Degradation of a shipped map (Martens & Boblan 2017, Tables A1/A2) with the paper's geometry as the truth:
 the rest length L0 given ``dl`` wrong, the pressure sensor reading ``offset`` too high, Gaussian force noise
@@ -104,7 +105,8 @@ def default_table(muscle: str) -> None:
     for d in DEGRADED[:2]:
         outcomes, default = identify(muscle, d, Calibration(), TABLE3_MODELS)
         o = outcomes[default]
-        print(f"{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.cv_truth:>10.2f}  {describe_geometry(o.report.shipped, spec_given(muscle, d))}")
+        geometry = describe_geometry(o.report.shipped, spec_given(muscle, d))
+        print(f"{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.cv_truth:>10.2f}  {geometry}")
 
 
 def write(directory: Path) -> None:
@@ -113,8 +115,8 @@ def write(directory: Path) -> None:
     for muscle in MAPPED_MUSCLES:
         spec, user, _ = degrade(muscle, DEGRADED[0])
         stem = directory / f"{muscle.lower().replace('-', '_')}_degraded"
-        stem.with_suffix(".csv").write_text(f"# {muscle} degraded: {DEGRADED[0].label()}\npressure_pa,length_m,force_n\n"
-                                            + "".join(f"{p:.6f},{L},{F:.6f}\n" for p, L, F in
+        header = f"# {muscle} degraded: {DEGRADED[0].label()}\npressure_pa,length_m,force_n\n"
+        stem.with_suffix(".csv").write_text(header + "".join(f"{p:.6f},{L},{F:.6f}\n" for p, L, F in
                                                       zip(user.pressure, user.length, user.force)))
         stem.with_suffix(".yaml").write_text(yaml.safe_dump(spec.to_mapping(), sort_keys=False))
         print(f"wrote {stem}.csv and .yaml")

@@ -109,7 +109,8 @@ def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_pa
     params = read_parameters(out)
     entry = params["models"]["martens"]
     assert entry["err"] <= 1.32 + 0.5
-    assert abs(entry["nominal_length"] - 0.300) <= 0.001 and params["muscle"]["nominal_length"] == entry["nominal_length"]
+    assert abs(entry["nominal_length"] - 0.300) <= 0.001
+    assert params["muscle"]["nominal_length"] == entry["nominal_length"]
     assert "pressure_offset" not in entry and "pressure offset kept 0: not identifiable" in text
 
 
