@@ -106,7 +106,7 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
         parts.append(f"L0 {fit.spec.nominal_length:.4f} ±{spread:.4f} m (given {given_length:.4f})"
                      if fit.calibration.length else f"L0 kept {given_length:.4f} m: "
                      + ("the model does not depend on it" if math.isinf(spread)
-                        else f"not identifiable (held-out err within 1 pp over ±{spread:.4f} m)"))
+                        else f"not identifiable (held-out RMSE within 10 % of its best over ±{spread:.4f} m)"))
     if "pressure_offset" in sigma:
         parts.append(f"pressure offset {fit.pressure_offset / 1e3:+.2f} ±{sigma['pressure_offset'] / 1e3:.2f} kPa"
                      if fit.calibration.pressure else
@@ -132,8 +132,8 @@ def cmd_fit(args: argparse.Namespace) -> None:
         fit = rep.shipped
         print(f"{name:<14}{fit.objective:>14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}")
     if calibration.any:
-        print("\nidentified geometry (L0 by held-out error, ± half its range within 1 pp of that error; "
-              "pressure offset by least squares, ± 1-sigma from the Jacobian):")
+        print("\nidentified geometry (L0 by held-out error, ± half the range whose held-out RMSE is within 10 % of "
+              "the best;\n  pressure offset by least squares, ± 1-sigma from the Jacobian):")
         for name, rep in reports.items():
             print(f"  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}")
     print("\nleave-one-length-out held-out err [%] per held-out length [m]"
