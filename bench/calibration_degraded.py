@@ -1,6 +1,6 @@
 """Identification on degraded maps: the shipped maps measured the way a user's are, with and without calibration.
 
-Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --write DIR]`` (docs/calibration.md).
+Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --nested | --write DIR]`` (docs/calibration.md).
 Not a test: it prints tables (``test/test_core_calibration.py`` asserts the issue's targets on the same kind of
 degradation with another seed and another missing length).
 
@@ -23,7 +23,8 @@ import yaml
 from pma_model_ros.cli import describe_geometry
 from pma_model_ros.core.calibration import OFF, Calibration
 from pma_model_ros.core.force_map import MAPPED_MUSCLES, ForceMap, shipped_force_map, shipped_spec
-from pma_model_ros.core.identification import ModelReport, cross_validate_fit, identify_all, max_error_percent
+from pma_model_ros.core.identification import (ModelReport, cross_validate_fit, fit_best, identify_all, length_folds,
+                                               max_error_percent)
 from pma_model_ros.core.models import TABLE3_MODELS, get_model
 from pma_model_ros.core.muscle import MuscleSpec
 
@@ -109,6 +110,20 @@ def default_table(muscle: str) -> None:
         print(f"{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.cv_truth:>10.2f}  {geometry}")
 
 
+def nested_table(muscle: str) -> None:
+    """Martens' worst held-out err when the whole calibrated identification (L0 search included) is re-run
+    without the held-out length: no held-out length ever influences its own prediction."""
+    print(f"\n{muscle}, martens calibrated, nested leave-one-length-out err vs truth [%] per held-out length")
+    for d in SCENARIOS:
+        spec, user, truth = degrade(muscle, d)
+        errors = []
+        for test in length_folds(user):
+            fit = fit_best(get_model("martens"), spec, user.subset(~test), calibration=Calibration())
+            errors.append(max_error_percent(truth[test], fit.force(user.pressure[test], user.length[test]),
+                                            truth.max()))
+        print(f"{d.label():<44}" + "".join(f"{e:>8.2f}" for e in errors) + f"   worst {max(errors):.2f}")
+
+
 def write(directory: Path) -> None:
     """The first degraded map of each muscle as a user's files: ``<muscle>_degraded.csv`` and ``.yaml`` (spec)."""
     directory.mkdir(parents=True, exist_ok=True)
@@ -125,11 +140,16 @@ def write(directory: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--all-models", action="store_true", help="also the default model of every Table 3 model")
+    parser.add_argument("--nested", action="store_true", help="only Martens' nested held-out err (slow)")
     parser.add_argument("--write", type=Path, help="only write the first degraded map of each muscle into this "
                                                   "directory (for pma-model fit)")
     args = parser.parse_args()
     if args.write:
         write(args.write)
+        return
+    if args.nested:
+        for muscle in reversed(MAPPED_MUSCLES):
+            nested_table(muscle)
         return
     for muscle in reversed(MAPPED_MUSCLES):
         martens_table(muscle)
