@@ -58,7 +58,7 @@ class Fit:
     calibration: Calibration = OFF
     pressure_offset: float = 0.0   #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
     #: uncertainty of the calibration: "pressure_offset": 1-sigma [Pa] from the Jacobian (inf: not identifiable);
-    #: "nominal_length": half the L0 range [m] whose worst held-out err is within 1 pp of the chosen L0's
+    #: "nominal_length": half the L0 range [m] whose held-out RMSE is within 10 % of the best (inf: no L0 in model)
     sigma: dict[str, float] = field(default_factory=dict)
 
     def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -153,8 +153,8 @@ def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tup
     everywhere = np.ones(fmap.force.size, bool)
     fits = {}
     for obj in objectives:
-        theta, offset, fit_spec = problem.unpack(solutions[obj])
-        fits[obj] = _fit_record(model, "best", obj, theta, fit_spec, domain, fmap, everywhere, True,
+        theta, offset = problem.unpack(solutions[obj])
+        fits[obj] = _fit_record(model, "best", obj, theta, spec, domain, fmap, everywhere, True,
                                 applied, offset, sigma | problem.sigma(solutions[obj]))
     return fits
 
@@ -225,7 +225,11 @@ def _solve(problem: "_Problem", x0: np.ndarray) -> tuple[float, np.ndarray]:
 
 
 class _Problem:
-    """The ``best`` fit's unknowns x = [model parameters, pressure offset [Pa]?, relative L0 correction?]."""
+    """The ``best`` fit's unknowns x = [model parameters, pressure offset [Pa]?, relative L0 correction?].
+
+    The L0 correction is an unknown of the joint fit only, whose Jacobian tells whether the model depends on
+    L0; its value is chosen by held-out error (:func:`_held_out_length`) and then fixed in ``spec``.
+    """
 
     def __init__(self, model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain, calibration: Calibration):
         self.model, self.spec, self.fmap, self.domain, self.calibration = model, spec, fmap, domain, calibration
@@ -238,13 +242,10 @@ class _Problem:
         #: size of each unknown for tie-breaking and difference steps: Table 1's start, else the bound
         self.scale = np.r_[np.where(self.start[:n] != 0, np.abs(self.start[:n]), 1.0), self.upper[n:]]
 
-    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, float, MuscleSpec]:
-        """(model parameters, pressure offset [Pa], spec with the calibrated L0)."""
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, float]:
+        """(model parameters, pressure offset [Pa]) of a solution with L0 fixed."""
         n = self.model.n_params
-        offset = float(x[n]) if self.calibration.pressure else 0.0
-        spec = cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1])) if self.calibration.length \
-            else self.spec
-        return x[:n], offset, spec
+        return x[:n], float(x[n]) if self.calibration.pressure else 0.0
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         spec = cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1])) if self.calibration.length \
