@@ -1,4 +1,5 @@
-"""pma-model: reproduce the paper, identify muscles, evaluate force and pressure, process bags, plot."""
+"""pma-model: reproduce the paper, identify muscles, judge fits on measured maps, evaluate force and pressure,
+process bags, plot."""
 from __future__ import annotations
 
 import argparse
@@ -13,9 +14,11 @@ import numpy as np
 
 from .bags.commands import add_bag_commands, add_fit_bag_options, bag_force_map
 from .core import sarosi
+from .core.calibration import Calibration
 from .core.flags import Flag, describe
 from .core.force_map import MAPPED_MUSCLES, read_force_map_csv, read_spec_yaml, shipped_force_map, shipped_spec
-from .core.identification import OBJECTIVES, ModelReport, domain_of, fit_best, identify_all
+from .core.identification import (OBJECTIVES, Fit, ModelReport, cross_validate_fit, domain_of, fit_best, fit_paper,
+                                   fold_lengths, identify_all, length_folds, quality)
 from .core.models import TABLE3_MODELS, get_model
 from .core.param_file import build_parameters, fit_entry, model_entry, muscle_model, read_parameters, write_parameters
 
@@ -58,12 +61,8 @@ def _print_tables(results: dict[str, tuple[dict[str, ModelReport], str]]) -> Non
             print(f"{name:<14}{PAPER_TABLE3[muscle][name]:>8.2f}{rep.paper.err:>16.2f}"
                   f"{rep.best['least_squares'].err:>10.2f}{rep.best['minimax'].err:>14.2f}"
                   f"{rep.best_err:>8.2f}{rep.cv_err:>10.2f}  {rep.shipped_objective}")
-        lengths = shipped_force_map(muscle).lengths
         print(f"\n{muscle}: leave-one-length-out held-out err in % (shipped objective), per held-out length [m]")
-        print(f"{'model':<14}" + "".join(f"{L:>9.3f}" for L in lengths) + f"{'worst':>9}")
-        for name, rep in reports.items():
-            errs = rep.cv[rep.shipped_objective]
-            print(f"{name:<14}" + "".join(f"{e:>9.2f}" for e in errs) + f"{errs.max():>9.2f}")
+        _held_out_table(shipped_force_map(muscle).lengths, reports)
 
 
 def cmd_reproduce(args: argparse.Namespace) -> None:
@@ -92,14 +91,98 @@ def cmd_make_config(args: argparse.Namespace) -> None:
     print(f"wrote {args.out}")
 
 
+def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
+    print(f"{'model':<14}" + "".join(f"{L:>9.3f}" for L in lengths) + f"{'worst':>9}")
+    for name, rep in reports.items():
+        errs = rep.cv[rep.shipped_objective]
+        print(f"{name:<14}" + "".join(f"{e:>9.2f}" for e in errs) + f"{errs.max():>9.2f}")
+
+
+def describe_geometry(fit: Fit, given_length: float) -> str:
+    """The identified L0 and pressure offset of a calibrated fit with their uncertainty, or why each stayed as given."""
+    sigma, parts = fit.sigma, []
+    if "nominal_length" in sigma:
+        spread = sigma["nominal_length"]
+        parts.append(f"L0 {fit.spec.nominal_length:.4f} ±{spread:.4f} m (given {given_length:.4f})"
+                     if fit.calibration.length else f"L0 kept {given_length:.4f} m: "
+                     + ("the model does not depend on it" if math.isinf(spread)
+                        else f"not identifiable (held-out RMSE within 10 % of its best over ±{spread:.4f} m)"))
+    if "pressure_offset" in sigma:
+        parts.append(f"pressure offset {fit.pressure_offset / 1e3:+.2f} ±{sigma['pressure_offset'] / 1e3:.2f} kPa"
+                     if fit.calibration.pressure else
+                     f"pressure offset kept 0: not identifiable (1-sigma {sigma['pressure_offset'] / 1e3:.3g} kPa)")
+    return "; ".join(parts)
+
+
 def cmd_fit(args: argparse.Namespace) -> None:
     spec = read_spec_yaml(args.muscle)
+    if args.model != "all" and get_model(args.model).hysteresis:
+        return _fit_branches(args, spec)
+    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
+    calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
+    print(calibration.describe() + " (switch off: --no-calibrate-length, --no-calibrate-pressure)")
+    if args.model == "all":
+        reports, default = identify_all(spec, fmap, tuple(get_model(m) for m in TABLE3_MODELS), calibration)
+    else:
+        model, obj = get_model(args.model), args.objective
+        best = fit_best(model, spec, fmap, obj, calibration=calibration)
+        cv = cross_validate_fit(best, fmap, (obj,))
+        reports, default = {model.name: ModelReport(fit_paper(model, spec, fmap), {obj: best}, cv, obj)}, model.name
+    print(f"\nin-sample err (eq. 23) [%], RMSE [N], R²; held-out: worst leave-one-length-out err [%]")
+    print(f"{'model':<14}{'objective':>14}{'err':>8}{'rmse':>9}{'r2':>10}{'held_out':>10}")
+    for name, rep in reports.items():
+        fit = rep.shipped
+        print(f"{name:<14}{fit.objective:>14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}")
+    if calibration.any:
+        print("\nidentified geometry (L0 by held-out error, ± half the range whose held-out RMSE is within 10 % of "
+              "the best;\n  pressure offset by least squares, ± 1-sigma from the Jacobian):")
+        for name, rep in reports.items():
+            print(f"  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}")
+    print("\nleave-one-length-out held-out err [%] per held-out length [m]"
+          + (" (bands of lengths: their mean)" if len(length_folds(fmap)) < fmap.lengths.size else ""))
+    _held_out_table(fold_lengths(fmap), reports)
+    chosen = reports[default].shipped
+    write_parameters(args.out, build_parameters(chosen.spec, default, chosen.domain,
+                                                {name: model_entry(rep) for name, rep in reports.items()}),
+                     f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` "
+                     f"({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n"
+                     "err: eq. 23 on the map [%]; cv_err: worst leave-one-length-out err [%].")
+    how = "by held-out error" if len(reports) > 1 else "the one fitted"
+    print(f"\ndefault model ({how}): {default}  err {chosen.err:.3f} %  rmse {chosen.rmse:.3f} N  "
+          f"r2 {chosen.r2:.5f}  held-out worst {reports[default].cv_err:.2f} %  -> {args.out}")
+
+
+def _fit_branches(args: argparse.Namespace, spec) -> None:
+    """``fit`` of a two-branch (hysteresis) model: each branch on its direction's points, uncalibrated."""
     model = get_model(args.model)
-    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec, model.hysteresis)
+    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec, two_branches=True)
     fit = fit_best(model, spec, fmap, args.objective)
     write_parameters(args.out, build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
-                     f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` ({fit.objective}).")
+                     f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` ({fit.objective}, "
+                     "one branch per direction).")
     print(f"{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}  -> {args.out}")
+
+
+def cmd_evaluate(args: argparse.Namespace) -> None:
+    muscle = muscle_model(read_parameters(args.config), args.model)
+    fmap = read_force_map_csv(args.data)
+    result = muscle.force(fmap.pressure, fmap.length)
+    model = np.nan_to_num(result.force)
+    err, rmse, r2 = quality(fmap.force, model, fmap.max_force)
+    print(f"{muscle.model.name} of {args.config} on {args.data}: err (eq. 23) {err:.2f} %  rmse {rmse:.3f} N  "
+          f"r2 {r2:.5f}  ({fmap.force.size} points)")
+    print(f"{'length [m]':>10}{'points':>8}{'err [%]':>9}{'rmse [N]':>10}  flags (points)")
+    for length in fmap.lengths:
+        at = fmap.length == length
+        e, r, _ = quality(fmap.force[at], model[at], fmap.max_force)
+        names, counts = np.unique([describe(int(f)) for f in result.flags[at]], return_counts=True)
+        print(f"{length:>10.4f}{int(at.sum()):>8}{e:>9.2f}{r:>10.3f}  "
+              + ", ".join(f"{n} ({c})" for n, c in zip(names, counts)))
+    if args.csv:
+        rows = "".join(f"{p:.9g},{L:.9g},{F:.9g},{f:.9g},{f - F:.9g},{describe(int(flag))}\n"
+                       for p, L, F, f, flag in zip(fmap.pressure, fmap.length, fmap.force, model, result.flags))
+        Path(args.csv).write_text("pressure_pa,length_m,force_n,model_n,error_n,flags\n" + rows, encoding="utf-8")
+        print(f"wrote {args.csv}")
 
 
 def _finite(name: str, value: float, low: float, high: float, unit: str, hint: str) -> float:
@@ -288,11 +371,21 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--data", help="force map CSV")
     source.add_argument("--bag", help="rosbag2 recording of pressure, length and measured force")
     p.add_argument("--muscle", required=True, help="muscle spec YAML (SI units)")
-    p.add_argument("--model", required=True, help="model name, e.g. martens")
-    p.add_argument("--objective", choices=OBJECTIVES, default="least_squares")
+    p.add_argument("--model", required=True,
+                   help="model name, e.g. martens; 'all': every Table 3 model, the default by held-out error")
+    p.add_argument("--objective", choices=OBJECTIVES, default="least_squares",
+                   help="of one model (with --model all: each model's by held-out error)")
+    p.add_argument("--no-calibrate-length", action="store_true", help="keep the spec's rest length L0 as given")
+    p.add_argument("--no-calibrate-pressure", action="store_true", help="assume no pressure-sensor offset")
     p.add_argument("--out", required=True, help="output ROS parameter YAML")
     add_fit_bag_options(p)
     p.set_defaults(func=cmd_fit)
+    p = sub.add_parser("evaluate", help="a fitted model against a measured force map: eq. 23, RMSE, per length, flags")
+    p.add_argument("--config", required=True, help="parameter file, e.g. of pma-model fit")
+    p.add_argument("--data", required=True, help="force map CSV (pressure_pa,length_m,force_n)")
+    p.add_argument("--model", default=None, help="override the file's default model")
+    p.add_argument("--csv", help="write each point: measured, model, error [N] and flags")
+    p.set_defaults(func=cmd_evaluate)
     add_bag_commands(sub)
     add_joint_commands(sub)
     for name, quantity, unit, func in (("force", "pressure", "Pa gauge", cmd_force),

@@ -56,7 +56,7 @@ def test_cli_fit_from_bag(tmp_path, capsys):
     out = tmp_path / "fit.yaml"
     assert main(["fit", "--bag", str(bag), "--muscle", str(SPEC), "--model", "martens", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "of 12000 samples quasi-static" in printed and "martens: err" in printed
+    assert "of 12000 samples quasi-static" in printed and "default model (the one fitted): martens  err" in printed
     model = muscle_model(read_parameters(out))
     fmap = shipped_force_map("DMSP-10-250")
     assert max_error_percent(fmap.force, model.force(fmap.pressure, fmap.length).force, fmap.max_force) < 5.5

@@ -3,11 +3,13 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from conftest import CONFIGS, REPO
 from pma_model_ros.cli import main
 from pma_model_ros.core.force_map import shipped_force_map
+from pma_model_ros.core.param_file import read_parameters
 
 TABLE3_MODELS = {"mckibben", "andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens"}
 
@@ -43,7 +45,7 @@ def test_fit_from_csv(tmp_path, capsys):
     spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_20_300.yaml"
     out = tmp_path / "fit.yaml"
     assert main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "martens", "--out", str(out)]) == 0
-    assert "martens: err" in capsys.readouterr().out
+    assert "default model (the one fitted): martens  err" in capsys.readouterr().out
     assert main(["force", "--config", str(out), "--pressure", "450000", "--length", "0.25"]) == 0
     assert float(capsys.readouterr().out.split()[1]) == pytest.approx(252.1, abs=0.03 * 1653.5)
 
@@ -146,3 +148,75 @@ def test_bad_joint_file_exits_2(tmp_path, capsys):
     assert main(["joint", "envelope", "--config", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "joint 'elbow': no parameters under 'elbow:'" in err and err.count("\n") == 1
+
+
+def _map_csv(path, fmap) -> str:
+    path.write_text("pressure_pa,length_m,force_n\n" + "".join(
+        f"{p},{L},{F}\n" for p, L, F in zip(fmap.pressure, fmap.length, fmap.force)))
+    return str(path)
+
+
+def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_path, capsys):
+    """Issue 13's case: DMSP-20-300 with L0 given 4 mm short (err 5.29 %, against 1.32 % with 0.300 m)."""
+    spec_text = (REPO / "pma_model_ros" / "core" / "data" / "dmsp_20_300.yaml").read_text()
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(spec_text.replace("nominal_length: 0.30 ", "nominal_length: 0.296 "))
+    assert "nominal_length: 0.296" in spec.read_text()
+    csv, out = _map_csv(tmp_path / "map.csv", shipped_force_map("DMSP-20-300")), tmp_path / "fit.yaml"
+    assert main(["fit", "--data", csv, "--muscle", str(spec), "--model", "martens", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("geometry calibration ON")
+    assert "0.296    0.282    0.267    0.250    0.237    0.222    worst" in text
+    params = read_parameters(out)
+    entry = params["models"]["martens"]
+    assert entry["err"] <= 1.32 + 0.5
+    assert abs(entry["nominal_length"] - 0.300) <= 0.001
+    assert params["muscle"]["nominal_length"] == entry["nominal_length"]
+    assert "pressure_offset" not in entry and "pressure offset kept 0: not identifiable" in text
+
+
+def test_fit_all_models_defaults_to_the_best_held_out_error(tmp_path, capsys):
+    spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_10_250.yaml"
+    csv, out = _map_csv(tmp_path / "map.csv", shipped_force_map("DMSP-10-250")), tmp_path / "all.yaml"
+    assert main(["fit", "--data", csv, "--muscle", str(spec), "--model", "all", "--no-calibrate-length",
+                 "--no-calibrate-pressure", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("geometry calibration OFF")
+    params = read_parameters(out)
+    models = params["models"]
+    assert set(models) == TABLE3_MODELS
+    assert params["model"] == min(models, key=lambda m: models[m]["cv_err"])
+    assert params["model"] != min(models, key=lambda m: models[m]["err"])   # Hildebrandt fits best in-sample
+    assert all("nominal_length" not in e and "pressure_offset" not in e for e in models.values())
+    assert f"default model (by held-out error): {params['model']}" in text
+
+
+def test_evaluate_a_config_on_a_measured_map(tmp_path, capsys):
+    fmap = shipped_force_map("DMSP-20-300")
+    config, csv, out = str(CONFIGS["DMSP-20-300"]), _map_csv(tmp_path / "map.csv", fmap), tmp_path / "points.csv"
+    assert main(["evaluate", "--config", config, "--data", csv, "--csv", str(out)]) == 0
+    text = capsys.readouterr().out
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    assert len(rows) == fmap.force.size
+    force, model, error = (np.array([float(r[i]) for r in rows]) for i in (2, 3, 4))
+    assert error == pytest.approx(model - force, abs=1e-4)   # 9 significant digits written
+    printed = float(text.split("err (eq. 23) ")[1].split()[0])
+    assert printed == pytest.approx(100 * np.abs(error).max() / force.max(), abs=0.006)
+    flags = [r[5] for r in rows]
+    # the 675 kPa points lie above the rated 600 kPa but inside the identified data: served as identified
+    over = fmap.pressure > read_parameters(config)["muscle"]["max_pressure"]
+    assert over.any() and not any("OUT_OF_RANGE" in f or "EXTRAPOLATED" in f for f in flags)
+    # where nothing is flagged the served model is the fitted one: within its in-sample err (eq. 23)
+    served = np.array([f in ("OK", "CLIPPED") for f in flags])
+    err = read_parameters(config)["models"][read_parameters(config)["model"]]["err"]
+    assert 100 * np.abs(error[served]).max() / fmap.max_force <= err + 1e-6
+    assert sum(line.startswith(f"{L:>10.4f}") for line in text.splitlines() for L in fmap.lengths) == 6
+
+
+@pytest.mark.parametrize("data, config, message", [("/no/such.csv", None, "not found"),
+                                                   (None, "/no/such.yaml", "not found")])
+def test_evaluate_bad_input_is_one_line_exit_2(tmp_path, capsys, data, config, message):
+    data = data or _map_csv(tmp_path / "map.csv", shipped_force_map("DMSP-10-250"))
+    assert main(["evaluate", "--config", config or str(CONFIGS["DMSP-10-250"]), "--data", data]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1

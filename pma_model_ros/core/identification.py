@@ -9,6 +9,7 @@ Two protocols:
     Nelder-Mead implements the same algorithm with the same defaults) from
     Table 1's start point.  Eqs. 22 and 23 run over the points with a measured
     force > 0 and the raw (unclipped) model: this is what reproduces Table 3.
+    Never calibrated: the paper's geometry as given.
 
 ``best``
     What ships: bounded multi-start fits (scipy ``least_squares``, trust region
@@ -16,15 +17,19 @@ Two protocols:
     objective ``least_squares`` (eq. 22) or ``minimax`` (eq. 23 itself, by
     SLSQP on the epigraph form, polished by Nelder-Mead).  Equal-cost
     solutions (an under-determined fit) are resolved towards Table 1's start.
+    Optionally with geometry calibration (:mod:`pma_model_ros.core.calibration`):
+    the rest length L0 and a pressure offset identified with the parameters.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import warnings
 
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
+from . import calibration as cal
+from .calibration import OFF, Calibration
 from .force_map import ForceMap
 from .models import Domain, Model, force_raw, get_model
 from .muscle import MuscleSpec
@@ -34,6 +39,9 @@ OBJECTIVES = ("least_squares", "minimax")
 BRANCH_MODEL = {"sarosi_hysteresis": "sarosi"}
 _N_RANDOM_STARTS = 4
 _TIE = 1e-6
+_LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
+_MAX_FOLDS = 8   #: most held-out groups of a cross-validation
+_LENGTH_CANDIDATES = 5   #: of these, judged by the worst held-out err of multi-start fits
 
 
 @dataclass(frozen=True)
@@ -48,6 +56,19 @@ class Fit:
     err: float             #: eq. 23 [%]
     rmse: float            #: [N]
     r2: float              #: coefficient of determination [-]
+    spec: MuscleSpec       #: the geometry of the fit (L0 calibrated if ``calibration.length``)
+    calibration: Calibration = OFF
+    pressure_offset: float = 0.0   #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
+    #: uncertainty of the calibration: "pressure_offset": 1-sigma [Pa] from the Jacobian (inf: not identifiable);
+    #: "nominal_length": half the L0 range [m] whose held-out RMSE is within 10 % of the best (inf: no L0 in model)
+    sigma: dict[str, float] = field(default_factory=dict)
+
+    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """The fitted model's physical force [N] at sensor pressure [Pa] and length [m], as identified (unclipped L)."""
+        model, theta = get_model(self.model), self.theta
+        if self.calibration.pressure:
+            model, theta = cal.shifted(model), np.r_[theta, self.pressure_offset]
+        return physical_force(model, theta, self.spec, self.domain, pressure, length)
 
 
 def domain_of(fmap: ForceMap) -> Domain:
@@ -66,14 +87,23 @@ def max_error_percent(measured: np.ndarray, predicted: np.ndarray, max_force: fl
     return float(100 * np.max(np.abs(measured - predicted)) / max_force)
 
 
-def _fit_record(model, protocol, objective, theta, spec, domain, fmap, mask, clip, branch=0.0) -> Fit:
-    f = force_raw(model, theta, spec, domain, fmap.pressure, fmap.length, branch)
+def quality(measured: np.ndarray, predicted: np.ndarray, max_force: float) -> tuple[float, float, float]:
+    """(eq. 23 [%], RMSE [N], R^2 [-]) of ``predicted`` against ``measured``."""
+    resid = measured - predicted
+    total = np.sum((measured - measured.mean()) ** 2)
+    return (max_error_percent(measured, predicted, max_force), float(np.sqrt(np.mean(resid**2))),
+            float(1 - np.sum(resid**2) / total) if total > 0 else float("nan"))
+
+
+def _fit_record(model, protocol, objective, theta, spec, domain, fmap, mask, clip,
+                calibration: Calibration = OFF, offset: float = 0.0, sigma: dict | None = None,
+                branch: np.ndarray | float = 0.0) -> Fit:
+    shifted = cal.shifted(model) if calibration.pressure else model
+    f = force_raw(shifted, np.r_[theta, offset] if calibration.pressure else theta, spec, domain,
+                  fmap.pressure, fmap.length, branch)
     f = np.maximum(f, 0.0) if clip else f
-    resid = fmap.force[mask] - f[mask]
-    total = np.sum((fmap.force[mask] - fmap.force[mask].mean()) ** 2)
     return Fit(model.name, protocol, objective, np.asarray(theta, float), domain,
-               max_error_percent(fmap.force[mask], f[mask], fmap.max_force),
-               float(np.sqrt(np.mean(resid**2))), float(1 - np.sum(resid**2) / total))
+               *quality(fmap.force[mask], f[mask], fmap.max_force), spec, calibration, float(offset), sigma or {})
 
 
 def fit_paper(model: Model, spec: MuscleSpec, fmap: ForceMap) -> Fit:
@@ -97,12 +127,12 @@ def _paper_theta(model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain)
 
 
 def fit_best(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares",
-             seed: int = 0) -> Fit:
+             seed: int = 0, calibration: Calibration = OFF) -> Fit:
     """The ``best`` protocol on the whole map with the clipped model (module docstring); a hysteresis model
-    is :func:`fit_branches`."""
+    is :func:`fit_branches` (uncalibrated)."""
     if model.hysteresis:
         return fit_branches(model, spec, fmap, objective, seed)
-    return fit_best_all(model, spec, fmap, (objective,), seed)[objective]
+    return fit_best_all(model, spec, fmap, (objective,), seed, calibration)[objective]
 
 
 def fit_branches(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = "least_squares",
@@ -116,53 +146,170 @@ def fit_branches(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str 
     up, down = (fit_best(branch, spec, fmap.subset(fmap.direction == d), objective, seed).theta for d in (1.0, -1.0))
     theta = np.concatenate([up, down])
     return _fit_record(model, "best", objective, theta, spec, domain_of(fmap), fmap,
-                       np.ones(fmap.force.size, bool), True, fmap.direction)
+                       np.ones(fmap.force.size, bool), True, branch=fmap.direction)
 
 
 def fit_best_all(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
-                 seed: int = 0) -> dict[str, Fit]:
+                 seed: int = 0, calibration: Calibration = OFF) -> dict[str, Fit]:
     """:func:`fit_best` for several objectives; the least-squares multi-start runs once for all."""
     unknown = set(objectives) - set(OBJECTIVES)
     if unknown:
         raise ValueError(f"unknown objective {sorted(unknown)}; choose from {OBJECTIVES}")
     domain = domain_of(fmap)
-    thetas = _best_thetas(model, spec, fmap, domain, objectives, seed)
+    problem = _Problem(model, spec, fmap, domain, calibration)
+    sigma, applied = {}, calibration
+    if calibration.any:   # identify only what the map can; the others stay as given
+        joint = _best_solutions(problem, ("least_squares",), seed)["least_squares"]
+        sigma = problem.sigma(joint)
+        applied = calibration.identifiable(sigma)
+        if applied.length:
+            correction, low, high = _held_out_length(model, spec, fmap, applied, seed)
+            sigma["nominal_length"] = (high - low) / 2 * spec.nominal_length
+            if high - low <= cal.LENGTH_BOUND:   # a held-out optimum narrower than half the bounds
+                spec = cal.with_length(spec, spec.nominal_length * (1 + correction))
+            else:
+                applied = Calibration(False, applied.pressure)
+        problem = _Problem(model, spec, fmap, domain, Calibration(False, applied.pressure))
+    solutions = _best_solutions(problem, objectives, seed)
     everywhere = np.ones(fmap.force.size, bool)
-    return {obj: _fit_record(model, "best", obj, thetas[obj], spec, domain, fmap, everywhere, True)
-            for obj in objectives}
+    fits = {}
+    for obj in objectives:
+        theta, offset = problem.unpack(solutions[obj])
+        fits[obj] = _fit_record(model, "best", obj, theta, spec, domain, fmap, everywhere, True,
+                                applied, offset, sigma | problem.sigma(solutions[obj]))
+    return fits
 
 
-def _best_thetas(model, spec, fmap, domain, objectives, seed) -> dict[str, np.ndarray]:
-    if model.n_params == 0:
+def _held_out_length(model: Model, spec: MuscleSpec, fmap: ForceMap, calibration: Calibration,
+                     seed: int) -> tuple[float, float, float]:
+    """The relative correction of L0 [-] chosen by leave-one-length-out error of least-squares fits, and the
+    range [low, high] of corrections whose held-out RMSE is within 10 % of the lowest.
+
+    In-sample, the elastic terms of a model absorb a wrong L0 (the sum of squares keeps falling towards a
+    bound); the force at a length left out does not, so L0 is chosen by held-out error, on a grid of
+    :data:`_LENGTH_GRID` corrections over the bounds.  Each fold starts from its multi-start fit at the given
+    L0 and follows its optimum along the grid (one least-squares run from the neighbouring grid point).  Of
+    the :data:`_LENGTH_CANDIDATES` corrections with the lowest held-out RMSE, the one whose multi-start fits
+    (:func:`cross_validate`, least squares) have the lowest worst held-out err (eq. 23) is chosen.
+    """
+    within = Calibration(False, calibration.pressure)
+    folds = [(test, fmap.subset(~test)) for test in length_folds(fmap)]
+    grid = np.linspace(-cal.LENGTH_BOUND, cal.LENGTH_BOUND, _LENGTH_GRID)
+    given = int(np.argmin(np.abs(grid)))
+
+    def problem(correction: float, train: ForceMap) -> _Problem:
+        trial = cal.with_length(spec, spec.nominal_length * (1 + correction))
+        return _Problem(model, trial, train, domain_of(train), within)
+
+    starts = [_best_solutions(problem(grid[given], train), ("least_squares",), seed)["least_squares"]
+              for _, train in folds]
+    squares = np.full(grid.size, np.inf)
+    for path in (range(given, grid.size), range(given, -1, -1)):
+        x = list(starts)
+        for i in path:
+            total = 0.0
+            for k, (test, train) in enumerate(folds):
+                fold = problem(grid[i], train)
+                cost, x_k = min(_solve(fold, x[k]), _solve(fold, fold.start), key=lambda c: c[0])
+                if not np.isfinite(cost):
+                    total = np.inf
+                    break
+                x[k] = x_k
+                predicted = physical_force(fold.evaluated, x_k, fold.spec, fold.domain, fmap.pressure[test],
+                                           fmap.length[test])
+                total += float(np.sum((fmap.force[test] - predicted) ** 2))
+            squares[i] = total
+    near = grid[squares <= squares.min() * 1.1**2]
+    candidates = grid[np.argsort(squares)[:_LENGTH_CANDIDATES]]
+    worst = [cross_validate(model, problem(c, fmap).spec, fmap, ("least_squares",), within)["least_squares"].max()
+             for c in candidates]
+    step = grid[1] - grid[0]   # the range of a grid point is its cell
+    return float(candidates[int(np.argmin(worst))]), float(near.min() - step / 2), float(near.max() + step / 2)
+
+
+def _solve(problem: "_Problem", x0: np.ndarray) -> tuple[float, np.ndarray]:
+    """One bounded least-squares run (trust region reflective) from ``x0``: (sum of squares [N^2], x); inf if
+    the model is not finite there (a length beyond the fibre length)."""
+    span = problem.upper - problem.lower
+    x0 = np.clip(x0, problem.lower + 1e-9 * span, problem.upper - 1e-9 * span)
+    with np.errstate(all="ignore"):
+        residuals = problem.residuals(x0)
+    if not np.all(np.isfinite(residuals)):
+        return np.inf, x0
+    if x0.size == 0:
+        return float(np.sum(residuals**2)), x0
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = least_squares(problem.residuals, x0, bounds=(problem.lower, problem.upper), x_scale="jac",
+                               method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=5000)
+    return float(np.sum(result.fun**2)), result.x
+
+
+class _Problem:
+    """The ``best`` fit's unknowns x = [model parameters, pressure offset [Pa]?, relative L0 correction?].
+
+    The L0 correction is an unknown of the joint fit only, whose Jacobian tells whether the model depends on
+    L0; its value is chosen by held-out error (:func:`_held_out_length`) and then fixed in ``spec``.
+    """
+
+    def __init__(self, model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain, calibration: Calibration):
+        self.model, self.spec, self.fmap, self.domain, self.calibration = model, spec, fmap, domain, calibration
+        self.evaluated = cal.shifted(model) if calibration.pressure else model
+        extra = [cal.LENGTH_BOUND] * calibration.length
+        self.lower = np.r_[self.evaluated.lower, [-b for b in extra]]
+        self.upper = np.r_[self.evaluated.upper, extra]
+        self.start = np.r_[self.evaluated.start, [0.0] * len(extra)]
+        n = model.n_params
+        #: size of each unknown for tie-breaking and difference steps: Table 1's start, else the bound
+        self.scale = np.r_[np.where(self.start[:n] != 0, np.abs(self.start[:n]), 1.0), self.upper[n:]]
+
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, float]:
+        """(model parameters, pressure offset [Pa]) of a solution with L0 fixed."""
+        n = self.model.n_params
+        return x[:n], float(x[n]) if self.calibration.pressure else 0.0
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        spec = cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1])) if self.calibration.length \
+            else self.spec
+        theta = x[:-1] if self.calibration.length else x
+        return self.fmap.force - physical_force(self.evaluated, theta, spec, self.domain, self.fmap.pressure,
+                                                self.fmap.length)
+
+    def random_start(self, paper: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The paper fit times 10^U(-0.5, 0.5); the calibrated quantities as given (the nearest optimum is found)."""
+        return np.r_[paper * 10 ** rng.uniform(-0.5, 0.5, paper.size), [0.0] * (self.start.size - paper.size)]
+
+    def sigma(self, x: np.ndarray) -> dict[str, float]:
+        """1-sigma of the calibrated L0 [m] and pressure offset [Pa] (:func:`calibration.standard_errors`)."""
+        if not self.calibration.any:
+            return {}
+        with np.errstate(all="ignore"):
+            errors = cal.standard_errors(cal.jacobian(self.residuals, x, self.scale), self.residuals(x))
+        out = {}
+        if self.calibration.pressure:
+            out["pressure_offset"] = float(errors[self.model.n_params])
+        if self.calibration.length:
+            out["nominal_length"] = float(errors[-1] * self.spec.nominal_length)
+        return out
+
+
+def _best_solutions(problem: _Problem, objectives: tuple[str, ...], seed: int) -> dict[str, np.ndarray]:
+    model, fmap, domain = problem.model, problem.fmap, problem.domain
+    if problem.start.size == 0:
         return {obj: np.zeros(0) for obj in objectives}
-    lower, upper = np.array(model.lower), np.array(model.upper)
-    start = np.array(model.start, float)
-    scale = np.where(start != 0, np.abs(start), 1.0)
-
-    def residuals(theta: np.ndarray) -> np.ndarray:
-        return fmap.force - physical_force(model, theta, spec, domain, fmap.pressure, fmap.length)
-
-    def inside(x: np.ndarray) -> np.ndarray:
-        span = upper - lower
-        return np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
-
+    lower, upper, start, scale = problem.lower, problem.upper, problem.start, problem.scale
+    n_extra = start.size - model.n_params
     rng = np.random.default_rng(seed)
-    paper = _paper_theta(model, spec, fmap.subset(fmap.force > 0), domain)
-    starts = [start, paper] + [paper * 10 ** rng.uniform(-0.5, 0.5, paper.size) for _ in range(_N_RANDOM_STARTS)]
-    candidates = []
-    for x0 in starts:
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = least_squares(residuals, inside(x0), bounds=(lower, upper), x_scale="jac", method="trf",
-                                   xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=5000)
-        cost = float(np.sum(result.fun**2))
-        if np.isfinite(cost):
-            candidates.append((cost, result.x))
+    paper = _paper_theta(model, problem.spec, fmap.subset(fmap.force > 0), domain)
+    starts = [start, np.r_[paper, [0.0] * n_extra]] + [problem.random_start(paper, rng)
+                                                      for _ in range(_N_RANDOM_STARTS)]
+    candidates = [c for c in (_solve(problem, x0) for x0 in starts) if np.isfinite(c[0])]
     tied = _ties(candidates, start, scale)
-    thetas = {"least_squares": tied[0][1]}
+    solutions = {"least_squares": tied[0][1]}
     if "minimax" in objectives:
-        thetas["minimax"] = _ties([_minimax(residuals, theta, lower, upper) for _, theta in tied], start, scale)[0][1]
-    return thetas
+        solutions["minimax"] = _ties([_minimax(problem.residuals, x, lower, upper) for _, x in tied],
+                                     start, scale)[0][1]
+    return solutions
 
 
 def _ties(candidates: list, start: np.ndarray, scale: np.ndarray) -> list:
@@ -198,19 +345,42 @@ def _minimax(residuals, theta0: np.ndarray, lower: np.ndarray, upper: np.ndarray
     return worst(best) ** 2, best * scale
 
 
-def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap,
-                   objectives: tuple[str, ...] = OBJECTIVES) -> dict[str, np.ndarray]:
+def length_folds(fmap: ForceMap) -> list[np.ndarray]:
+    """The held-out groups of points: each measured length, or, with more than :data:`_MAX_FOLDS` lengths (the
+    cells of a recording), :data:`_MAX_FOLDS` bands of neighbouring lengths, longest first."""
+    lengths = fmap.lengths
+    groups = [[length] for length in lengths] if lengths.size <= _MAX_FOLDS else np.array_split(lengths, _MAX_FOLDS)
+    return [np.isin(fmap.length, group) for group in groups]
+
+
+def fold_lengths(fmap: ForceMap) -> np.ndarray:
+    """The mean length [m] of each fold of :func:`length_folds`."""
+    return np.array([fmap.length[test].mean() for test in length_folds(fmap)])
+
+
+def cross_validate(model: Model, spec: MuscleSpec, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
+                   calibration: Calibration = OFF, truth: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Leave-one-length-out: eq. 23 on each held-out length, normalised by the whole map's max force [%].
 
-    Returns, per objective, one error per measured length in the order of ``fmap.lengths``.
+    Returns, per objective, one error per fold of :func:`length_folds` (per measured length, in the order of
+    ``fmap.lengths``, on a table's map).  ``truth``:
+    the forces [N] at the map's points to judge against (e.g. noise-free ones); default the map's own.
     """
+    truth = fmap.force if truth is None else truth
     errors: dict[str, list[float]] = {obj: [] for obj in objectives}
-    for held_out in fmap.lengths:
-        test = fmap.length == held_out
-        for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives).items():
-            predicted = physical_force(model, fit.theta, spec, fit.domain, fmap.pressure[test], fmap.length[test])
-            errors[obj].append(max_error_percent(fmap.force[test], predicted, fmap.max_force))
+    for test in length_folds(fmap):
+        for obj, fit in fit_best_all(model, spec, fmap.subset(~test), objectives, calibration=calibration).items():
+            predicted = fit.force(fmap.pressure[test], fmap.length[test])
+            errors[obj].append(max_error_percent(truth[test], predicted, truth.max()))
     return {obj: np.array(errs) for obj, errs in errors.items()}
+
+
+def cross_validate_fit(fit: Fit, fmap: ForceMap, objectives: tuple[str, ...] = OBJECTIVES,
+                       truth: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """:func:`cross_validate` of a fit's model with its geometry: its calibrated L0 (chosen on the whole map by
+    held-out error, :func:`_held_out_length`), the pressure offset identified again in each fold."""
+    return cross_validate(get_model(fit.model), fit.spec, fmap, objectives,
+                          Calibration(False, fit.calibration.pressure), truth)
 
 
 @dataclass(frozen=True)
@@ -243,16 +413,19 @@ class ModelReport:
         return float(max(errors[0], errors[-1]))
 
 
-def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...]) -> tuple[dict[str, ModelReport], str]:
+def identify_all(spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...],
+                 calibration: Calibration = OFF) -> tuple[dict[str, ModelReport], str]:
     """Identify every model both ways, cross-validate, and pick the default model.
 
     The shipped objective of each model and the default model are chosen by the
-    worst leave-one-length-out error, not by in-sample error.
+    worst leave-one-length-out error, not by in-sample error.  ``calibration``
+    applies to the ``best`` protocol only (held out: :func:`cross_validate_fit`); the paper
+    protocol keeps the given geometry.
     """
     reports = {}
     for model in models:
-        best = fit_best_all(model, spec, fmap)
-        cv = cross_validate(model, spec, fmap)
+        best = fit_best_all(model, spec, fmap, calibration=calibration)
+        cv = cross_validate_fit(best["least_squares"], fmap)
         shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
         reports[model.name] = ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
     default = min(reports, key=lambda name: reports[name].cv_err)

@@ -1,7 +1,8 @@
 """Many identified muscles evaluated together: one vectorised call per model.
 
 A robot arm or hand has tens of muscles, each with its own spec, model,
-parameters and validity domain.  :class:`MuscleBank` groups them by model and
+parameters and validity domain.  :class:`MuscleBank` groups them by model (a model with a calibrated
+pressure offset, :func:`~pma_model_ros.core.calibration.shifted`, is a model of its own) and
 stacks each group's numbers as arrays (one entry per muscle), so the force or
 the inverse of all muscles is one :class:`~pma_model_ros.core.muscle_model.Evaluator`
 call per model (one call for a homogeneous arm).  The results equal those of
@@ -75,9 +76,9 @@ class MuscleBank:
         if not muscles:
             raise ValueError("a muscle bank needs at least one muscle")
         self.muscles = tuple(muscles)
-        by_model: dict[str, list[int]] = {}
+        by_model: dict[Model, list[int]] = {}
         for i, muscle in enumerate(self.muscles):
-            by_model.setdefault(muscle.model.name, []).append(i)
+            by_model.setdefault(muscle.model, []).append(i)
         self.groups = tuple(ModelGroup.of(index, [self.muscles[i] for i in index]) for index in by_model.values())
         #: (N,) lengths and pressures served and commanded
         self.limits = Limits(*(np.array([getattr(m.limits, f.name) for m in self.muscles]) for f in fields(Limits)))

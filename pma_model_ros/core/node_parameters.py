@@ -88,6 +88,10 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
                   "identification results: objective, max error on the map (eq. 23) [% of max force], RMSE [N], "
                   "R², worst leave-one-length-out error, the same on the shortest and longest length "
                   "[% of max force]", per_muscle=True, read_only=True),
+    ParameterSpec("models.<model>.{nominal_length, pressure_offset}", "double", None,
+                  "geometry calibration of a fit by `pma-model fit`: effective rest length L0 [m] (replaces "
+                  "`muscle.nominal_length` for this model) and pressure-sensor offset [Pa] (the model sees gauge "
+                  "pressure − offset); absent: `muscle.nominal_length` and 0", "m, Pa", per_muscle=True),
     ParameterSpec("hysteresis.input", "string", "length", "what a hysteresis model's branch follows: `length` "
                   "(lengthening +1 / shortening −1, Sárosi's loop) or `pressure` (filling +1 / venting −1)",
                   choices=HYSTERESIS_INPUTS, per_muscle=True),

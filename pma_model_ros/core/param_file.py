@@ -11,6 +11,8 @@ Layout (every value SI)::
         models:
           martens: {params: [...], objective: minimax, err: 4.2, rmse: .., r2: .., cv_err: 8.2,
                     edge_cv_err: 8.2, extrapolates: true}   # absent extrapolates: false
+          # a calibrated fit (core/calibration.py) also has nominal_length [m] (replaces muscle.nominal_length
+          # for this model) and pressure_offset [Pa] (the model sees gauge pressure - pressure_offset)
 
 Node settings (``ambient_pressure``, ``joint_name``, ...) may sit beside these
 keys; this module reads only the muscle and its models.
@@ -23,6 +25,7 @@ from pathlib import Path
 
 import yaml
 
+from . import calibration
 from .engine import Config
 from .force_map import load_yaml_mapping, read_user_file
 from .identification import Fit, ModelReport
@@ -50,8 +53,13 @@ def _num(value: float) -> float:
 
 
 def fit_entry(fit: Fit) -> dict:
-    """The ``models.<name>`` mapping of one fit: params (if any), objective, err, rmse, r2."""
+    """The ``models.<name>`` mapping of one fit: params (if any), the calibrated nominal_length [m] and
+    pressure_offset [Pa] (if calibrated), objective, err, rmse, r2."""
     entry = {"params": [_num(v) for v in fit.theta]} if fit.theta.size else {}
+    if fit.calibration.length:
+        entry["nominal_length"] = _num(fit.spec.nominal_length)
+    if fit.calibration.pressure:
+        entry["pressure_offset"] = _num(fit.pressure_offset)
     entry.update(objective=fit.objective, err=_num(fit.err), rmse=_num(fit.rmse), r2=_num(fit.r2))
     return entry
 
@@ -111,7 +119,18 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
         domain = Domain(*(float(v) for v in length_range), float(pressure_range[1]), extrapolates)
     except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f"length_range/pressure_range: {err}") from None
-    return MuscleModel(spec, get_model(name), models[name].get("params", []), domain)
+    entry, model = models[name], get_model(name)
+    params = entry.get("params", [])
+    if "nominal_length" in entry:
+        spec = MuscleSpec.from_mapping(spec.to_mapping() | {"nominal_length": entry["nominal_length"]})
+    if "pressure_offset" in entry:
+        offset = entry["pressure_offset"]
+        if isinstance(offset, bool) or not isinstance(offset, (int, float)) \
+                or not abs(offset) <= calibration.PRESSURE_BOUND:
+            raise ValueError(f"models.{name}.pressure_offset must be a number in "
+                             f"[-{calibration.PRESSURE_BOUND:g}, {calibration.PRESSURE_BOUND:g}] Pa, got {offset!r}")
+        model, params = calibration.shifted(model), [*params, offset] if isinstance(params, list) else params
+    return MuscleModel(spec, model, params, domain)
 
 
 def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:

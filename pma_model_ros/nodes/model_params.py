@@ -77,6 +77,9 @@ def _declare_muscle(node: Node, prefix: str) -> None:
         node.declare_parameter(f"{prefix}models.{model.name}.extrapolates", TYPES["bool"], descriptor(extrapolates))
         for entry, kind in MODEL_INFO.items():
             node.declare_parameter(f"{prefix}models.{model.name}.{entry}", kind, descriptor(info))
+        for entry in ("nominal_length", "pressure_offset"):
+            node.declare_parameter(f"{prefix}models.{model.name}.{entry}", Parameter.Type.DOUBLE,
+                                   descriptor(SPECS["models.<model>.{nominal_length, pressure_offset}"]))
 
 
 def _check_names(names: list[str], mode: str) -> None:
