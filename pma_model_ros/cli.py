@@ -39,14 +39,8 @@ from .core.identification import (
     quality,
 )
 from .core.models import TABLE3_MODELS, get_model
-from .core.param_file import (
-    build_parameters,
-    fit_entry,
-    model_entry,
-    muscle_model,
-    read_parameters,
-    write_parameters,
-)
+from .core.param_file import muscle_model, read_parameters
+from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
 PAPER_TABLE3 = {

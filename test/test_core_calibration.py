@@ -20,7 +20,8 @@ from pma_model_ros.core.identification import (
 )
 from pma_model_ros.core.models import MODELS, force_raw, get_model
 from pma_model_ros.core.muscle_bank import MuscleBank
-from pma_model_ros.core.param_file import build_parameters, fit_entry, muscle_model
+from pma_model_ros.core.param_file import muscle_model
+from pma_model_ros.core.param_writer import build_parameters, fit_entry
 
 MARTENS = get_model('martens')
 

@@ -7,6 +7,8 @@ The expected forces come from each muscle's own single-muscle file through the c
 
 import copy
 import math
+import subprocess
+import sys
 
 import pytest
 import rclpy
@@ -204,3 +206,11 @@ def test_runtime_model_swap_is_used_by_the_next_estimate(make_node):
         float(hildebrandt.force(300e3, 0.23).force), rel=1e-9
     )
     assert JOINT == node.settings[0].joint_name
+
+
+def test_the_node_does_not_load_the_identification_tools():
+    # scipy.optimize serves only the offline fits (core/identification.py); loading it cost the
+    # node ~0.3 s of start-up (bench/startup.py).
+    code = "import sys, pma_model_ros.nodes.model_node; print('scipy.optimize' in sys.modules)"
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == 'False'
