@@ -26,14 +26,14 @@ import time
 from rosbags.rosbag2 import Reader
 
 from pma_model_ros.bags.bag_io import (
+    BagWriter,
     FLUID_PRESSURE,
     JOINT_STATE,
+    storage_of,
     TYPESTORE,
     WRENCH_STAMPED,
-    BagWriter,
-    storage_of,
 )
-from pma_model_ros.bags.estimate import WrenchStampedCdr, estimate_bag
+from pma_model_ros.bags.estimate import estimate_bag, WrenchStampedCdr
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.core.param_file import node_settings, read_parameters
 

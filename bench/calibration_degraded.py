@@ -24,18 +24,19 @@ import numpy as np
 import yaml
 
 from pma_model_ros.cli import describe_geometry
-from pma_model_ros.core.calibration import OFF, Calibration
-from pma_model_ros.core.force_map import MAPPED_MUSCLES, ForceMap, shipped_force_map, shipped_spec
+from pma_model_ros.core.calibration import Calibration, OFF
+from pma_model_ros.core.force_map import ForceMap
+from pma_model_ros.core.geometry import MuscleSpec
 from pma_model_ros.core.identification import (
-    ModelReport,
     cross_validate_fit,
     fit_best,
     identify_all,
     length_folds,
     max_error_percent,
+    ModelReport,
 )
-from pma_model_ros.core.models import TABLE3_MODELS, get_model
-from pma_model_ros.core.muscle import MuscleSpec
+from pma_model_ros.core.models import get_model, TABLE3_MODELS
+from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 
 
 @dataclass(frozen=True)

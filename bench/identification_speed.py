@@ -11,14 +11,14 @@ from __future__ import annotations
 import argparse
 import time
 
-from pma_model_ros.core.force_map import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import (
-    OBJECTIVES,
     fit_best_all,
     identify_all,
+    OBJECTIVES,
     physical_force,
 )
-from pma_model_ros.core.models import TABLE3_MODELS, get_model
+from pma_model_ros.core.models import get_model, TABLE3_MODELS
+from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 
 MODELS = tuple(get_model(name) for name in TABLE3_MODELS)
 

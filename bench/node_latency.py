@@ -35,18 +35,18 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
+import rclpy  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
-from rclpy.qos import QoSProfile, qos_profile_sensor_data  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
-from pma_model_ros import node_process  # noqa: E402
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
 from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
+from pma_model_ros.tools import node_process  # noqa: E402
 
 SINGLE = REPO / 'config' / 'dmsp_10_250.yaml'
 AMBIENT = STANDARD_ATMOSPHERE  # [Pa]

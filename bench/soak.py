@@ -30,15 +30,15 @@ import tempfile
 import time
 import uuid
 
-import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
+import numpy as np
+import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros import node_process
+from pma_model_ros.tools import node_process
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'
 DEPTH = (

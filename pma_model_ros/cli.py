@@ -17,30 +17,26 @@ import numpy as np
 from .bags.commands import add_bag_commands, add_fit_bag_options, bag_force_map
 from .core import sarosi
 from .core.calibration import Calibration
-from .core.flags import Flag, describe
-from .core.force_map import (
-    MAPPED_MUSCLES,
-    read_force_map_csv,
-    read_spec_yaml,
-    shipped_force_map,
-    shipped_spec,
-)
+from .core.flags import describe, Flag
+from .core.force_map import read_force_map_csv
 from .core.identification import (
-    OBJECTIVES,
-    Fit,
-    ModelReport,
     cross_validate_fit,
     domain_of,
+    Fit,
     fit_best,
     fit_paper,
     fold_lengths,
     identify_all,
     length_folds,
+    ModelReport,
+    OBJECTIVES,
     quality,
 )
-from .core.models import TABLE3_MODELS, get_model
+from .core.models import get_model, TABLE3_MODELS
 from .core.param_file import muscle_model, read_parameters
 from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
+from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from .core.user_files import read_spec_yaml
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
 PAPER_TABLE3 = {

@@ -24,10 +24,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
-from . import node_process
-from .core.force_map import shipped_force_map
 from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import muscle_model, read_parameters
+from .core.shipped_data import shipped_force_map
+from .tools import node_process
 
 NAMESPACE = '/pma_demo'
 SIMULATOR = {

@@ -18,13 +18,20 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 import numpy as np
 
-from .bags.bag_io import BagError, connections_of, deserialize, messages, open_bag
-from .bags.estimate import WRENCH_STAMPED, muscle_namespace
-from .bags.synthetic import topic
+from .bags.bag_io import (
+    BagError,
+    connections_of,
+    deserialize,
+    messages,
+    open_bag,
+    topic,
+    WRENCH_STAMPED,
+)
+from .bags.estimate import muscle_namespace
 from .core.flags import Flag
 from .core.force_map import ForceMap
 from .core.identification import max_error_percent
-from .core.joint import Joint, envelope
+from .core.joint import envelope, Joint
 from .core.muscle_model import MuscleModel
 
 FORMATS = ('png', 'svg')

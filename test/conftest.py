@@ -12,8 +12,8 @@ import uuid
 
 import pytest
 
-from pma_model_ros import node_process
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.tools import node_process
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = {

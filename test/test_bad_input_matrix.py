@@ -19,12 +19,13 @@ import uuid
 import pytest
 from scipy.optimize import brentq
 
-from conftest import CONFIGS, REPO, Processes, Ros
-from node_messages import AMBIENT, JOINT, RELIABLE_QOS, model_statuses, stamp_key, status_values
-from pma_model_ros import node_process
 from pma_model_ros.core.engine import Engine, Level
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.tools import node_process
+
+from conftest import CONFIGS, Processes, REPO, Ros
+from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 
 CONFIG = CONFIGS['DMSP-10-250']
 P = 300e3  # gauge pressure of the good inputs [Pa]
@@ -651,7 +652,7 @@ def test_package_loads_no_code_from_data():
     'name', ['../data/dmsp_10_250', '/etc/passwd', 'dmsp_10_250.yaml', 'DMSP-10-250/..']
 )
 def test_simulator_muscle_is_a_name_not_a_path(name):
-    from pma_model_ros.core.force_map import shipped_force_map
+    from pma_model_ros.core.shipped_data import shipped_force_map
 
     with pytest.raises(ValueError, match='no shipped force map for'):
         shipped_force_map(name)

@@ -7,18 +7,19 @@ import pytest
 import yaml
 
 from pma_model_ros.bags.calibrate import (
-    QuasiStatic,
-    Samples,
     force_map_from_bag,
     quasi_static,
+    QuasiStatic,
+    Samples,
     window_slopes,
 )
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.cli import main
-from pma_model_ros.core.force_map import shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import fit_best, max_error_percent, physical_force
 from pma_model_ros.core.models import get_model
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+
 from conftest import REPO
 
 SPEC = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml'

@@ -10,23 +10,24 @@ import sys
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
-from conftest import CONFIGS
 from pma_model_ros.bags.bag_io import (
+    BagWriter,
     FLUID_PRESSURE,
     JOINT_STATE,
+    read,
     SENSOR_DATA,
     TYPESTORE,
     WRENCH_STAMPED,
-    BagWriter,
-    read,
 )
-from pma_model_ros.bags.estimate import WrenchStampedCdr, estimate_bag
-from pma_model_ros.bags.synthetic import START_NS, record_simulation
+from pma_model_ros.bags.estimate import estimate_bag, WrenchStampedCdr
+from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.hysteresis import branches
 from pma_model_ros.core.param_file import node_settings, read_parameters
+
+from conftest import CONFIGS
 
 T = TYPESTORE.types
 SETTINGS = node_settings(read_parameters(CONFIGS['DMSP-10-250']))

@@ -5,19 +5,19 @@ bags.
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
 from pma_model_ros.bags.bag_io import (
-    FLUID_PRESSURE,
-    SENSOR_DATA,
-    TYPESTORE,
     BagError,
     BagWriter,
+    FLUID_PRESSURE,
     read,
+    SENSOR_DATA,
     storage_for,
     storage_of,
+    TYPESTORE,
 )
-from pma_model_ros.bags.synthetic import START_NS, record_simulation
+from pma_model_ros.bags.synthetic import record_simulation, START_NS
 
 STORAGES = ('mcap', 'sqlite3')
 T = TYPESTORE.types

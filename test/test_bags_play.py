@@ -10,13 +10,14 @@ from geometry_msgs.msg import WrenchStamped
 import pytest
 from rosgraph_msgs.msg import Clock
 
-from conftest import CONFIGS
-from node_messages import RELIABLE_QOS, SENSOR_QOS, model_statuses, stamp_key
-from pma_model_ros import node_process
 from pma_model_ros.bags.bag_io import read, storage_of
 from pma_model_ros.bags.estimate import estimate_bag
-from pma_model_ros.bags.synthetic import START_NS, record_simulation
+from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.tools import node_process
+
+from conftest import CONFIGS
+from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
 
 pytestmark = pytest.mark.ros
 

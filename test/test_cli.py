@@ -7,10 +7,11 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import CONFIGS, REPO
 from pma_model_ros.cli import main
-from pma_model_ros.core.force_map import shipped_force_map
 from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
+
+from conftest import CONFIGS, REPO
 
 TABLE3_MODELS = {'mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens'}
 

@@ -6,9 +6,9 @@ the ament index and that the source tree got no build artifacts.
 """
 
 import os
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

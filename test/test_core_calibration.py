@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from pma_model_ros.core import calibration as cal
-from pma_model_ros.core.calibration import OFF, Calibration
-from pma_model_ros.core.force_map import ForceMap, shipped_force_map, shipped_spec
+from pma_model_ros.core.calibration import Calibration, OFF
+from pma_model_ros.core.force_map import ForceMap
 from pma_model_ros.core.identification import (
     cross_validate,
     cross_validate_fit,
@@ -18,10 +18,11 @@ from pma_model_ros.core.identification import (
     fit_best,
     max_error_percent,
 )
-from pma_model_ros.core.models import MODELS, force_raw, get_model
+from pma_model_ros.core.models import force_raw, get_model, MODELS
 from pma_model_ros.core.muscle_bank import MuscleBank
 from pma_model_ros.core.param_file import muscle_model
 from pma_model_ros.core.param_writer import build_parameters, fit_entry
+from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
 
 MARTENS = get_model('martens')
 

@@ -6,7 +6,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from pma_model_ros.core.cdr import StampedTemplate, sentinels
+from pma_model_ros.core.cdr import sentinels, StampedTemplate
 
 
 @pytest.mark.parametrize('n', [1, 4, 64])

@@ -4,15 +4,17 @@ two entry forms (one muscle's input, every muscle's input) making the same decis
 
 import math
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
 
-from conftest import CONFIGS
 from pma_model_ros.core.engine import Config, Engine, Level
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
+
+from conftest import CONFIGS
 
 AMBIENT = 101325.0
 P = 300e3  # gauge [Pa]

@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from pma_model_ros.core import muscle as geo
-from pma_model_ros.core.force_map import SHIPPED_MUSCLES, read_spec_yaml, shipped_spec
-from pma_model_ros.core.muscle import MuscleSpec
+from pma_model_ros.core import geometry as geo
+from pma_model_ros.core.geometry import MuscleSpec
+from pma_model_ros.core.shipped_data import SHIPPED_MUSCLES, shipped_spec
+from pma_model_ros.core.user_files import read_spec_yaml
 
 
 @pytest.mark.parametrize('name', SHIPPED_MUSCLES)

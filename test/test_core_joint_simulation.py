@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from pma_model_ros.core.force_map import shipped_force_map
 from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
+from pma_model_ros.core.shipped_data import shipped_force_map
 
 AMBIENT = 101325.0
 

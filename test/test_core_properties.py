@@ -29,17 +29,19 @@ import copy
 import math
 import warnings
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import array_shapes, arrays
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
-from hypothesis.extra.numpy import array_shapes, arrays
+
+from pma_model_ros.core.flags import Flag
+from pma_model_ros.core.geometry import MuscleSpec
+from pma_model_ros.core.models import Domain, MODELS
+from pma_model_ros.core.muscle_model import MuscleModel, VENTED_BAND
+from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 from conftest import CONFIGS
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.models import MODELS, Domain
-from pma_model_ros.core.muscle import MuscleSpec
-from pma_model_ros.core.muscle_model import VENTED_BAND, MuscleModel
-from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 PARAMETERS = {muscle: read_parameters(path) for muscle, path in CONFIGS.items()}
 MUSCLES = [

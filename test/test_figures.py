@@ -11,14 +11,15 @@ import matplotlib
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
 from pma_model_ros import cli, figures
 from pma_model_ros.bags.bag_io import BagError
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.cli import main
-from pma_model_ros.core.force_map import shipped_force_map
 from pma_model_ros.core.param_file import muscle_model, node_settings, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
+
+from conftest import CONFIGS
 
 TABLE = {
     'DMSP-10-250': {

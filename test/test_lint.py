@@ -1,9 +1,9 @@
 """The lint gate: ruff with ament_flake8's and ament_pep257's rules (``ruff.toml``)."""
 
+from pathlib import Path
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

@@ -7,14 +7,15 @@ pressure (650 kPa), so 300 N is out of reach there; the commands are 50, 150, 23
 
 import math
 
-import pytest
 from geometry_msgs.msg import WrenchStamped
+import pytest
 from sensor_msgs.msg import FluidPressure
 
-from conftest import CONFIGS
-from node_messages import AMBIENT, SENSOR_QOS, force_command
-from pma_model_ros.core.force_map import shipped_force_map
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
+
+from conftest import CONFIGS
+from node_messages import AMBIENT, force_command, SENSOR_QOS
 
 pytestmark = pytest.mark.ros
 

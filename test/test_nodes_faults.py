@@ -8,13 +8,14 @@ the context down, ``spin`` returns through ExternalShutdownException (SIGTERM) o
 
 import signal
 
-import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
+import pytest
+
+from pma_model_ros.tools import node_process
 
 from conftest import CONFIGS
-from node_messages import RELIABLE_QOS, model_statuses, stamp_key
-from pma_model_ros import node_process
+from node_messages import model_statuses, RELIABLE_QOS, stamp_key
 
 pytestmark = pytest.mark.ros
 

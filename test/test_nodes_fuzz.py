@@ -15,17 +15,18 @@ import time
 import numpy as np
 import pytest
 
+from pma_model_ros.core.param_file import node_settings, read_parameters
+
 from conftest import CONFIGS
 from node_messages import (
     AMBIENT,
     JOINT,
-    RELIABLE_QOS,
     model_statuses,
     pressure,
+    RELIABLE_QOS,
     state,
     status_values,
 )
-from pma_model_ros.core.param_file import node_settings, read_parameters
 
 pytestmark = pytest.mark.ros
 

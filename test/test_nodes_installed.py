@@ -2,13 +2,14 @@
 force.
 """
 
-import pytest
 from geometry_msgs.msg import WrenchStamped
+import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from node_messages import AMBIENT, pressure, state
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+
+from node_messages import AMBIENT, pressure, state
 
 pytestmark = pytest.mark.ros
 

@@ -16,10 +16,11 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
-from conftest import CONFIGS, REPO
-from node_messages import AMBIENT, JOINT, force_command, pressure, state
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
+
+from conftest import CONFIGS, REPO
+from node_messages import AMBIENT, force_command, JOINT, pressure, state
 
 EXAMPLE = REPO / 'config' / 'example_multi_muscle.yaml'
 MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')

@@ -13,16 +13,17 @@ Bounds, in % of the map's max force (542.5 N):
   points, computed here from the core: 7.9 % between the 0.234 and 0.25 m curves) + NOISE_MARGIN.
 """
 
+from geometry_msgs.msg import WrenchStamped
 import numpy as np
 import pytest
-from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import FluidPressure, JointState
+
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.simulation import GroundTruth
 
 from conftest import CONFIGS
 from node_messages import AMBIENT, RELIABLE_QOS, SENSOR_QOS, stamp_key
-from pma_model_ros.core.force_map import shipped_force_map
-from pma_model_ros.core.ground_truth import GroundTruth
-from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 pytestmark = pytest.mark.ros
 

@@ -1,16 +1,17 @@
 """Runtime parameter changes of model_node: validated as a whole, applied without restart."""
 
-import pytest
 from geometry_msgs.msg import WrenchStamped
+import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from conftest import CONFIGS
-from node_messages import AMBIENT, pressure, state
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_params import MODEL_INFO
+
+from conftest import CONFIGS
+from node_messages import AMBIENT, pressure, state
 
 pytestmark = pytest.mark.ros
 

@@ -28,6 +28,7 @@ import struct
 import tempfile
 from typing import Collection, Iterable, Iterator
 
+import apsw  # rosbags' SQLite binding
 from rosbags.interfaces import (
     Connection,
     MessageDefinitionFormat,
@@ -41,13 +42,12 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.serde import SerdeError
 from rosbags.typesys import (
-    Stores,
-    TypesysError,
     get_types_from_idl,
     get_types_from_msg,
     get_typestore,
+    Stores,
+    TypesysError,
 )
-import apsw  # rosbags' SQLite binding
 import yaml
 
 #: Message definitions of ROS 2 Jazzy: what every bag is read and written with.

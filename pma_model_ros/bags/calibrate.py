@@ -38,15 +38,15 @@ from ..core.force_map import ForceMap
 from ..core.hysteresis import branches
 from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
 from .bag_io import (
-    FLUID_PRESSURE,
-    JOINT_STATE,
-    WRENCH_STAMPED,
     BagError,
     connections_of,
     deserialize,
+    FLUID_PRESSURE,
+    JOINT_STATE,
     messages,
     open_bag,
     topic,
+    WRENCH_STAMPED,
 )
 from .estimate import muscle_namespace
 

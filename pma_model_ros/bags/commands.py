@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from ..core.force_map import ForceMap
-from ..core.muscle import MuscleSpec
+from ..core.geometry import MuscleSpec
 from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
 
 
@@ -189,7 +189,7 @@ def bag_force_map(
     """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell (per
     hysteresis branch with ``two_branches``).
     """
-    from .calibrate import QuasiStatic, force_map_from_bag
+    from .calibrate import force_map_from_bag, QuasiStatic
 
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)
     ambient = (

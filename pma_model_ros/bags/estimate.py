@@ -41,25 +41,25 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
-from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, CombinedInputs, Engine, seconds
+from ..core.cdr import sentinels, StampedTemplate
+from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
 from .bag_io import (
-    DIAGNOSTIC_ARRAY,
-    FLUID_PRESSURE,
-    JOINT_STATE,
-    RELIABLE,
-    TYPESTORE,
-    WRENCH_STAMPED,
     BagError,
     BagWriter,
     connections_of,
     deserialize,
+    DIAGNOSTIC_ARRAY,
+    FLUID_PRESSURE,
+    JOINT_STATE,
     messages,
     open_bag,
+    RELIABLE,
     storage_of,
     topic,
+    TYPESTORE,
+    WRENCH_STAMPED,
 )
 
 #: The node's input topics of one muscle (relative names) and their types.

@@ -40,9 +40,9 @@ def _qos(connection: Connection):
     from rclpy.qos import (
         DurabilityPolicy,
         HistoryPolicy,
+        qos_profile_sensor_data,
         QoSProfile,
         ReliabilityPolicy,
-        qos_profile_sensor_data,
     )
 
     offered = connection.ext.offered_qos_profiles

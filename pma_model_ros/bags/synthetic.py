@@ -12,15 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.simulation import SimulatedMuscle, defaults
+from ..core.simulation import defaults, SimulatedMuscle
 from .bag_io import (
+    BagWriter,
     FLUID_PRESSURE,
     JOINT_STATE,
     SENSOR_DATA,
+    topic,
     TYPESTORE,
     WRENCH_STAMPED,
-    BagWriter,
-    topic,
 )
 
 #: 2026-01-01T00:00:00Z [ns]: the first stamp of a synthetic recording.

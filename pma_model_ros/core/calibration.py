@@ -28,8 +28,8 @@ import functools
 
 import numpy as np
 
+from .geometry import MuscleSpec
 from .models import Coefficients, Model
-from .muscle import MuscleSpec
 
 LENGTH_BOUND = 0.05  #: largest relative correction of the given rest length L0 [-]
 PRESSURE_BOUND = 2e4  #: largest pressure-sensor offset [Pa]

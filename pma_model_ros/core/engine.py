@@ -38,10 +38,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .flags import Flag, describe
+from .flags import describe, Flag
 from .hysteresis import play
 from .muscle_bank import MuscleBank
-from .muscle_model import VENTED_BAND, MuscleModel, Operating, force_at
+from .muscle_model import force_at, MuscleModel, Operating, VENTED_BAND
 from .node_parameters import SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8

@@ -30,10 +30,10 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from . import calibration as cal
-from .calibration import OFF, Calibration
+from .calibration import Calibration, OFF
 from .force_map import ForceMap
-from .models import Domain, Model, force_raw, get_model
-from .muscle import MuscleSpec
+from .geometry import MuscleSpec
+from .models import Domain, force_raw, get_model, Model
 
 OBJECTIVES = ('least_squares', 'minimax')
 #: The single-branch model each branch of a hysteresis model is.

@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 
 from .flags import Flag
 from .models import coefficient_slopes
-from .muscle_model import MuscleModel, force_at
+from .muscle_model import force_at, MuscleModel
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
 COCONTRACTION_MODES = ('min', 'sum')

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import math
 from typing import Sequence
 
-from .engine import WARN_FLAGS, Level, pressure_problem
-from .flags import Flag, describe
+from .engine import Level, pressure_problem, WARN_FLAGS
+from .flags import describe, Flag
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 
 COUNTERS = (

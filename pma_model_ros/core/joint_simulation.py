@@ -2,7 +2,7 @@
 
 Two muscles on a lever arm r(θ) (:class:`~pma_model_ros.core.joint.Transmission`), muscle 0
 shortening for positive θ; each muscle's tension is the ground truth of its shipped map
-(:class:`~.ground_truth.GroundTruth`, a pchip of the measurement, pressures held to the measured
+(:class:`~.simulation.GroundTruth`, a pchip of the measurement, pressures held to the measured
 5..650 kPa for DMSP-10-250) and its gauge pressure follows the command with a first-order lag.  The
 angle is either held (a test bench: it moves only when told, :meth:`SimulatedJoint.hold`) or driven
 by a link, I θ'' = τ - c θ', stopped at the limits. None of the identified models is used: what
@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import math
 
-from .force_map import MAPPED_MUSCLES, shipped_force_map
-from .ground_truth import GroundTruth
 from .joint import Transmission
 from .node_parameters import SPECS, STANDARD_ATMOSPHERE
+from .shipped_data import MAPPED_MUSCLES, shipped_force_map
+from .simulation import GroundTruth
 
 MODES = ('held', 'link')
 #: name: (default, description, (min, max) or None); joint_simulator_node declares each as a

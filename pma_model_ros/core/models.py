@@ -21,8 +21,8 @@ from typing import Callable
 import numpy as np
 
 from . import elementwise as ew
-from . import muscle as geo
-from .muscle import MuscleSpec
+from . import geometry as geo
+from .geometry import MuscleSpec
 
 Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
 

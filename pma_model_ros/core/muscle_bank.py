@@ -20,13 +20,13 @@ from numpy.typing import ArrayLike
 from .models import Model
 from .muscle_model import (
     Evaluator,
+    force_at,
     ForceResult,
     Limits,
     MuscleModel,
     Operating,
-    PressureResult,
-    force_at,
     pressure_for,
+    PressureResult,
 )
 
 

@@ -19,10 +19,10 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import muscle as geo
+from . import geometry as geo
 from .flags import Flag
+from .geometry import MuscleSpec
 from .models import Domain, Model
-from .muscle import MuscleSpec
 
 
 @dataclass(frozen=True)

@@ -27,11 +27,11 @@ from pathlib import Path
 
 from . import calibration
 from .engine import Config
-from .force_map import load_yaml_mapping, read_user_file
+from .geometry import MuscleSpec
 from .models import Domain, get_model
-from .muscle import MuscleSpec
 from .muscle_model import MuscleModel
 from .node_parameters import SPECS
+from .user_files import load_yaml_mapping, read_user_file
 
 #: Node settings written into generated files, beside the muscle (documented in the README).
 NODE_DEFAULTS = {

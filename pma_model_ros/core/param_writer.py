@@ -7,9 +7,9 @@ from pathlib import Path
 
 import yaml
 
-from .muscle import MuscleSpec
+from .geometry import MuscleSpec
 from .identification import Fit, ModelReport
-from .models import EDGE_CV_LIMIT, Domain
+from .models import Domain, EDGE_CV_LIMIT
 from .param_file import NODE_DEFAULTS
 
 _ROUND = 12  # significant digits written; far below any fit's resolution

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .force_map import sarosi_tables, shipped_spec
 from .models import Domain, get_model
 from .muscle_model import MuscleModel
-
+from .shipped_data import sarosi_tables, shipped_spec
 
 #: [Pa] The highest pressure of the measurements the parameters were fitted to (Tables 2 and 4:
 #: 0-600 kPa).

@@ -26,21 +26,21 @@ from pathlib import Path
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
-from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.cdr import StampedTemplate, sentinels
+from ..core.cdr import sentinels, StampedTemplate
 from ..core.engine import seconds
 from ..core.joint_engine import JointEngine, Settings
-from ..core.joint_file import JOINT_PARAMETERS, MUSCLE_PARAMETERS, NODE_PARAMETERS, joints
+from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
 from . import model_params
 from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 
 def _declare(node: Node, spec: ParameterSpec, prefix: str = ''):

@@ -24,7 +24,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 from .ros_time import now_seconds
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 
 class JointSimulatorNode(Node):

@@ -25,20 +25,20 @@ from typing import Sequence
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.serialization import serialize_message
-from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Header
 
-from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, CombinedInputs, Engine, seconds
+from ..core.cdr import sentinels, StampedTemplate
+from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
 from ..core.param_file import NodeSettings
 from . import model_params
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
 

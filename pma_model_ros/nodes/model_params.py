@@ -23,9 +23,9 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..core.models import MODELS, get_model
-from ..core.node_parameters import PARAMETERS, SPECS, ParameterSpec
-from ..core.param_file import NodeSettings, all_node_settings
+from ..core.models import get_model, MODELS
+from ..core.node_parameters import PARAMETERS, ParameterSpec, SPECS
+from ..core.param_file import all_node_settings, NodeSettings
 
 TYPES = {
     'double': Parameter.Type.DOUBLE,

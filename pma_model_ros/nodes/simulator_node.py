@@ -28,7 +28,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.simulation import PARAMETERS, SimulatedMuscle
 from .ros_time import now_seconds
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 
 class SimulatorNode(Node):
@@ -70,7 +70,7 @@ class SimulatorNode(Node):
 
     def _open_record(self, out: str, storage: str | None):
         """A bag writer with this node's three topics (rosbags is needed only when recording)."""
-        from ..bags.bag_io import SENSOR_DATA, BagWriter
+        from ..bags.bag_io import BagWriter, SENSOR_DATA
 
         try:
             writer = BagWriter(out, storage)

@@ -12,18 +12,17 @@ import signal
 import threading
 from typing import Callable
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
-from rclpy.signals import SignalHandlerOptions
+from rclpy.logging import get_logger_level, LoggingSeverity, set_logger_level
 from rclpy.node import Node
-from rclpy._rclpy_pybind11 import RCLError
-from rclpy.logging import LoggingSeverity, get_logger_level, set_logger_level
+from rclpy.signals import SignalHandlerOptions
 
 from ..core.node_parameters import SPECS
-
 
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
 #: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and
