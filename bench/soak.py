@@ -41,9 +41,8 @@ from sensor_msgs.msg import FluidPressure, JointState
 from pma_model_ros.tools import node_process
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'
-DEPTH = (
-    10000  # subscriber queues: this script may lag behind 4 kHz of callbacks, never drop for that
-)
+# subscriber queues: this script may lag behind 4 kHz of callbacks, never drop for that
+DEPTH = 10000
 
 
 def rss_kib(pid: int) -> int:

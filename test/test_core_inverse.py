@@ -156,9 +156,8 @@ def test_inverse_of_random_parameter_sets(shape, factors, u_length, u_pressure, 
             np.ptp(grid.raw) > 1e-3 * scale
         ):  # (on a flat line, every pressure gives it to round-off)
             assert float(back.pressure) <= p_true + 1e-6 * p_max
-            below = (
-                GRID * p_max < float(back.pressure) - 1e-6 * p_max
-            )  # no smaller pressure gives it
+            # no smaller pressure gives it
+            below = GRID * p_max < float(back.pressure) - 1e-6 * p_max
             assert not np.any(np.abs(grid.force[below] - wanted) < 1e-12 * scale)
     # Any target: never further from it than the grid's best.
     target = u_target * scale

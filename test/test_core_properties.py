@@ -137,9 +137,8 @@ def test_force_rises_with_pressure_exactly_where_the_slope_is_nonnegative(muscle
     q2, q1, q0 = coefficients(muscle, operating_length(muscle, L), rate)
     rising = np.minimum(q1, q1 + 2 * q2 * p_max) >= 0
     result = muscle.force(p[None, :], L[:, None], rate)
-    scale = (
-        np.abs(q0) + np.abs(q1) * p_max + np.abs(q2) * p_max**2
-    )  # bound of |F_raw| on [0, p_max]
+    # bound of |F_raw| on [0, p_max]
+    scale = np.abs(q0) + np.abs(q1) * p_max + np.abs(q2) * p_max**2
     tol = 1e-12 * scale[:, None]
     assert np.all(np.diff(result.raw, axis=1)[rising] >= -tol[rising])
     assert np.all(np.diff(result.force, axis=1)[rising] >= -tol[rising])

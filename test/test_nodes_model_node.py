@@ -81,9 +81,8 @@ def test_one_muscle_answers_each_input_with_the_newest_pair(make_node):
 
 def test_one_muscle_command_and_diagnostics_on_change(make_node):
     node = make_node(CONFIGS['DMSP-10-250'])
-    node.engine.report_interval = (
-        0.0  # every change at once (the callbacks run within the 1.5 ms limit)
-    )
+    # every change at once (the callbacks run within the 1.5 ms limit)
+    node.engine.report_interval = 0.0
     topics = node.topics
     commands, diagnostics = record(topics._command_pubs[0]), record(node._diag_pub)
     now = node.get_clock().now().to_msg()

@@ -80,9 +80,8 @@ class Samples:
     pressure: np.ndarray
     length: np.ndarray
     force: np.ndarray
-    direction: (
-        np.ndarray
-    )  #: hysteresis branch of the length's motion so far: +1, -1, 0 before the first motion
+    #: hysteresis branch of the length's motion so far: +1, -1, 0 before the first motion
+    direction: np.ndarray
 
 
 def window_slopes(t: np.ndarray, x: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:

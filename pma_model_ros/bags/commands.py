@@ -192,9 +192,8 @@ def bag_force_map(
     from .calibrate import force_map_from_bag, QuasiStatic
 
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)
-    ambient = (
-        0.0 if args.pressure_reference == 'gauge' else args.ambient_pressure
-    )  # reading - ambient = gauge
+    # reading - ambient = gauge
+    ambient = 0.0 if args.pressure_reference == 'gauge' else args.ambient_pressure
     calibration = force_map_from_bag(
         args.bag,
         args.joint or spec.name,

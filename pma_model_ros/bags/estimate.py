@@ -155,9 +155,8 @@ class Summary:
     estimates: int = 0  #: force estimates written (one per muscle estimated)
     commands: int = 0  #: pressure commands written (one per muscle commanded)
     diagnostics: int = 0  #: /diagnostics messages written
-    counts: dict[str, int] = field(
-        default_factory=dict
-    )  #: the engine's counters at the end, summed over muscles
+    #: the engine's counters at the end, summed over muscles
+    counts: dict[str, int] = field(default_factory=dict)
 
 
 class _OfflineNode:

@@ -156,21 +156,16 @@ class Config:
     """
 
     model: MuscleModel
-    ambient_pressure: float = SPECS[
-        'ambient_pressure'
-    ].default  #: [Pa] absolute; gauge = absolute - ambient
-    max_input_age: float = SPECS[
-        'max_input_age'
-    ].default  #: [s] inputs with |now - stamp| above this are stale
-    pressure_reference: str = SPECS[
-        'pressure_reference'
-    ].default  #: what pressure readings and commands hold
-    hysteresis_input: str = SPECS[
-        'hysteresis.input'
-    ].default  #: what a hysteresis model's branch follows
-    deadband: float | None = (
-        None  #: of the play operator [m or Pa gauge]; None: the input's default
-    )
+    #: [Pa] absolute; gauge = absolute - ambient
+    ambient_pressure: float = SPECS['ambient_pressure'].default
+    #: [s] inputs with |now - stamp| above this are stale
+    max_input_age: float = SPECS['max_input_age'].default
+    #: what pressure readings and commands hold
+    pressure_reference: str = SPECS['pressure_reference'].default
+    #: what a hysteresis model's branch follows
+    hysteresis_input: str = SPECS['hysteresis.input'].default
+    #: of the play operator [m or Pa gauge]; None: the input's default
+    deadband: float | None = None
 
     def __post_init__(self) -> None:
         SPECS['ambient_pressure'].check(self.ambient_pressure)

@@ -31,9 +31,8 @@ class ForceMap:
     pressure: np.ndarray  #: gauge pressure [Pa]
     length: np.ndarray  #: muscle length [m]
     force: np.ndarray  #: measured tension [N]
-    direction: np.ndarray | None = (
-        None  #: hysteresis branch of each point, +1 or -1 (None: not recorded)
-    )
+    #: hysteresis branch of each point, +1 or -1 (None: not recorded)
+    direction: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.direction is not None:

@@ -59,9 +59,8 @@ class Fit:
     r2: float  #: coefficient of determination [-]
     spec: MuscleSpec  #: the geometry of the fit (L0 calibrated if ``calibration.length``)
     calibration: Calibration = OFF
-    pressure_offset: float = (
-        0.0  #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
-    )
+    #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
+    pressure_offset: float = 0.0
     #: uncertainty of the calibration: "pressure_offset": 1-sigma [Pa] from the Jacobian (inf: not
     #: identifiable); "nominal_length": half the L0 range [m] whose held-out RMSE is within 10 % of
     #: the best (inf: no L0 in model)

@@ -90,9 +90,8 @@ class Pressures:
     flags: int  #: SATURATED if the wanted torque or stiffness was out of reach
     torque: float  #: achieved torque [N·m] (the model's)
     stiffness: float  #: achieved stiffness [N·m/rad]
-    torque_range: tuple[
-        float, float
-    ]  #: reachable torque [N·m] at this angle under the co-contraction asked
+    #: reachable torque [N·m] at this angle under the co-contraction asked
+    torque_range: tuple[float, float]
 
 
 class MuscleAt:

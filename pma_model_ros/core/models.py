@@ -41,9 +41,8 @@ class Domain:
 
     length_min: float  #: [m]
     length_max: float  #: [m]
-    pressure_max: float = (
-        math.inf
-    )  #: highest identified gauge pressure [Pa]; inf: unknown (the rated one)
+    #: highest identified gauge pressure [Pa]; inf: unknown (the rated one)
+    pressure_max: float = math.inf
     extrapolates: bool = False  #: the model is credible outside the identified box
 
     def __post_init__(self) -> None:

@@ -105,9 +105,8 @@ class MuscleBank:
         self.limits = Limits(
             *(np.array([getattr(m.limits, f.name) for m in self.muscles]) for f in fields(Limits))
         )
-        self.max_length = np.array(
-            [m.max_length for m in self.muscles]
-        )  #: (N,) fibre lengths [m] (eq. 3)
+        #: (N,) fibre lengths [m] (eq. 3)
+        self.max_length = np.array([m.max_length for m in self.muscles])
 
     def __len__(self) -> int:
         return len(self.muscles)

@@ -73,17 +73,14 @@ class Limits:
     a group.
     """
 
-    length_low: (
-        np.ndarray | float
-    )  #: shortest length served [m]: the braid's shortest if it extrapolates
+    #: shortest length served [m]: the braid's shortest if it extrapolates
+    length_low: np.ndarray | float
     length_high: np.ndarray | float  #: longest length served [m] (at most L0)
-    pressure_known: (
-        np.ndarray | float
-    )  #: highest identified gauge pressure [Pa]; EXTRAPOLATED above
+    #: highest identified gauge pressure [Pa]; EXTRAPOLATED above
+    pressure_known: np.ndarray | float
     pressure_top: np.ndarray | float  #: highest gauge pressure served [Pa]
-    command_top: (
-        np.ndarray | float
-    )  #: highest gauge pressure the inverse commands [Pa]: never above the rated
+    #: highest gauge pressure the inverse commands [Pa]: never above the rated
+    command_top: np.ndarray | float
 
 
 def limits_of(spec, domain, shortest) -> Limits:

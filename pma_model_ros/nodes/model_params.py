@@ -65,9 +65,8 @@ def descriptor(spec: ParameterSpec, description: str | None = None) -> Parameter
 
 
 def _declare(node: Node, spec: ParameterSpec, name: str | None = None):
-    value = (
-        spec.default if spec.default not in (None, []) else TYPES[spec.kind]
-    )  # no value: the type alone
+    # no value: the type alone
+    value = spec.default if spec.default not in (None, []) else TYPES[spec.kind]
     return node.declare_parameter(name or spec.name, value, descriptor(spec))
 
 
