@@ -1,4 +1,5 @@
-"""Offline estimation throughput: ``pma-model bag estimate`` against a bare rosbags read-and-deserialize pass.
+"""Offline estimation throughput: ``pma-model bag estimate`` against a bare rosbags
+read-and-deserialize pass.
 
 Usage: ``.venv/bin/python bench/bag_estimate.py [--quick] [--bag PATH] [--repeat N]`` (or
 ``bench/run bag_estimate``).  Not a test: it prints a table.  For each storage (mcap, sqlite3) it
@@ -13,6 +14,7 @@ of pressure and muscle_state, and writing the copies and one template WrenchStam
 with rosbags' writer.  Absolute rates depend on the machine's load; the ratios, taken within one
 run, are what to compare.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,14 +25,20 @@ import time
 
 from rosbags.rosbag2 import Reader
 
-from pma_model_ros.bags.bag_io import (FLUID_PRESSURE, JOINT_STATE, TYPESTORE, WRENCH_STAMPED, BagWriter,
-                                       storage_of)
-from pma_model_ros.bags.estimate import WrenchStampedCdr, estimate_bag
+from pma_model_ros.bags.bag_io import (
+    BagWriter,
+    FLUID_PRESSURE,
+    JOINT_STATE,
+    storage_of,
+    TYPESTORE,
+    WRENCH_STAMPED,
+)
+from pma_model_ros.bags.estimate import estimate_bag, WrenchStampedCdr
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.core.param_file import node_settings, read_parameters
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "dmsp_10_250.yaml"
-NOISE = {"noise__pressure_std": 200.0, "noise__length_std": 2e-5, "noise__force_std": 0.5}
+CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'
+NOISE = {'noise__pressure_std': 200.0, 'noise__length_std': 2e-5, 'noise__force_std': 0.5}
 
 
 def bare_pass(bag: Path) -> int:
@@ -44,19 +52,22 @@ def bare_pass(bag: Path) -> int:
 
 
 def timed(run) -> tuple[float, int]:
-    """CPU time [s] of this process for ``run()`` (the other processes on a shared machine do not count), and
-    what it returned."""
+    """CPU time [s] of this process for ``run()`` (the other processes on a shared machine do not
+    count), and what it returned.
+    """
     start = time.process_time()
     count = run()
     return time.process_time() - start, count
 
 
 def floor_pass(bag: Path, out: Path) -> int:
-    """Read, deserialize the inputs, copy every message and write one WrenchStamped per input; the count."""
-    wrench, inputs, count = WrenchStampedCdr("m"), (FLUID_PRESSURE, JOINT_STATE), 0
+    """Read, deserialize the inputs, copy every message and write one WrenchStamped per input; the
+    count.
+    """
+    wrench, inputs, count = WrenchStampedCdr('m'), (FLUID_PRESSURE, JOINT_STATE), 0
     with Reader(bag) as reader, BagWriter(out, storage_of(bag)) as writer:
         copies = {c.id: writer.copy_topic(c) for c in reader.connections}
-        estimates = writer.topic("/bench/force_estimate", WRENCH_STAMPED)
+        estimates = writer.topic('/bench/force_estimate', WRENCH_STAMPED)
         for connection, time_ns, data in reader.messages():
             writer.write_raw(copies[connection.id], time_ns, data)
             if connection.msgtype in inputs:
@@ -67,36 +78,56 @@ def floor_pass(bag: Path, out: Path) -> int:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="10 s recordings, one repeat")
-    parser.add_argument("--duration", type=float, default=60.0, help="recording length [s] of bag time")
-    parser.add_argument("--repeat", type=int, default=3, help="alternating runs of each pass; the best counts")
-    parser.add_argument("--bag", type=Path, help="use this bag instead of simulated recordings")
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--quick', action='store_true', help='10 s recordings, one repeat')
+    parser.add_argument(
+        '--duration', type=float, default=60.0, help='recording length [s] of bag time'
+    )
+    parser.add_argument(
+        '--repeat', type=int, default=3, help='alternating runs of each pass; the best counts'
+    )
+    parser.add_argument('--bag', type=Path, help='use this bag instead of simulated recordings')
     args = parser.parse_args()
     duration, repeat = (10.0, 1) if args.quick else (args.duration, args.repeat)
     settings = node_settings(read_parameters(CONFIG))
     with tempfile.TemporaryDirectory() as tmp:
-        bags = {"given": args.bag} if args.bag else {}
-        for storage in () if args.bag else ("mcap", "sqlite3"):
+        bags = {'given': args.bag} if args.bag else {}
+        for storage in () if args.bag else ('mcap', 'sqlite3'):
             start = time.perf_counter()
-            bags[storage] = record_simulation(Path(tmp) / f"sim_{storage}", duration, "/bench", storage,
-                                              rate=1000.0, seed=1, **NOISE)
-            print(f"wrote {duration:g} s of the simulator at 1 kHz ({storage}) in {time.perf_counter() - start:.1f} s")
-        print(f"\n{'bag':<9}{'messages':>10}{'bare [msg/s]':>15}{'estimate [msg/s]':>19}{'ratio':>8}"
-              f"{'floor [msg/s]':>16}{'floor ratio':>13}")
+            bags[storage] = record_simulation(
+                Path(tmp) / f'sim_{storage}',
+                duration,
+                '/bench',
+                storage,
+                rate=1000.0,
+                seed=1,
+                **NOISE,
+            )
+            print(
+                f'wrote {duration:g} s of the simulator at 1 kHz ({storage}) in '
+                f'{time.perf_counter() - start:.1f} s'
+            )
+        print(
+            f'\n{"bag":<9}{"messages":>10}{"bare [msg/s]":>15}{"estimate [msg/s]":>19}{"ratio":>8}'
+            f'{"floor [msg/s]":>16}{"floor ratio":>13}'
+        )
         for name, bag in bags.items():
             bare, est, floor = [], [], []
             for i in range(repeat):
                 bare.append(timed(lambda: bare_pass(bag)))
-                out = Path(tmp) / f"out_{name}_{i}"
-                est.append(timed(lambda: estimate_bag(bag, settings, out, progress=False).messages))
-                floor.append(timed(lambda: floor_pass(bag, Path(tmp) / f"floor_{name}_{i}")))
+                out = Path(tmp) / f'out_{name}_{i}'
+                est.append(
+                    timed(lambda: estimate_bag(bag, settings, out, progress=False).messages)
+                )
+                floor.append(timed(lambda: floor_pass(bag, Path(tmp) / f'floor_{name}_{i}')))
                 shutil.rmtree(out)
-                shutil.rmtree(Path(tmp) / f"floor_{name}_{i}")
+                shutil.rmtree(Path(tmp) / f'floor_{name}_{i}')
             (t_bare, n), (t_est, _), (t_floor, _) = min(bare), min(est), min(floor)
-            print(f"{name:<9}{n:>10}{n / t_bare:>15,.0f}{n / t_est:>19,.0f}{t_bare / t_est:>8.2f}"
-                  f"{n / t_floor:>16,.0f}{t_bare / t_floor:>13.2f}")
+            print(
+                f'{name:<9}{n:>10}{n / t_bare:>15,.0f}{n / t_est:>19,.0f}{t_bare / t_est:>8.2f}'
+                f'{n / t_floor:>16,.0f}{t_bare / t_floor:>13.2f}'
+            )
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     main()

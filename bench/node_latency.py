@@ -1,4 +1,5 @@
-"""Round-trip latency and message loss of model_node against a bare rclpy relay, same run, same settings.
+"""Round-trip latency and message loss of model_node against a bare rclpy relay, same run, same
+settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--executor single events] [--profile model.prof] [--quick]
@@ -13,6 +14,7 @@ mode, a homogeneous arm of DMSP-10-250).  Lost = answers expected (2 per cycle) 
 the measured window.  Timings are noisy on a shared machine: read the model/relay ratios, not the
 absolute times.  Not a pass/fail test.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,63 +35,79 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
+import rclpy  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
-from rclpy.qos import QoSProfile, qos_profile_sensor_data  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
-from pma_model_ros import node_process  # noqa: E402
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
 from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
+from pma_model_ros.tools import node_process  # noqa: E402
 
-SINGLE = REPO / "config" / "dmsp_10_250.yaml"
-AMBIENT = STANDARD_ATMOSPHERE   # [Pa]
-WARMUP = 1.0             # [s] after the first answer, not measured
-DRAIN = 0.5              # [s] after the last cycle, for late answers
-ANSWERS = 2              # per cycle: one per input message
+SINGLE = REPO / 'config' / 'dmsp_10_250.yaml'
+AMBIENT = STANDARD_ATMOSPHERE  # [Pa]
+WARMUP = 1.0  # [s] after the first answer, not measured
+DRAIN = 0.5  # [s] after the last cycle, for late answers
+ANSWERS = 2  # per cycle: one per input message
 
 
 class Relay(Node):
-    """The bare relay: the model node's input and output types, each input answered with its stamp, no model."""
+    """The bare relay: the model node's input and output types, each input answered with its stamp,
+    no model.
+    """
 
     def __init__(self) -> None:
-        super().__init__("relay")
-        muscles = self.declare_parameter("muscles", 1).value
+        super().__init__('relay')
+        muscles = self.declare_parameter('muscles', 1).value
         if muscles == 1:
-            pub = self.create_publisher(WrenchStamped, "force_estimate", 10)
+            pub = self.create_publisher(WrenchStamped, 'force_estimate', 10)
 
             def answer(msg, value: float) -> None:
                 out = WrenchStamped()
                 out.header.stamp = msg.header.stamp
                 out.wrench.force.x = value
                 pub.publish(out)
-            self.create_subscription(FluidPressure, "pressure", lambda m: answer(m, m.fluid_pressure),
-                                     qos_profile_sensor_data)
-            self.create_subscription(JointState, "muscle_state", lambda m: answer(m, m.position[0]),
-                                     qos_profile_sensor_data)
+
+            self.create_subscription(
+                FluidPressure,
+                'pressure',
+                lambda m: answer(m, m.fluid_pressure),
+                qos_profile_sensor_data,
+            )
+            self.create_subscription(
+                JointState,
+                'muscle_state',
+                lambda m: answer(m, m.position[0]),
+                qos_profile_sensor_data,
+            )
         else:
-            pub = self.create_publisher(JointState, "force_estimates", 10)
+            pub = self.create_publisher(JointState, 'force_estimates', 10)
 
             def relay(msg: JointState) -> None:
                 out = JointState(name=msg.name, effort=msg.position)
                 out.header.stamp = msg.header.stamp
                 pub.publish(out)
-            for topic in ("muscle_pressures", "muscle_states"):
+
+            for topic in ('muscle_pressures', 'muscle_states'):
                 self.create_subscription(JointState, topic, relay, qos_profile_sensor_data)
 
 
 def multi_muscle_file(n: int, folder: Path) -> Path:
     """A combined-mode parameter file of ``n`` DMSP-10-250 muscles m00, m01, ..."""
     shipped = read_parameters(SINGLE)
-    block = {key: shipped[key] for key in ("muscle", "model", "length_range", "models")}
-    names = [f"m{i:02d}" for i in range(n)]
-    params = {"muscles": names, "input_mode": "combined", **{name: copy.deepcopy(block) for name in names}}
-    path = folder / f"arm_{n}.yaml"
-    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": params}}, default_flow_style=None))
+    block = {key: shipped[key] for key in ('muscle', 'model', 'length_range', 'models')}
+    names = [f'm{i:02d}' for i in range(n)]
+    params = {
+        'muscles': names,
+        'input_mode': 'combined',
+        **{name: copy.deepcopy(block) for name in names},
+    }
+    path = folder / f'arm_{n}.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': params}}, default_flow_style=None))
     return path
 
 
@@ -97,20 +115,36 @@ class Pinger(Node):
     """Publishes the inputs of N muscles at a fixed rate; records the round trip of each cycle."""
 
     def __init__(self, namespace: str, muscles: int, context: rclpy.Context) -> None:
-        super().__init__("pinger", context=context)
-        self.sent: dict[int, float] = {}        # stamp [ns] -> perf_counter at publish [s]
+        super().__init__('pinger', context=context)
+        self.sent: dict[int, float] = {}  # stamp [ns] -> perf_counter at publish [s]
         self.answers: dict[int, list[float]] = {}
         reliable = QoSProfile(depth=1000)
         self.n = muscles
         if muscles == 1:
-            self._pubs = (self.create_publisher(FluidPressure, f"{namespace}/pressure", qos_profile_sensor_data),
-                          self.create_publisher(JointState, f"{namespace}/muscle_state", qos_profile_sensor_data))
-            self.create_subscription(WrenchStamped, f"{namespace}/force_estimate", self._on_answer, reliable)
+            self._pubs = (
+                self.create_publisher(
+                    FluidPressure, f'{namespace}/pressure', qos_profile_sensor_data
+                ),
+                self.create_publisher(
+                    JointState, f'{namespace}/muscle_state', qos_profile_sensor_data
+                ),
+            )
+            self.create_subscription(
+                WrenchStamped, f'{namespace}/force_estimate', self._on_answer, reliable
+            )
         else:
-            self._pubs = (self.create_publisher(JointState, f"{namespace}/muscle_pressures", qos_profile_sensor_data),
-                          self.create_publisher(JointState, f"{namespace}/muscle_states", qos_profile_sensor_data))
-            self.create_subscription(JointState, f"{namespace}/force_estimates", self._on_answer, reliable)
-        self._names = [f"m{i:02d}" for i in range(muscles)]
+            self._pubs = (
+                self.create_publisher(
+                    JointState, f'{namespace}/muscle_pressures', qos_profile_sensor_data
+                ),
+                self.create_publisher(
+                    JointState, f'{namespace}/muscle_states', qos_profile_sensor_data
+                ),
+            )
+            self.create_subscription(
+                JointState, f'{namespace}/force_estimates', self._on_answer, reliable
+            )
+        self._names = [f'm{i:02d}' for i in range(muscles)]
 
     def _on_answer(self, msg) -> None:
         t = time.perf_counter()
@@ -121,10 +155,14 @@ class Pinger(Node):
         """Cycle ``k``'s pressure and length messages (unstamped)."""
         gauge = 300e3 + 100e3 * np.sin(k * 1e-3)
         if self.n == 1:
-            return (FluidPressure(fluid_pressure=AMBIENT + gauge),
-                    JointState(name=["DMSP-10-250"], position=[0.23], velocity=[0.0]))
-        return (JointState(name=self._names, position=[AMBIENT + gauge] * self.n),
-                JointState(name=self._names, position=[0.23] * self.n, velocity=[0.0] * self.n))
+            return (
+                FluidPressure(fluid_pressure=AMBIENT + gauge),
+                JointState(name=['DMSP-10-250'], position=[0.23], velocity=[0.0]),
+            )
+        return (
+            JointState(name=self._names, position=[AMBIENT + gauge] * self.n),
+            JointState(name=self._names, position=[0.23] * self.n, velocity=[0.0] * self.n),
+        )
 
     def cycle(self, k: int) -> int:
         """Publish one cycle's pressure and length; its stamp [ns]."""
@@ -137,7 +175,9 @@ class Pinger(Node):
         return now.nanoseconds
 
 
-def publish_loop(pinger: Pinger, rate: float, until: float, first_measured: list[int], warm_end: float) -> None:
+def publish_loop(
+    pinger: Pinger, rate: float, until: float, first_measured: list[int], warm_end: float
+) -> None:
     """Publish cycles at ``rate`` [Hz] on the perf_counter clock until ``until``."""
     period, k = 1.0 / rate, 0
     next_t = time.perf_counter()
@@ -154,13 +194,15 @@ def publish_loop(pinger: Pinger, rate: float, until: float, first_measured: list
 
 def cpu_seconds(pid: int) -> float:
     """User + system CPU time of process ``pid`` [s] (Linux /proc)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def measure(responder: list[str], muscles: int, duration: float, rate: float, namespace: str) -> dict:
+def measure(
+    responder: list[str], muscles: int, duration: float, rate: float, namespace: str
+) -> dict:
     """Start ``responder``, ping it, stop it; round trips [ms], loss and its CPU use."""
-    with tempfile.TemporaryFile("w+") as log:
+    with tempfile.TemporaryFile('w+') as log:
         proc = node_process.start(responder, log)
         context = rclpy.Context()
         rclpy.init(context=context)
@@ -169,16 +211,19 @@ def measure(responder: list[str], muscles: int, duration: float, rate: float, na
         executor.add_node(pinger)
         try:
             deadline = time.monotonic() + 30
-            while not pinger.answers:   # discovery: ping slowly until the responder answers
+            while not pinger.answers:  # discovery: ping slowly until the responder answers
                 if time.monotonic() > deadline or proc.poll() is not None:
                     log.seek(0)
-                    raise SystemExit(f"no answer from {responder[:4]}...:\n{log.read()}")
+                    raise SystemExit(f'no answer from {responder[:4]}...:\n{log.read()}')
                 pinger.cycle(0)
                 executor.spin_once(timeout_sec=0.05)
             start = time.perf_counter()
             cpu0, first = cpu_seconds(proc.pid), []
-            thread = threading.Thread(target=publish_loop, args=(pinger, rate, start + WARMUP + duration, first,
-                                                                 start + WARMUP), daemon=True)
+            thread = threading.Thread(
+                target=publish_loop,
+                args=(pinger, rate, start + WARMUP + duration, first, start + WARMUP),
+                daemon=True,
+            )
             thread.start()
             while thread.is_alive() or time.perf_counter() < start + WARMUP + duration + DRAIN:
                 executor.spin_once(timeout_sec=0.01)
@@ -189,53 +234,84 @@ def measure(responder: list[str], muscles: int, duration: float, rate: float, na
             pinger.destroy_node()
             rclpy.shutdown(context=context)
     measured = [s for s in pinger.sent if s >= first[0]]
-    trips = [pinger.answers[s][ANSWERS - 1] - pinger.sent[s] for s in measured
-             if len(pinger.answers.get(s, ())) >= ANSWERS]
+    trips = [
+        pinger.answers[s][ANSWERS - 1] - pinger.sent[s]
+        for s in measured
+        if len(pinger.answers.get(s, ())) >= ANSWERS
+    ]
     received = sum(min(len(pinger.answers.get(s, ())), ANSWERS) for s in measured)
     ms = np.array(trips) * 1e3 if trips else np.array([np.nan])
-    return {"cycles": len(measured), "lost": ANSWERS * len(measured) - received, "p50": np.percentile(ms, 50),
-            "p99": np.percentile(ms, 99), "max": ms.max(), "cpu": 100 * cpu}
+    return {
+        'cycles': len(measured),
+        'lost': ANSWERS * len(measured) - received,
+        'p50': np.percentile(ms, 50),
+        'p99': np.percentile(ms, 99),
+        'max': ms.max(),
+        'cpu': 100 * cpu,
+    }
 
 
-def responders(muscles: int, executor: str, folder: Path, profile: Path | None) -> dict[str, list[str]]:
-    params = {"executor": executor}
+def responders(
+    muscles: int, executor: str, folder: Path, profile: Path | None
+) -> dict[str, list[str]]:
+    params = {'executor': executor}
     if muscles == 1:
-        model = node_process.command("model_node", "/bench", SINGLE, params)
+        model = node_process.command('model_node', '/bench', SINGLE, params)
     else:
-        model = node_process.command("model_node", "/bench", multi_muscle_file(muscles, folder), params)
-    if profile is not None:   # this script as model_node, profiled once it is built
-        model[1:3] = [__file__, f"--profiled-node={profile}"]
-    relay = [sys.executable, __file__, "--relay", "--ros-args", "-r", "__ns:=/bench",
-             "-p", f"executor:={executor}", "-p", f"muscles:={muscles}"]
-    return {"model_node": model, "relay": relay}
+        model = node_process.command(
+            'model_node', '/bench', multi_muscle_file(muscles, folder), params
+        )
+    if profile is not None:  # this script as model_node, profiled once it is built
+        model[1:3] = [__file__, f'--profiled-node={profile}']
+    relay = [
+        sys.executable,
+        __file__,
+        '--relay',
+        '--ros-args',
+        '-r',
+        '__ns:=/bench',
+        '-p',
+        f'executor:={executor}',
+        '-p',
+        f'muscles:={muscles}',
+    ]
+    return {'model_node': model, 'relay': relay}
 
 
 def profiled_model_node(out: Path, args: list[str]) -> int:
-    """model_node with cProfile from the end of its construction (its spinning only) to its exit, into ``out``."""
+    """model_node with cProfile from the end of its construction (its spinning only) to its exit,
+    into ``out``.
+    """
     profiler = cProfile.Profile()
 
     def make() -> ModelNode:
         node = ModelNode()
         profiler.enable()
         return node
-    code = run("model_node", make, args)
+
+    code = run('model_node', make, args)
     profiler.disable()
     profiler.dump_stats(out)
     return code
 
 
 def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float]:
-    """CPU time of model_node's callbacks per cycle (both inputs, called directly: no executor, no wait) and
-    of the engine's share of it (its two calls per cycle, without the messages) [us]; answers go nowhere."""
+    """CPU time of model_node's callbacks per cycle (both inputs, called directly: no executor, no
+    wait) and of the engine's share of it (its two calls per cycle, without the messages) [us];
+    answers go nowhere.
+    """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
-    rclpy.init(args=["--ros-args", "-r", "__ns:=/cost", "--params-file", str(params)])
+    rclpy.init(args=['--ros-args', '-r', '__ns:=/cost', '--params-file', str(params)])
     try:
-        node = Pinger("/unused", muscles, rclpy.get_default_context())   # builds the input messages
+        node = Pinger('/unused', muscles, rclpy.get_default_context())  # builds the input messages
         model = ModelNode()
         first, second = node.messages(0)
         topics = model.topics
-        handlers = (partial(topics._on_pressure, 0), partial(topics._on_state, 0)) if muscles == 1 else \
-            (topics._on_pressures, topics._on_states)
+        handlers = (
+            (partial(topics._on_pressure, 0), partial(topics._on_state, 0))
+            if muscles == 1
+            else (topics._on_pressures, topics._on_states)
+        )
         start = time.process_time()
         for _ in range(cycles):
             first.header.stamp = second.header.stamp = model.get_clock().now().to_msg()
@@ -244,7 +320,11 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
         per_cycle = (time.process_time() - start) / cycles
         engine, now = model.engine, model.now()
         pressure, length = AMBIENT + 300e3, 0.23
-        pressures, lengths, rates = np.full(muscles, pressure), np.full(muscles, length), np.zeros(muscles)
+        pressures, lengths, rates = (
+            np.full(muscles, pressure),
+            np.full(muscles, length),
+            np.zeros(muscles),
+        )
         start = time.process_time()
         for k in range(cycles):
             t = now + k * 1e-6
@@ -263,46 +343,86 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=10.0, help="measured seconds per row (default 10)")
-    parser.add_argument("--rate", type=float, default=1000.0, help="cycles per second (default 1000)")
-    parser.add_argument("--muscles", type=int, nargs="+", default=[1, 64], help="N muscles (default 1 64)")
-    parser.add_argument("--executor", nargs="+", default=["single", "events"], choices=["single", "events"],
-                        help="executor of the responders (default: both)")
-    parser.add_argument("--profile", type=Path, help="cProfile the model node of the last row into this file")
-    parser.add_argument("--quick", action="store_true", help="2 s per row (what bench/run --quick passes)")
-    if "--relay" in sys.argv:
-        return run("relay", Relay, [a for a in sys.argv if a != "--relay"])
-    if sys.argv[1:2] and sys.argv[1].startswith("--profiled-node="):
-        return profiled_model_node(Path(sys.argv[1].partition("=")[2]), sys.argv[2:])
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument(
+        '--duration', type=float, default=10.0, help='measured seconds per row (default 10)'
+    )
+    parser.add_argument(
+        '--rate', type=float, default=1000.0, help='cycles per second (default 1000)'
+    )
+    parser.add_argument(
+        '--muscles', type=int, nargs='+', default=[1, 64], help='N muscles (default 1 64)'
+    )
+    parser.add_argument(
+        '--executor',
+        nargs='+',
+        default=['single', 'events'],
+        choices=['single', 'events'],
+        help='executor of the responders (default: both)',
+    )
+    parser.add_argument(
+        '--profile', type=Path, help='cProfile the model node of the last row into this file'
+    )
+    parser.add_argument(
+        '--quick', action='store_true', help='2 s per row (what bench/run --quick passes)'
+    )
+    if '--relay' in sys.argv:
+        return run('relay', Relay, [a for a in sys.argv if a != '--relay'])
+    if sys.argv[1:2] and sys.argv[1].startswith('--profiled-node='):
+        return profiled_model_node(Path(sys.argv[1].partition('=')[2]), sys.argv[2:])
     args = parser.parse_args()
     if args.quick:
         args.duration = 2.0
     rows = [(n, e) for n in args.muscles for e in args.executor]
     with tempfile.TemporaryDirectory() as tmp:
-        print("model_node callbacks called directly (no executor, no DDS), CPU per cycle (both inputs):")
+        print(
+            'model_node callbacks called directly (no executor, no DDS), CPU per cycle (both '
+            'inputs):'
+        )
         for n in args.muscles:
             cycle, bank = callback_cost(n, Path(tmp))
-            print(f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
-                  + (" (one vectorised call per message)" if n > 1 else " (its one-muscle float path)"))
-        print(f"\nround trip at {args.rate:g} Hz, {args.duration:g} s per row, 2 answers per cycle "
-              f"(times in ms; ratio = model_node / relay)")
-        print(f"{'N':>3} {'executor':<8} {'responder':<11} {'cycles':>7} {'lost':>5} {'p50':>7} {'p99':>7} "
-              f"{'max':>7} {'cpu %':>6} {'p50 ratio':>9} {'p99 ratio':>9}")
+            print(
+                f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
+                + (
+                    ' (one vectorised call per message)'
+                    if n > 1
+                    else ' (its one-muscle float path)'
+                )
+            )
+        print(
+            f'\nround trip at {args.rate:g} Hz, {args.duration:g} s per row, 2 answers per cycle '
+            f'(times in ms; ratio = model_node / relay)'
+        )
+        print(
+            f'{"N":>3} {"executor":<8} {"responder":<11} {"cycles":>7} {"lost":>5} {"p50":>7} '
+            f'{"p99":>7} '
+            f'{"max":>7} {"cpu %":>6} {"p50 ratio":>9} {"p99 ratio":>9}'
+        )
         for i, (n, executor) in enumerate(rows):
             profile = args.profile if args.profile and i == len(rows) - 1 else None
             result = {}
             for name, cmd in responders(n, executor, Path(tmp), profile).items():
-                result[name] = r = measure(cmd, n, args.duration, args.rate, "/bench")
-                ratio = "" if name == "model_node" else \
-                    f"{result['model_node']['p50'] / r['p50']:>9.2f} {result['model_node']['p99'] / r['p99']:>9.2f}"
-                print(f"{n:>3} {executor:<8} {name:<11} {r['cycles']:>7} {r['lost']:>5} {r['p50']:>7.3f} "
-                      f"{r['p99']:>7.3f} {r['max']:>7.2f} {r['cpu']:>6.0f} {ratio}", flush=True)
+                result[name] = r = measure(cmd, n, args.duration, args.rate, '/bench')
+                base = result['model_node']
+                ratio = (
+                    ''
+                    if name == 'model_node'
+                    else f'{base["p50"] / r["p50"]:>9.2f} {base["p99"] / r["p99"]:>9.2f}'
+                )
+                print(
+                    f'{n:>3} {executor:<8} {name:<11} {r["cycles"]:>7} {r["lost"]:>5} '
+                    f'{r["p50"]:>7.3f} '
+                    f'{r["p99"]:>7.3f} {r["max"]:>7.2f} {r["cpu"]:>6.0f} {ratio}',
+                    flush=True,
+                )
     if args.profile:
-        print(f"\ncProfile of model_node while spinning (N={rows[-1][0]}, {rows[-1][1]}), top 15 by own time:")
-        pstats.Stats(str(args.profile)).sort_stats("tottime").print_stats(15)
+        print(
+            f'\ncProfile of model_node while spinning (N={rows[-1][0]}, {rows[-1][1]}), top 15 by '
+            f'own time:'
+        )
+        pstats.Stats(str(args.profile)).sort_stats('tottime').print_stats(15)
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,5 +1,7 @@
-"""pma-model: reproduce the paper, identify muscles, judge fits on measured maps, evaluate force and pressure,
-process bags, plot."""
+"""pma-model: reproduce the paper, identify muscles, judge fits on measured maps, evaluate force
+and pressure, process bags, plot.
+"""
+
 from __future__ import annotations
 
 import argparse
@@ -15,19 +17,45 @@ import numpy as np
 from .bags.commands import add_bag_commands, add_fit_bag_options, bag_force_map
 from .core import sarosi
 from .core.calibration import Calibration
-from .core.flags import Flag, describe
-from .core.force_map import MAPPED_MUSCLES, read_force_map_csv, read_spec_yaml, shipped_force_map, shipped_spec
-from .core.identification import (OBJECTIVES, Fit, ModelReport, cross_validate_fit, domain_of, fit_best, fit_paper,
-                                   fold_lengths, identify_all, length_folds, quality)
-from .core.models import TABLE3_MODELS, get_model
-from .core.param_file import build_parameters, fit_entry, model_entry, muscle_model, read_parameters, write_parameters
+from .core.flags import describe, Flag
+from .core.force_map import read_force_map_csv
+from .core.identification import (
+    cross_validate_fit,
+    domain_of,
+    Fit,
+    fit_best,
+    fit_paper,
+    fold_lengths,
+    identify_all,
+    length_folds,
+    ModelReport,
+    OBJECTIVES,
+    quality,
+)
+from .core.models import get_model, TABLE3_MODELS
+from .core.param_file import muscle_model, read_parameters
+from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
+from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from .core.user_files import read_spec_yaml
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
 PAPER_TABLE3 = {
-    "DMSP-10-250": {"mckibben": 46.1, "andrikopoulos": 20.05, "wickramatunge": 13.49, "hildebrandt": 10.12,
-                    "sarosi": 5.1, "martens": 4.4},
-    "DMSP-20-300": {"mckibben": 30.0, "andrikopoulos": 13.04, "wickramatunge": 8.2, "hildebrandt": 5.75,
-                    "sarosi": 3.59, "martens": 2.35},
+    'DMSP-10-250': {
+        'mckibben': 46.1,
+        'andrikopoulos': 20.05,
+        'wickramatunge': 13.49,
+        'hildebrandt': 10.12,
+        'sarosi': 5.1,
+        'martens': 4.4,
+    },
+    'DMSP-20-300': {
+        'mckibben': 30.0,
+        'andrikopoulos': 13.04,
+        'wickramatunge': 8.2,
+        'hildebrandt': 5.75,
+        'sarosi': 3.59,
+        'martens': 2.35,
+    },
 }
 
 
@@ -38,30 +66,43 @@ class CliError(Exception):
 @functools.cache
 def identify_muscle(muscle: str) -> tuple[dict[str, ModelReport], str]:
     """All Table 3 models identified on a shipped map, and the CV-chosen default."""
-    return identify_all(shipped_spec(muscle), shipped_force_map(muscle), tuple(get_model(m) for m in TABLE3_MODELS))
+    return identify_all(
+        shipped_spec(muscle), shipped_force_map(muscle), tuple(get_model(m) for m in TABLE3_MODELS)
+    )
 
 
 def table3(results: dict[str, tuple[dict[str, ModelReport], str]]) -> dict:
     """The ``reproduce --json`` object."""
     out = {}
     for muscle, (reports, default) in results.items():
-        out[muscle] = {"default": default}
+        out[muscle] = {'default': default}
         for name, rep in reports.items():
-            out[muscle][name] = {"paper": PAPER_TABLE3[muscle][name], "paper_protocol": round(rep.paper.err, 4),
-                                 "best": round(rep.best_err, 4), "cv": round(rep.cv_err, 4)}
-    return {"table3": out}
+            out[muscle][name] = {
+                'paper': PAPER_TABLE3[muscle][name],
+                'paper_protocol': round(rep.paper.err, 4),
+                'best': round(rep.best_err, 4),
+                'cv': round(rep.cv_err, 4),
+            }
+    return {'table3': out}
 
 
 def _print_tables(results: dict[str, tuple[dict[str, ModelReport], str]]) -> None:
     for muscle, (reports, default) in results.items():
-        print(f"\n{muscle}: err (eq. 23) in %; default model by cross-validation: {default}")
-        print(f"{'model':<14}{'paper':>8}{'paper_protocol':>16}{'best_lsq':>10}{'best_minimax':>14}"
-              f"{'best':>8}{'cv_worst':>10}  shipped objective")
+        print(f'\n{muscle}: err (eq. 23) in %; default model by cross-validation: {default}')
+        print(
+            f'{"model":<14}{"paper":>8}{"paper_protocol":>16}{"best_lsq":>10}{"best_minimax":>14}'
+            f'{"best":>8}{"cv_worst":>10}  shipped objective'
+        )
         for name, rep in reports.items():
-            print(f"{name:<14}{PAPER_TABLE3[muscle][name]:>8.2f}{rep.paper.err:>16.2f}"
-                  f"{rep.best['least_squares'].err:>10.2f}{rep.best['minimax'].err:>14.2f}"
-                  f"{rep.best_err:>8.2f}{rep.cv_err:>10.2f}  {rep.shipped_objective}")
-        print(f"\n{muscle}: leave-one-length-out held-out err in % (shipped objective), per held-out length [m]")
+            print(
+                f'{name:<14}{PAPER_TABLE3[muscle][name]:>8.2f}{rep.paper.err:>16.2f}'
+                f'{rep.best["least_squares"].err:>10.2f}{rep.best["minimax"].err:>14.2f}'
+                f'{rep.best_err:>8.2f}{rep.cv_err:>10.2f}  {rep.shipped_objective}'
+            )
+        print(
+            f'\n{muscle}: leave-one-length-out held-out err in % (shipped objective), per '
+            f'held-out length [m]'
+        )
         _held_out_table(shipped_force_map(muscle).lengths, reports)
 
 
@@ -74,93 +115,152 @@ def cmd_reproduce(args: argparse.Namespace) -> None:
 
 
 def cmd_make_config(args: argparse.Namespace) -> None:
-    header = (f"Identified {args.muscle}: generated by `pma-model make-config {args.muscle} --out ...`\n"
-              "from the package's shipped data; regenerate rather than edit. SI units throughout.")
-    if args.muscle == "DMSP-10-100":
+    header = (
+        f'Identified {args.muscle}: generated by `pma-model make-config {args.muscle} --out ...`\n'
+        "from the package's shipped data; regenerate rather than edit. SI units throughout."
+    )
+    if args.muscle == 'DMSP-10-100':
         hyst = sarosi.dmsp_10_100_hysteresis()
-        models = {"sarosi_hysteresis": {"params": [float(v) for v in hyst.theta]}}
-        params = build_parameters(hyst.spec, "sarosi_hysteresis", hyst.domain, models)
-        header += "\nSárosi eq. 3, upper branch Table 2, lower branch Table 4 (0-600 kPa), converted to SI."
+        models = {'sarosi_hysteresis': {'params': [float(v) for v in hyst.theta]}}
+        params = build_parameters(hyst.spec, 'sarosi_hysteresis', hyst.domain, models)
+        header += (
+            '\nSárosi eq. 3, upper branch Table 2, lower branch Table 4 (0-600 kPa), '
+            'converted to SI.'
+        )
     else:
         reports, default = identify_muscle(args.muscle)
         models = {name: model_entry(rep) for name, rep in reports.items()}
-        params = build_parameters(shipped_spec(args.muscle), default, domain_of(shipped_force_map(args.muscle)),
-                                  models)
-        header += "\nerr: eq. 23 on the whole map [%]; cv_err: worst leave-one-length-out err [%]."
+        params = build_parameters(
+            shipped_spec(args.muscle), default, domain_of(shipped_force_map(args.muscle)), models
+        )
+        header += '\nerr: eq. 23 on the whole map [%]; cv_err: worst leave-one-length-out err [%].'
     write_parameters(args.out, params, header)
-    print(f"wrote {args.out}")
+    print(f'wrote {args.out}')
 
 
 def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
-    print(f"{'model':<14}" + "".join(f"{L:>9.3f}" for L in lengths) + f"{'worst':>9}")
+    print(f'{"model":<14}' + ''.join(f'{L:>9.3f}' for L in lengths) + f'{"worst":>9}')
     for name, rep in reports.items():
         errs = rep.cv[rep.shipped_objective]
-        print(f"{name:<14}" + "".join(f"{e:>9.2f}" for e in errs) + f"{errs.max():>9.2f}")
+        print(f'{name:<14}' + ''.join(f'{e:>9.2f}' for e in errs) + f'{errs.max():>9.2f}')
 
 
 def describe_geometry(fit: Fit, given_length: float) -> str:
-    """The identified L0 and pressure offset of a calibrated fit with their uncertainty, or why each stayed as given."""
+    """The identified L0 and pressure offset of a calibrated fit with their uncertainty, or why
+    each stayed as given.
+    """
     sigma, parts = fit.sigma, []
-    if "nominal_length" in sigma:
-        spread = sigma["nominal_length"]
-        parts.append(f"L0 {fit.spec.nominal_length:.4f} ±{spread:.4f} m (given {given_length:.4f})"
-                     if fit.calibration.length else f"L0 kept {given_length:.4f} m: "
-                     + ("the model does not depend on it" if math.isinf(spread)
-                        else f"not identifiable (held-out RMSE within 10 % of its best over ±{spread:.4f} m)"))
-    if "pressure_offset" in sigma:
-        parts.append(f"pressure offset {fit.pressure_offset / 1e3:+.2f} ±{sigma['pressure_offset'] / 1e3:.2f} kPa"
-                     if fit.calibration.pressure else
-                     f"pressure offset kept 0: not identifiable (1-sigma {sigma['pressure_offset'] / 1e3:.3g} kPa)")
-    return "; ".join(parts)
+    if 'nominal_length' in sigma:
+        spread = sigma['nominal_length']
+        parts.append(
+            f'L0 {fit.spec.nominal_length:.4f} ±{spread:.4f} m (given {given_length:.4f})'
+            if fit.calibration.length
+            else f'L0 kept {given_length:.4f} m: '
+            + (
+                'the model does not depend on it'
+                if math.isinf(spread)
+                else 'not identifiable (held-out RMSE within 10 % of its best over '
+                f'±{spread:.4f} m)'
+            )
+        )
+    if 'pressure_offset' in sigma:
+        parts.append(
+            f'pressure offset {fit.pressure_offset / 1e3:+.2f} '
+            f'±{sigma["pressure_offset"] / 1e3:.2f} kPa'
+            if fit.calibration.pressure
+            else 'pressure offset kept 0: not identifiable '
+            f'(1-sigma {sigma["pressure_offset"] / 1e3:.3g} kPa)'
+        )
+    return '; '.join(parts)
 
 
 def cmd_fit(args: argparse.Namespace) -> None:
     spec = read_spec_yaml(args.muscle)
-    if args.model != "all" and get_model(args.model).hysteresis:
+    if args.model != 'all' and get_model(args.model).hysteresis:
         return _fit_branches(args, spec)
     fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
     calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
-    print(calibration.describe() + " (switch off: --no-calibrate-length, --no-calibrate-pressure)")
-    if args.model == "all":
-        reports, default = identify_all(spec, fmap, tuple(get_model(m) for m in TABLE3_MODELS), calibration)
+    print(calibration.describe() + ' (switch off: --no-calibrate-length, --no-calibrate-pressure)')
+    if args.model == 'all':
+        reports, default = identify_all(
+            spec, fmap, tuple(get_model(m) for m in TABLE3_MODELS), calibration
+        )
     else:
         model, obj = get_model(args.model), args.objective
         best = fit_best(model, spec, fmap, obj, calibration=calibration)
         cv = cross_validate_fit(best, fmap, (obj,))
-        reports, default = {model.name: ModelReport(fit_paper(model, spec, fmap), {obj: best}, cv, obj)}, model.name
-    print(f"\nin-sample err (eq. 23) [%], RMSE [N], R²; held-out: worst leave-one-length-out err [%]")
-    print(f"{'model':<14}{'objective':>14}{'err':>8}{'rmse':>9}{'r2':>10}{'held_out':>10}")
+        reports, default = (
+            {model.name: ModelReport(fit_paper(model, spec, fmap), {obj: best}, cv, obj)},
+            model.name,
+        )
+    print(
+        '\nin-sample err (eq. 23) [%], RMSE [N], R²; held-out: worst leave-one-length-out err [%]'
+    )
+    print(f'{"model":<14}{"objective":>14}{"err":>8}{"rmse":>9}{"r2":>10}{"held_out":>10}')
     for name, rep in reports.items():
         fit = rep.shipped
-        print(f"{name:<14}{fit.objective:>14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}")
+        print(
+            f'{name:<14}{fit.objective:>14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}'
+            f'{rep.cv_err:>10.2f}'
+        )
     if calibration.any:
-        print("\nidentified geometry (L0 by held-out error, ± half the range whose held-out RMSE is within 10 % of "
-              "the best;\n  pressure offset by least squares, ± 1-sigma from the Jacobian):")
+        print(
+            '\nidentified geometry (L0 by held-out error, ± half the range whose held-out RMSE is '
+            'within 10 % of '
+            'the best;\n  pressure offset by least squares, ± 1-sigma from the Jacobian):'
+        )
         for name, rep in reports.items():
-            print(f"  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}")
-    print("\nleave-one-length-out held-out err [%] per held-out length [m]"
-          + (" (bands of lengths: their mean)" if len(length_folds(fmap)) < fmap.lengths.size else ""))
+            print(f'  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}')
+    print(
+        '\nleave-one-length-out held-out err [%] per held-out length [m]'
+        + (
+            ' (bands of lengths: their mean)'
+            if len(length_folds(fmap)) < fmap.lengths.size
+            else ''
+        )
+    )
     _held_out_table(fold_lengths(fmap), reports)
     chosen = reports[default].shipped
-    write_parameters(args.out, build_parameters(chosen.spec, default, chosen.domain,
-                                                {name: model_entry(rep) for name, rep in reports.items()}),
-                     f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` "
-                     f"({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n"
-                     "err: eq. 23 on the map [%]; cv_err: worst leave-one-length-out err [%].")
-    how = "by held-out error" if len(reports) > 1 else "the one fitted"
-    print(f"\ndefault model ({how}): {default}  err {chosen.err:.3f} %  rmse {chosen.rmse:.3f} N  "
-          f"r2 {chosen.r2:.5f}  held-out worst {reports[default].cv_err:.2f} %  -> {args.out}")
+    write_parameters(
+        args.out,
+        build_parameters(
+            chosen.spec,
+            default,
+            chosen.domain,
+            {name: model_entry(rep) for name, rep in reports.items()},
+        ),
+        f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
+        f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
+        'err: eq. 23 on the map [%]; cv_err: worst leave-one-length-out err [%].',
+    )
+    how = 'by held-out error' if len(reports) > 1 else 'the one fitted'
+    print(
+        f'\ndefault model ({how}): {default}  err {chosen.err:.3f} %  rmse {chosen.rmse:.3f} N  '
+        f'r2 {chosen.r2:.5f}  held-out worst {reports[default].cv_err:.2f} %  -> {args.out}'
+    )
 
 
 def _fit_branches(args: argparse.Namespace, spec) -> None:
-    """``fit`` of a two-branch (hysteresis) model: each branch on its direction's points, uncalibrated."""
+    """``fit`` of a two-branch (hysteresis) model: each branch on its direction's points,
+    uncalibrated.
+    """
     model = get_model(args.model)
-    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec, two_branches=True)
+    fmap = (
+        read_force_map_csv(args.data)
+        if args.data
+        else bag_force_map(args, spec, two_branches=True)
+    )
     fit = fit_best(model, spec, fmap, args.objective)
-    write_parameters(args.out, build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
-                     f"{spec.name} identified from {args.data or args.bag} by `pma-model fit` ({fit.objective}, "
-                     "one branch per direction).")
-    print(f"{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}  -> {args.out}")
+    write_parameters(
+        args.out,
+        build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
+        f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
+        f'({fit.objective}, '
+        'one branch per direction).',
+    )
+    print(
+        f'{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}  -> {args.out}'
+    )
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -169,25 +269,36 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
     result = muscle.force(fmap.pressure, fmap.length)
     model = np.nan_to_num(result.force)
     err, rmse, r2 = quality(fmap.force, model, fmap.max_force)
-    print(f"{muscle.model.name} of {args.config} on {args.data}: err (eq. 23) {err:.2f} %  rmse {rmse:.3f} N  "
-          f"r2 {r2:.5f}  ({fmap.force.size} points)")
-    print(f"{'length [m]':>10}{'points':>8}{'err [%]':>9}{'rmse [N]':>10}  flags (points)")
+    print(
+        f'{muscle.model.name} of {args.config} on {args.data}: err (eq. 23) {err:.2f} %  rmse '
+        f'{rmse:.3f} N  '
+        f'r2 {r2:.5f}  ({fmap.force.size} points)'
+    )
+    print(f'{"length [m]":>10}{"points":>8}{"err [%]":>9}{"rmse [N]":>10}  flags (points)')
     for length in fmap.lengths:
         at = fmap.length == length
         e, r, _ = quality(fmap.force[at], model[at], fmap.max_force)
         names, counts = np.unique([describe(int(f)) for f in result.flags[at]], return_counts=True)
-        print(f"{length:>10.4f}{int(at.sum()):>8}{e:>9.2f}{r:>10.3f}  "
-              + ", ".join(f"{n} ({c})" for n, c in zip(names, counts)))
+        print(
+            f'{length:>10.4f}{int(at.sum()):>8}{e:>9.2f}{r:>10.3f}  '
+            + ', '.join(f'{n} ({c})' for n, c in zip(names, counts))
+        )
     if args.csv:
-        rows = "".join(f"{p:.9g},{L:.9g},{F:.9g},{f:.9g},{f - F:.9g},{describe(int(flag))}\n"
-                       for p, L, F, f, flag in zip(fmap.pressure, fmap.length, fmap.force, model, result.flags))
-        Path(args.csv).write_text("pressure_pa,length_m,force_n,model_n,error_n,flags\n" + rows, encoding="utf-8")
-        print(f"wrote {args.csv}")
+        rows = ''.join(
+            f'{p:.9g},{L:.9g},{F:.9g},{f:.9g},{f - F:.9g},{describe(int(flag))}\n'
+            for p, L, F, f, flag in zip(
+                fmap.pressure, fmap.length, fmap.force, model, result.flags
+            )
+        )
+        Path(args.csv).write_text(
+            'pressure_pa,length_m,force_n,model_n,error_n,flags\n' + rows, encoding='utf-8'
+        )
+        print(f'wrote {args.csv}')
 
 
 def _finite(name: str, value: float, low: float, high: float, unit: str, hint: str) -> float:
     if not (math.isfinite(value) and low <= value <= high):
-        raise CliError(f"{name} {value:g} is outside {low:g}..{high:g} {unit}; {hint}")
+        raise CliError(f'{name} {value:g} is outside {low:g}..{high:g} {unit}; {hint}')
     return value
 
 
@@ -197,216 +308,354 @@ def _load(args: argparse.Namespace):
 
 def _check_geometry(flags: int, length: float) -> None:
     if flags & Flag.INVALID_INPUT:
-        raise CliError(f"length {length:g} m is beyond what this muscle's geometry allows (0 < L < L0/cos(Theta0))")
+        raise CliError(
+            f"length {length:g} m is beyond what this muscle's geometry allows (0 < L < "
+            f'L0/cos(Theta0))'
+        )
 
 
 def cmd_force(args: argparse.Namespace) -> None:
-    length = _finite("--length", args.length, 1e-4, 10.0, "m", "lengths are in metres (0.23, not 230)")
-    pressure = _finite("--pressure", args.pressure, -1e7, 1e7, "Pa", "gauge pressure in Pa (300000, not 3 bar)")
+    length = _finite(
+        '--length', args.length, 1e-4, 10.0, 'm', 'lengths are in metres (0.23, not 230)'
+    )
+    pressure = _finite(
+        '--pressure', args.pressure, -1e7, 1e7, 'Pa', 'gauge pressure in Pa (300000, not 3 bar)'
+    )
     result = _load(args).force(pressure, length, args.length_rate)
     _check_geometry(int(result.flags), length)
-    print(f"force {float(result.force):.6g} N  raw {float(result.raw):.6g} N  flags {describe(int(result.flags))}")
+    print(
+        f'force {float(result.force):.6g} N  raw {float(result.raw):.6g} N  flags '
+        f'{describe(int(result.flags))}'
+    )
 
 
 def cmd_pressure(args: argparse.Namespace) -> None:
-    length = _finite("--length", args.length, 1e-4, 10.0, "m", "lengths are in metres (0.23, not 230)")
-    force = _finite("--force", args.force, -1e7, 1e7, "N", "force in newtons")
+    length = _finite(
+        '--length', args.length, 1e-4, 10.0, 'm', 'lengths are in metres (0.23, not 230)'
+    )
+    force = _finite('--force', args.force, -1e7, 1e7, 'N', 'force in newtons')
     result = _load(args).pressure(force, length, args.length_rate)
     _check_geometry(int(result.flags), length)
-    print(f"pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}")
+    print(f'pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}')
 
 
 def _joint(args: argparse.Namespace):
     """The joint of ``--config`` named by ``--joint`` (default: the file's only joint)."""
     from .core.joint_file import load_joints
+
     joints = {j.name: j for j in load_joints(args.config)}
     name = args.joint or (next(iter(joints)) if len(joints) == 1 else None)
     if name not in joints:
-        raise CliError(f"--joint: choose one of {', '.join(joints)}")
+        raise CliError(f'--joint: choose one of {", ".join(joints)}')
     return joints[name]
 
 
 def _angle(joint, angle: float) -> float:
     low, high = joint.limits
     if not (math.isfinite(angle) and low <= angle <= high):
-        raise CliError(f"--angle {angle:g} rad is outside the joint limits [{low:g}, {high:g}] rad "
-                       "(radians, not degrees)")
+        raise CliError(
+            f'--angle {angle:g} rad is outside the joint limits [{low:g}, {high:g}] rad '
+            '(radians, not degrees)'
+        )
     return angle
 
 
 def cmd_joint_torque(args: argparse.Namespace) -> None:
     joint = _joint(args)
     theta = _angle(joint, args.angle)
-    p = [_finite("--pressures", v, -1e7, 1e7, "Pa", "gauge pressures in Pa (300000, not 3 bar)")
-         for v in args.pressures]
+    p = [
+        _finite('--pressures', v, -1e7, 1e7, 'Pa', 'gauge pressures in Pa (300000, not 3 bar)')
+        for v in args.pressures
+    ]
     result = joint.forward(theta, p[0], p[1], args.velocity)
-    print(f"torque {float(result.torque):.6g} N·m  stiffness {float(result.stiffness):.6g} N·m/rad")
+    print(
+        f'torque {float(result.torque):.6g} N·m  stiffness {float(result.stiffness):.6g} N·m/rad'
+    )
     for k, name in enumerate(joint.muscle_names):
-        print(f"{name}: length {float(joint.lengths(theta)[k]):.6g} m  force {float(result.forces[k]):.6g} N  "
-              f"dF/dL {float(result.slopes[k]):.6g} N/m  flags {describe(int(result.flags[k]))}")
+        print(
+            f'{name}: length {float(joint.lengths(theta)[k]):.6g} m  force '
+            f'{float(result.forces[k]):.6g} N  '
+            f'dF/dL {float(result.slopes[k]):.6g} N/m  flags {describe(int(result.flags[k]))}'
+        )
 
 
 def cmd_joint_pressures(args: argparse.Namespace) -> None:
     joint = _joint(args)
     theta = _angle(joint, args.angle)
-    torque = _finite("--torque", args.torque, -1e6, 1e6, "N·m", "torque in newton metres")
+    torque = _finite('--torque', args.torque, -1e6, 1e6, 'N·m', 'torque in newton metres')
     if args.stiffness is not None:
-        result = joint.pressures_one(theta, torque, stiffness=_finite("--stiffness", args.stiffness, 0.0, 1e7,
-                                                                      "N·m/rad", "stiffness in N·m/rad"))
+        result = joint.pressures_one(
+            theta,
+            torque,
+            stiffness=_finite(
+                '--stiffness', args.stiffness, 0.0, 1e7, 'N·m/rad', 'stiffness in N·m/rad'
+            ),
+        )
     else:
-        block = read_parameters(args.config)[joint.name]   # the file's defaults, as joint_node's
-        level = block.get("cocontraction", 0.0) if args.cocontraction is None else args.cocontraction
-        level = _finite("--cocontraction", level, 0.0, 1e7, "Pa", "gauge pressure in Pa")
-        result = joint.pressures_one(theta, torque, level, args.mode or block.get("cocontraction_mode", "min"))
-    print("  ".join(f"{name} {p:.6g} Pa" for name, p in zip(joint.muscle_names, result.pressures))
-          + f"  (gauge)  flags {describe(result.flags)}")
-    print(f"torque {result.torque:.6g} N·m  stiffness {result.stiffness:.6g} N·m/rad  "
-          f"reachable torque [{result.torque_range[0]:.6g}, {result.torque_range[1]:.6g}] N·m")
+        block = read_parameters(args.config)[joint.name]  # the file's defaults, as joint_node's
+        level = (
+            block.get('cocontraction', 0.0) if args.cocontraction is None else args.cocontraction
+        )
+        level = _finite('--cocontraction', level, 0.0, 1e7, 'Pa', 'gauge pressure in Pa')
+        result = joint.pressures_one(
+            theta, torque, level, args.mode or block.get('cocontraction_mode', 'min')
+        )
+    print(
+        '  '.join(f'{name} {p:.6g} Pa' for name, p in zip(joint.muscle_names, result.pressures))
+        + f'  (gauge)  flags {describe(result.flags)}'
+    )
+    print(
+        f'torque {result.torque:.6g} N·m  stiffness {result.stiffness:.6g} N·m/rad  '
+        f'reachable torque [{result.torque_range[0]:.6g}, {result.torque_range[1]:.6g}] N·m'
+    )
 
 
 def cmd_joint_envelope(args: argparse.Namespace) -> None:
     from .core.joint import envelope
+
     joint = _joint(args)
     if not 2 <= args.steps <= 10000:
-        raise CliError(f"--steps {args.steps} is outside 2..10000")
+        raise CliError(f'--steps {args.steps} is outside 2..10000')
     angles = np.linspace(*joint.limits, args.steps)
     env = envelope(joint, angles)
-    print(f"{joint.name}: {joint.muscle_names[0]} shortens for positive angle; stiffness at both pressures 0 "
-          "and both at max_pressure")
-    print(f"{'angle_rad':>10}{'torque_min_Nm':>15}{'torque_max_Nm':>15}{'K_low_Nm/rad':>14}{'K_high_Nm/rad':>15}")
+    print(
+        f'{joint.name}: {joint.muscle_names[0]} shortens for positive angle; stiffness at both '
+        f'pressures 0 '
+        'and both at max_pressure'
+    )
+    print(
+        f'{"angle_rad":>10}{"torque_min_Nm":>15}{"torque_max_Nm":>15}{"K_low_Nm/rad":>14}'
+        f'{"K_high_Nm/rad":>15}'
+    )
     for i, theta in enumerate(angles):
-        print(f"{theta:>10.4f}{env['torque_min'][i]:>15.4f}{env['torque_max'][i]:>15.4f}"
-              f"{env['stiffness_low'][i]:>14.4f}{env['stiffness_high'][i]:>15.4f}")
+        print(
+            f'{theta:>10.4f}{env["torque_min"][i]:>15.4f}{env["torque_max"][i]:>15.4f}'
+            f'{env["stiffness_low"][i]:>14.4f}{env["stiffness_high"][i]:>15.4f}'
+        )
 
 
 def add_joint_commands(sub) -> None:
     """``pma-model joint torque|pressures|envelope``."""
-    joint = sub.add_parser("joint", help="antagonistic joint: torque, pressures for a torque, envelope")
-    jsub = joint.add_subparsers(dest="joint_command", required=True)
-    commands = {"torque": ("torque and stiffness at an angle and two pressures", cmd_joint_torque),
-                "pressures": ("the two pressures for a wanted torque", cmd_joint_pressures),
-                "envelope": ("reachable torque and stiffness over the joint range", cmd_joint_envelope)}
+    joint = sub.add_parser(
+        'joint', help='antagonistic joint: torque, pressures for a torque, envelope'
+    )
+    jsub = joint.add_subparsers(dest='joint_command', required=True)
+    commands = {
+        'torque': ('torque and stiffness at an angle and two pressures', cmd_joint_torque),
+        'pressures': ('the two pressures for a wanted torque', cmd_joint_pressures),
+        'envelope': ('reachable torque and stiffness over the joint range', cmd_joint_envelope),
+    }
     for name, (text, func) in commands.items():
         p = jsub.add_parser(name, help=text)
-        p.add_argument("--config", required=True, help="joint parameter file, e.g. config/example_joint.yaml")
-        p.add_argument("--joint", default=None, help="joint name (default: the file's only joint)")
+        p.add_argument(
+            '--config', required=True, help='joint parameter file, e.g. config/example_joint.yaml'
+        )
+        p.add_argument('--joint', default=None, help="joint name (default: the file's only joint)")
         p.set_defaults(func=func)
-        if name == "envelope":
-            p.add_argument("--steps", type=int, default=11, help="number of angles over the limits")
+        if name == 'envelope':
+            p.add_argument(
+                '--steps', type=int, default=11, help='number of angles over the limits'
+            )
             continue
-        p.add_argument("--angle", required=True, type=float, help="joint angle [rad], positive counter-clockwise")
-        if name == "torque":
-            p.add_argument("--pressures", required=True, nargs=2, type=float, metavar=("PA", "PB"),
-                           help="gauge pressures [Pa]: the muscle shortening for positive angle first")
-            p.add_argument("--velocity", type=float, default=None, help="joint velocity [rad/s] (hysteresis branch)")
+        p.add_argument(
+            '--angle',
+            required=True,
+            type=float,
+            help='joint angle [rad], positive counter-clockwise',
+        )
+        if name == 'torque':
+            p.add_argument(
+                '--pressures',
+                required=True,
+                nargs=2,
+                type=float,
+                metavar=('PA', 'PB'),
+                help='gauge pressures [Pa]: the muscle shortening for positive angle first',
+            )
+            p.add_argument(
+                '--velocity',
+                type=float,
+                default=None,
+                help='joint velocity [rad/s] (hysteresis branch)',
+            )
         else:
-            p.add_argument("--torque", required=True, type=float, help="wanted torque [N·m]")
+            p.add_argument('--torque', required=True, type=float, help='wanted torque [N·m]')
             level = p.add_mutually_exclusive_group()
-            level.add_argument("--stiffness", type=float, help="wanted stiffness [N·m/rad]")
-            level.add_argument("--cocontraction", type=float, default=None,
-                               help="co-contraction level [Pa gauge] (default: the file's cocontraction, else 0)")
-            p.add_argument("--mode", choices=("min", "sum"), default=None,
-                           help="co-contraction level is the lower pressure (min) or the pressure sum "
-                                "(default: the file's cocontraction_mode, else min)")
+            level.add_argument('--stiffness', type=float, help='wanted stiffness [N·m/rad]')
+            level.add_argument(
+                '--cocontraction',
+                type=float,
+                default=None,
+                help="co-contraction level [Pa gauge] (default: the file's cocontraction, else 0)",
+            )
+            p.add_argument(
+                '--mode',
+                choices=('min', 'sum'),
+                default=None,
+                help='co-contraction level is the lower pressure (min) or the pressure sum '
+                "(default: the file's cocontraction_mode, else min)",
+            )
 
 
 #: Figures of ``pma-model plot`` and what each needs; ``all`` makes every one whose input is given.
-PLOTS = {"force-map": "--config", "error-map": "--config", "models": None, "timeseries": "--bag", "joint": "--config"}
+PLOTS = {
+    'force-map': '--config',
+    'error-map': '--config',
+    'models': None,
+    'timeseries': '--bag',
+    'joint': '--config',
+}
 
 
 def cmd_plot(args: argparse.Namespace) -> None:
     try:
         from . import figures
     except ImportError as err:
-        raise CliError(f"plot needs matplotlib and rosbags (requirements-dev.txt): {err}") from None
-    wanted = list(PLOTS) if args.figure == "all" else [args.figure]
-    given = {"--config": args.config, "--bag": args.bag}
+        raise CliError(
+            f'plot needs matplotlib and rosbags (requirements-dev.txt): {err}'
+        ) from None
+    wanted = list(PLOTS) if args.figure == 'all' else [args.figure]
+    given = {'--config': args.config, '--bag': args.bag}
     for name in [n for n in wanted if PLOTS[n] and not given[PLOTS[n]]]:
-        if args.figure != "all":
-            raise CliError(f"plot {name} needs {PLOTS[name]}")
-        print(f"skipped {name}: no {PLOTS[name]}")
+        if args.figure != 'all':
+            raise CliError(f'plot {name} needs {PLOTS[name]}')
+        print(f'skipped {name}: no {PLOTS[name]}')
         wanted.remove(name)
     written = []
     for config in args.config or ():
-        if "joints" in read_parameters(config):   # a joint file (config/example_joint.yaml): its joint figures
-            if "joint" not in wanted:
+        if 'joints' in read_parameters(
+            config
+        ):  # a joint file (config/example_joint.yaml): its joint figures
+            if 'joint' not in wanted:
                 continue
             from .core.joint_file import load_joints
+
             for joint in load_joints(config):
-                written += figures.save(figures.joint_figure(joint), args.out_dir, f"joint_{joint.name}", args.format)
+                written += figures.save(
+                    figures.joint_figure(joint), args.out_dir, f'joint_{joint.name}', args.format
+                )
             continue
-        if args.figure == "joint":
+        if args.figure == 'joint':
             raise CliError(f"plot joint needs a joint file (with 'joints:'), got {config}")
         model = muscle_model(read_parameters(config), args.model)
         fmap = shipped_force_map(model.spec.name)
-        stem = f"{model.spec.name.lower().replace('-', '_')}_{model.model.name}"
-        for name, draw in (("force-map", figures.force_map_figure), ("error-map", figures.error_map_figure)):
+        stem = f'{model.spec.name.lower().replace("-", "_")}_{model.model.name}'
+        for name, draw in (
+            ('force-map', figures.force_map_figure),
+            ('error-map', figures.error_map_figure),
+        ):
             if name in wanted:
-                file_stem = f"{name.replace('-', '_')}_{stem}"
+                file_stem = f'{name.replace("-", "_")}_{stem}'
                 written += figures.save(draw(fmap, model), args.out_dir, file_stem, args.format)
-    if "timeseries" in wanted:
+    if 'timeseries' in wanted:
         name = Path(args.bag).stem
         series = figures.read_force_series(args.bag, args.namespace)
-        written += figures.save(figures.timeseries_figure(*series, f"{name}: estimated vs measured force"),
-                                args.out_dir, f"timeseries_{name}", args.format)
-    if "models" in wanted:
-        table = table3({m: identify_muscle(m) for m in MAPPED_MUSCLES})["table3"]
-        written += figures.save(figures.models_figure(table), args.out_dir, "models", args.format)
+        written += figures.save(
+            figures.timeseries_figure(*series, f'{name}: estimated vs measured force'),
+            args.out_dir,
+            f'timeseries_{name}',
+            args.format,
+        )
+    if 'models' in wanted:
+        table = table3({m: identify_muscle(m) for m in MAPPED_MUSCLES})['table3']
+        written += figures.save(figures.models_figure(table), args.out_dir, 'models', args.format)
     for path in written:
-        print(f"wrote {path}")
+        print(f'wrote {path}')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="pma-model", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("reproduce", help="the paper's Table 3: paper, our paper protocol, our best fit, CV")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+    parser = argparse.ArgumentParser(prog='pma-model', description=__doc__)
+    sub = parser.add_subparsers(dest='command', required=True)
+    p = sub.add_parser(
+        'reproduce', help="the paper's Table 3: paper, our paper protocol, our best fit, CV"
+    )
+    p.add_argument('--json', action='store_true', help='print one JSON object instead of tables')
     p.set_defaults(func=cmd_reproduce)
-    p = sub.add_parser("make-config", help="write the ROS parameter file of a shipped muscle")
-    p.add_argument("muscle", choices=(*MAPPED_MUSCLES, "DMSP-10-100"))
-    p.add_argument("--out", required=True, help="output YAML path")
+    p = sub.add_parser('make-config', help='write the ROS parameter file of a shipped muscle')
+    p.add_argument('muscle', choices=(*MAPPED_MUSCLES, 'DMSP-10-100'))
+    p.add_argument('--out', required=True, help='output YAML path')
     p.set_defaults(func=cmd_make_config)
-    p = sub.add_parser("fit", help="identify a model from a force map CSV (pressure_pa,length_m,force_n) or a bag")
+    p = sub.add_parser(
+        'fit', help='identify a model from a force map CSV (pressure_pa,length_m,force_n) or a bag'
+    )
     source = p.add_mutually_exclusive_group(required=True)
-    source.add_argument("--data", help="force map CSV")
-    source.add_argument("--bag", help="rosbag2 recording of pressure, length and measured force")
-    p.add_argument("--muscle", required=True, help="muscle spec YAML (SI units)")
-    p.add_argument("--model", required=True,
-                   help="model name, e.g. martens; 'all': every Table 3 model, the default by held-out error")
-    p.add_argument("--objective", choices=OBJECTIVES, default="least_squares",
-                   help="of one model (with --model all: each model's by held-out error)")
-    p.add_argument("--no-calibrate-length", action="store_true", help="keep the spec's rest length L0 as given")
-    p.add_argument("--no-calibrate-pressure", action="store_true", help="assume no pressure-sensor offset")
-    p.add_argument("--out", required=True, help="output ROS parameter YAML")
+    source.add_argument('--data', help='force map CSV')
+    source.add_argument('--bag', help='rosbag2 recording of pressure, length and measured force')
+    p.add_argument('--muscle', required=True, help='muscle spec YAML (SI units)')
+    p.add_argument(
+        '--model',
+        required=True,
+        help="model name, e.g. martens; 'all': every Table 3 model, the default by held-out error",
+    )
+    p.add_argument(
+        '--objective',
+        choices=OBJECTIVES,
+        default='least_squares',
+        help="of one model (with --model all: each model's by held-out error)",
+    )
+    p.add_argument(
+        '--no-calibrate-length',
+        action='store_true',
+        help="keep the spec's rest length L0 as given",
+    )
+    p.add_argument(
+        '--no-calibrate-pressure', action='store_true', help='assume no pressure-sensor offset'
+    )
+    p.add_argument('--out', required=True, help='output ROS parameter YAML')
     add_fit_bag_options(p)
     p.set_defaults(func=cmd_fit)
-    p = sub.add_parser("evaluate", help="a fitted model against a measured force map: eq. 23, RMSE, per length, flags")
-    p.add_argument("--config", required=True, help="parameter file, e.g. of pma-model fit")
-    p.add_argument("--data", required=True, help="force map CSV (pressure_pa,length_m,force_n)")
-    p.add_argument("--model", default=None, help="override the file's default model")
-    p.add_argument("--csv", help="write each point: measured, model, error [N] and flags")
+    p = sub.add_parser(
+        'evaluate',
+        help='a fitted model against a measured force map: eq. 23, RMSE, per length, flags',
+    )
+    p.add_argument('--config', required=True, help='parameter file, e.g. of pma-model fit')
+    p.add_argument('--data', required=True, help='force map CSV (pressure_pa,length_m,force_n)')
+    p.add_argument('--model', default=None, help="override the file's default model")
+    p.add_argument('--csv', help='write each point: measured, model, error [N] and flags')
     p.set_defaults(func=cmd_evaluate)
     add_bag_commands(sub)
     add_joint_commands(sub)
-    for name, quantity, unit, func in (("force", "pressure", "Pa gauge", cmd_force),
-                                       ("pressure", "force", "N", cmd_pressure)):
-        p = sub.add_parser(name, help=f"{name} from {quantity} [{unit}] and length [m]")
-        p.add_argument("--config", required=True, help="ROS parameter file, e.g. config/dmsp_10_250.yaml")
-        p.add_argument(f"--{quantity}", required=True, type=float, help=f"[{unit}]")
-        p.add_argument("--length", required=True, type=float, help="muscle length [m]")
-        p.add_argument("--length-rate", type=float, default=None,
-                       help="length rate [m/s]; its sign picks the hysteresis branch")
-        p.add_argument("--model", default=None, help="override the file's default model")
+    for name, quantity, unit, func in (
+        ('force', 'pressure', 'Pa gauge', cmd_force),
+        ('pressure', 'force', 'N', cmd_pressure),
+    ):
+        p = sub.add_parser(name, help=f'{name} from {quantity} [{unit}] and length [m]')
+        p.add_argument(
+            '--config', required=True, help='ROS parameter file, e.g. config/dmsp_10_250.yaml'
+        )
+        p.add_argument(f'--{quantity}', required=True, type=float, help=f'[{unit}]')
+        p.add_argument('--length', required=True, type=float, help='muscle length [m]')
+        p.add_argument(
+            '--length-rate',
+            type=float,
+            default=None,
+            help='length rate [m/s]; its sign picks the hysteresis branch',
+        )
+        p.add_argument('--model', default=None, help="override the file's default model")
         p.set_defaults(func=func)
-    p = sub.add_parser("plot", help="figures: force map, error map, model comparison, bag time series, joint")
-    p.add_argument("figure", choices=(*PLOTS, "all"))
-    p.add_argument("--config", nargs="+", help="parameter file(s) of mapped muscles, for force-map and error-map; "
-                                               "joint files, for joint")
-    p.add_argument("--model", default=None, help="override the files' default model")
-    p.add_argument("--bag", help="bag with <ns>/force and <ns>/force_estimate (pma-model bag estimate), for timeseries")
-    p.add_argument("--namespace", default=None, help="of the muscle's topics in --bag (default: the only one)")
-    p.add_argument("--out-dir", type=Path, default=Path("."), help="directory to write into (default: .)")
-    p.add_argument("--format", nargs="+", choices=("png", "svg"), default=("png", "svg"))
+    p = sub.add_parser(
+        'plot', help='figures: force map, error map, model comparison, bag time series, joint'
+    )
+    p.add_argument('figure', choices=(*PLOTS, 'all'))
+    p.add_argument(
+        '--config',
+        nargs='+',
+        help='parameter file(s) of mapped muscles, for force-map and error-map; '
+        'joint files, for joint',
+    )
+    p.add_argument('--model', default=None, help="override the files' default model")
+    p.add_argument(
+        '--bag',
+        help='bag with <ns>/force and <ns>/force_estimate (pma-model bag estimate), '
+        'for timeseries',
+    )
+    p.add_argument(
+        '--namespace', default=None, help="of the muscle's topics in --bag (default: the only one)"
+    )
+    p.add_argument(
+        '--out-dir', type=Path, default=Path('.'), help='directory to write into (default: .)'
+    )
+    p.add_argument('--format', nargs='+', choices=('png', 'svg'), default=('png', 'svg'))
     p.set_defaults(func=cmd_plot)
     return parser
 
@@ -416,10 +665,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args.func(args)
     except (CliError, ValueError, OSError) as err:
-        print(f"pma-model: error: {err}", file=sys.stderr)
+        print(f'pma-model: error: {err}', file=sys.stderr)
         return 2
     return 0
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -6,6 +6,7 @@ separate processes, compares the estimate with the simulator's measured force
 at equal stamps, prints a few lines per second and a summary, then stops both.
 Run with ``scripts/demo`` (it provides the loopback-only network namespace).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,14 +24,20 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
-from . import node_process
-from .core.force_map import shipped_force_map
 from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import muscle_model, read_parameters
+from .core.shipped_data import shipped_force_map
+from .tools import node_process
 
-NAMESPACE = "/pma_demo"
-SIMULATOR = {"trajectory": "sweep", "period": 2.0, "noise.pressure_std": 200.0, "noise.length_std": 2e-5,
-             "noise.force_std": 0.5, "seed": 1}
+NAMESPACE = '/pma_demo'
+SIMULATOR = {
+    'trajectory': 'sweep',
+    'period': 2.0,
+    'noise.pressure_std': 200.0,
+    'noise.length_std': 2e-5,
+    'noise.force_std': 0.5,
+    'seed': 1,
+}
 SETTLE = 0.3  # [s] a stamp is compared once it is this old (both messages of it have arrived)
 #: Sensor-data QoS with a deep queue: spin_once takes one message at a time.
 SENSOR_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -38,11 +45,12 @@ SENSOR_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 def default_config() -> Path:
     """config/dmsp_10_250.yaml of the source tree, else of the installed share directory."""
-    source = Path(__file__).resolve().parents[1] / "config" / "dmsp_10_250.yaml"
+    source = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'
     if source.is_file():
         return source
     from ament_index_python.packages import get_package_share_directory
-    return Path(get_package_share_directory("pma_model_ros")) / "config" / "dmsp_10_250.yaml"
+
+    return Path(get_package_share_directory('pma_model_ros')) / 'config' / 'dmsp_10_250.yaml'
 
 
 @dataclass
@@ -58,91 +66,115 @@ class Comparison:
     error_sum: float = 0.0
 
     def add(self, stamp: int, key: str, value: float) -> None:
-        """Record ``key`` (measured, estimate, pressure, length) at ``stamp``; a later estimate replaces."""
+        """Record ``key`` (measured, estimate, pressure, length) at ``stamp``; a later estimate
+        replaces.
+        """
         self.samples.setdefault(stamp, {})[key] = value
 
     def settle(self, before: int) -> None:
         """Compare and forget every stamp older than ``before`` [ns]."""
         for stamp in sorted(s for s in self.samples if s < before):
             sample = self.samples.pop(stamp)
-            if "measured" in sample and "estimate" in sample:
-                sample["error"] = abs(sample["estimate"] - sample["measured"]) / self.max_force * 100
+            if 'measured' in sample and 'estimate' in sample:
+                sample['error'] = (
+                    abs(sample['estimate'] - sample['measured']) / self.max_force * 100
+                )
                 self.count += 1
-                self.error_sum += sample["error"]
+                self.error_sum += sample['error']
                 self.last = sample
-                if sample["error"] >= self.max_error:
-                    self.max_error, self.worst = sample["error"], sample
+                if sample['error'] >= self.max_error:
+                    self.max_error, self.worst = sample['error'], sample
 
 
 class Monitor(Node):
     """Subscribes the simulator's measurements, the estimates and the model node's diagnostics."""
 
     def __init__(self, comparison: Comparison, ambient: float) -> None:
-        super().__init__("pma_demo", namespace=NAMESPACE)
+        super().__init__('pma_demo', namespace=NAMESPACE)
         self.comparison, self.ambient = comparison, ambient
-        self.received = {"force": 0, "force_estimate": 0}
+        self.received = {'force': 0, 'force_estimate': 0}
         self.diagnostics: dict[str, str] = {}
-        self.create_subscription(WrenchStamped, "force", self._on_force, SENSOR_QOS)
-        self.create_subscription(WrenchStamped, "force_estimate", self._on_estimate, 200)
-        self.create_subscription(FluidPressure, "pressure", self._on_pressure, SENSOR_QOS)
-        self.create_subscription(JointState, "muscle_state", self._on_state, SENSOR_QOS)
-        self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 10)
+        self.create_subscription(WrenchStamped, 'force', self._on_force, SENSOR_QOS)
+        self.create_subscription(WrenchStamped, 'force_estimate', self._on_estimate, 200)
+        self.create_subscription(FluidPressure, 'pressure', self._on_pressure, SENSOR_QOS)
+        self.create_subscription(JointState, 'muscle_state', self._on_state, SENSOR_QOS)
+        self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 10)
 
     @staticmethod
     def _ns(msg) -> int:
         return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
 
     def _on_force(self, msg: WrenchStamped) -> None:
-        self.received["force"] += 1
-        self.comparison.add(self._ns(msg), "measured", msg.wrench.force.x)
+        self.received['force'] += 1
+        self.comparison.add(self._ns(msg), 'measured', msg.wrench.force.x)
 
     def _on_estimate(self, msg: WrenchStamped) -> None:
-        self.received["force_estimate"] += 1
-        self.comparison.add(self._ns(msg), "estimate", msg.wrench.force.x)
+        self.received['force_estimate'] += 1
+        self.comparison.add(self._ns(msg), 'estimate', msg.wrench.force.x)
 
     def _on_pressure(self, msg: FluidPressure) -> None:
-        self.comparison.add(self._ns(msg), "pressure", msg.fluid_pressure - self.ambient)
+        self.comparison.add(self._ns(msg), 'pressure', msg.fluid_pressure - self.ambient)
 
     def _on_state(self, msg: JointState) -> None:
         if msg.position:
-            self.comparison.add(self._ns(msg), "length", msg.position[0])
+            self.comparison.add(self._ns(msg), 'length', msg.position[0])
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
-            if status.name.startswith(f"{NAMESPACE}/model_node"):
+            if status.name.startswith(f'{NAMESPACE}/model_node'):
                 self.diagnostics = {kv.key: kv.value for kv in status.values}
-                self.diagnostics["level"] = ("OK", "WARN", "ERROR", "STALE")[status.level[0]]
-                self.diagnostics["message"] = status.message
+                self.diagnostics['level'] = ('OK', 'WARN', 'ERROR', 'STALE')[status.level[0]]
+                self.diagnostics['message'] = status.message
 
 
 def _line(t: float, c: Comparison) -> str:
     s = c.last
-    return (f"{t:6.1f} {s.get('pressure', float('nan')) / 1e3:8.1f} {s.get('length', float('nan')) * 1e3:7.1f} "
-            f"{s['estimate']:10.1f} {s['measured']:10.1f} {s['error']:7.2f} {c.max_error:8.2f}")
+    return (
+        f'{t:6.1f} {s.get("pressure", float("nan")) / 1e3:8.1f} '
+        f'{s.get("length", float("nan")) * 1e3:7.1f} '
+        f'{s["estimate"]:10.1f} {s["measured"]:10.1f} {s["error"]:7.2f} {c.max_error:8.2f}'
+    )
 
 
 def run(duration: float, config: Path) -> int:
     params = read_parameters(config)
     model = muscle_model(params)
-    identified = params["models"][model.model.name]["err"]
+    identified = params['models'][model.model.name]['err']
     comparison = Comparison(shipped_force_map(model.spec.name).max_force)
-    print(f"pma_model_ros demo: simulated {model.spec.name} (truth = its measured map) vs model_node "
-          f"({model.model.name}, identification err {identified:.2f} % of {comparison.max_force:g} N), "
-          f"{duration:g} s\n")
+    print(
+        f'pma_model_ros demo: simulated {model.spec.name} (truth = its measured map) vs '
+        f'model_node '
+        f'({model.model.name}, identification err {identified:.2f} % of {comparison.max_force:g} '
+        f'N), '
+        f'{duration:g} s\n'
+    )
     sim_params = dict(SIMULATOR, sweep_period=duration, muscle=model.spec.name)
-    with tempfile.TemporaryDirectory(prefix="pma_demo_") as tmp:
-        logs = {name: open(Path(tmp) / f"{name}.log", "w+") for name in ("simulator_node", "model_node")}
-        procs = {"simulator_node": node_process.start(
-                     node_process.command("simulator_node", NAMESPACE, params=sim_params), logs["simulator_node"]),
-                 "model_node": node_process.start(
-                     node_process.command("model_node", NAMESPACE, params_file=config), logs["model_node"])}
+    with tempfile.TemporaryDirectory(prefix='pma_demo_') as tmp:
+        logs = {
+            name: open(Path(tmp) / f'{name}.log', 'w+')
+            for name in ('simulator_node', 'model_node')
+        }
+        procs = {
+            'simulator_node': node_process.start(
+                node_process.command('simulator_node', NAMESPACE, params=sim_params),
+                logs['simulator_node'],
+            ),
+            'model_node': node_process.start(
+                node_process.command('model_node', NAMESPACE, params_file=config),
+                logs['model_node'],
+            ),
+        }
         rclpy.init()
-        monitor = Monitor(comparison, float(params.get("ambient_pressure", STANDARD_ATMOSPHERE)))
+        monitor = Monitor(comparison, float(params.get('ambient_pressure', STANDARD_ATMOSPHERE)))
         start = time.monotonic()
         try:
-            print("   t/s    p/kPa    L/mm  estimate/N measured/N  err/%  max err/% (of max force)")
+            print(
+                '   t/s    p/kPa    L/mm  estimate/N measured/N  err/%  max err/% (of max force)'
+            )
             next_print = start + 1.0
-            while time.monotonic() - start < duration and all(p.poll() is None for p in procs.values()):
+            while time.monotonic() - start < duration and all(
+                p.poll() is None for p in procs.values()
+            ):
                 rclpy.spin_once(monitor, timeout_sec=0.05)
                 if time.monotonic() >= next_print:
                     next_print += 0.25
@@ -160,7 +192,7 @@ def run(duration: float, config: Path) -> int:
         if not ok:
             for name, log in logs.items():
                 log.seek(0)
-                print(f"--- {name} output ---\n{log.read()}", file=sys.stderr)
+                print(f'--- {name} output ---\n{log.read()}', file=sys.stderr)
         for log in logs.values():
             log.close()
     return 0 if ok else 1
@@ -168,33 +200,50 @@ def run(duration: float, config: Path) -> int:
 
 def _summary(c: Comparison, monitor: Monitor, codes: dict[str, int], identified: float) -> bool:
     d = monitor.diagnostics
-    print("\nsummary")
+    print('\nsummary')
     if c.count:
         w = c.worst
-        print(f"  compared {c.count} stamps: max error {c.max_error:.2f} % of max force "
-              f"({c.max_error * c.max_force / 100:.1f} N) at p = {w.get('pressure', float('nan')) / 1e3:.0f} kPa, L = {w.get('length', float('nan')):.4f} m;"
-              f" mean {c.error_sum / c.count:.2f} %  (identification err on the map points: {identified:.2f} %)")
-    print(f"  demo received: {monitor.received['force']} measured forces, "
-          f"{monitor.received['force_estimate']} force estimates")
+        print(
+            f'  compared {c.count} stamps: max error {c.max_error:.2f} % of max force '
+            f'({c.max_error * c.max_force / 100:.1f} N) at p = '
+            f'{w.get("pressure", float("nan")) / 1e3:.0f} kPa, L = '
+            f'{w.get("length", float("nan")):.4f} m;'
+            f' mean {c.error_sum / c.count:.2f} %  (identification err on the map points: '
+            f'{identified:.2f} %)'
+        )
+    print(
+        f'  demo received: {monitor.received["force"]} measured forces, '
+        f'{monitor.received["force_estimate"]} force estimates'
+    )
     if d:
-        print(f"  model_node (its last /diagnostics report) in: {d.get('received pressure', '0')} pressure, "
-              f"{d.get('received muscle_state', '0')} muscle_state; out: {d.get('estimates', '0')} estimates;"
-              f" rejected: {sum(int(v) for k, v in d.items() if k.startswith('rejected'))};"
-              f" last diagnostics {d['level']}: {d['message']}")
-    print("  nodes stopped: " + ", ".join(f"{name} exit {code}" for name, code in codes.items()))
+        print(
+            f'  model_node (its last /diagnostics report) in: {d.get("received pressure", "0")} '
+            f'pressure, '
+            f'{d.get("received muscle_state", "0")} muscle_state; out: {d.get("estimates", "0")} '
+            f'estimates;'
+            f' rejected: {sum(int(v) for k, v in d.items() if k.startswith("rejected"))};'
+            f' last diagnostics {d["level"]}: {d["message"]}'
+        )
+    print('  nodes stopped: ' + ', '.join(f'{name} exit {code}' for name, code in codes.items()))
     return c.count > 0 and all(code == 0 for code in codes.values())
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m pma_model_ros.demo", description=__doc__.splitlines()[0])
-    parser.add_argument("--duration", type=float, default=20.0, help="run time [s] (default 20)")
-    parser.add_argument("--config", type=Path, default=None, help="model_node parameter file "
-                        "(default config/dmsp_10_250.yaml)")
+    parser = argparse.ArgumentParser(
+        prog='python -m pma_model_ros.demo', description=__doc__.splitlines()[0]
+    )
+    parser.add_argument('--duration', type=float, default=20.0, help='run time [s] (default 20)')
+    parser.add_argument(
+        '--config',
+        type=Path,
+        default=None,
+        help='model_node parameter file (default config/dmsp_10_250.yaml)',
+    )
     args = parser.parse_args(argv)
     if args.duration <= 0:
-        parser.error("--duration must be > 0")
+        parser.error('--duration must be > 0')
     return run(args.duration, args.config or default_config())
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,9 +1,10 @@
 """Figures of the identified muscles: matplotlib with the Agg canvas, no pyplot (no global state).
 
-One function per figure, each returning a :class:`~matplotlib.figure.Figure`; :func:`save` writes it.
-Axes read pressure in kPa (gauge), length in mm, force in N; errors are in % of the map's largest
-measured force, the basis of Martens & Boblan eq. 23.  The physics comes from ``core``.
+One function per figure, each returning a :class:`~matplotlib.figure.Figure`; :func:`save` writes
+it. Axes read pressure in kPa (gauge), length in mm, force in N; errors are in % of the map's
+largest measured force, the basis of Martens & Boblan eq. 23.  The physics comes from ``core``.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,26 +18,40 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter
 import numpy as np
 
-from .bags.bag_io import BagError, connections_of, deserialize, messages, open_bag
-from .bags.estimate import WRENCH_STAMPED, muscle_namespace
-from .bags.synthetic import topic
+from .bags.bag_io import (
+    BagError,
+    connections_of,
+    deserialize,
+    messages,
+    open_bag,
+    topic,
+    WRENCH_STAMPED,
+)
+from .bags.estimate import muscle_namespace
 from .core.flags import Flag
 from .core.force_map import ForceMap
 from .core.identification import max_error_percent
-from .core.joint import Joint, envelope
+from .core.joint import envelope, Joint
 from .core.muscle_model import MuscleModel
 
-FORMATS = ("png", "svg")
-DPI = 120            #: PNG resolution; the 8 in wide figures are 960 px, README width
-WIDTH = 8.0          #: figure width [in]
-#: Local rc settings (applied with rc_context, never globally); the hash salt makes SVG ids reproducible.
-STYLE = {"font.size": 10, "axes.titlesize": 11, "legend.fontsize": 9, "axes.grid": True, "grid.alpha": 0.35,
-         "svg.hashsalt": "pma_model_ros"}
-SLACK_SHADE = "0.92"
+FORMATS = ('png', 'svg')
+DPI = 120  #: PNG resolution; the 8 in wide figures are 960 px, README width
+WIDTH = 8.0  #: figure width [in]
+#: Local rc settings (applied with rc_context, never globally); the hash salt makes SVG ids
+#: reproducible.
+STYLE = {
+    'font.size': 10,
+    'axes.titlesize': 11,
+    'legend.fontsize': 9,
+    'axes.grid': True,
+    'grid.alpha': 0.35,
+    'svg.hashsalt': 'pma_model_ros',
+}
+SLACK_SHADE = '0.92'
 
 
 def _figure(height: float) -> Figure:
-    fig = Figure(figsize=(WIDTH, height), layout="constrained")
+    fig = Figure(figsize=(WIDTH, height), layout='constrained')
     FigureCanvasAgg(fig)
     return fig
 
@@ -50,7 +65,7 @@ def _mm(length: np.ndarray) -> np.ndarray:
 
 
 def _length_colors(n: int) -> list:
-    return [matplotlib.colormaps["viridis"](x) for x in np.linspace(0.0, 0.85, n)]
+    return [matplotlib.colormaps['viridis'](x) for x in np.linspace(0.0, 0.85, n)]
 
 
 @matplotlib.rc_context(STYLE)
@@ -63,37 +78,84 @@ def force_map_figure(fmap: ForceMap, model: MuscleModel) -> Figure:
     """
     fig = _figure(5.4)
     ax = fig.add_subplot()
-    err = max_error_percent(fmap.force, model.force(fmap.pressure, fmap.length).force, fmap.max_force)
+    err = max_error_percent(
+        fmap.force, model.force(fmap.pressure, fmap.length).force, fmap.max_force
+    )
     pressure = np.linspace(0.0, fmap.pressure.max(), 400)
     for length, color in zip(fmap.lengths, _length_colors(fmap.lengths.size)):
         raw = model.force(pressure, length).raw
         slack = raw < 0
-        ax.plot(_kpa(pressure[~slack]), raw[~slack], color=color, lw=2,
-                label=f"{_mm(length):.0f} mm ({100 * (1 - length / model.spec.nominal_length):.1f} %)")
-        ax.plot(_kpa(pressure[slack]), raw[slack], color=color, lw=1.3, ls=":")
+        ax.plot(
+            _kpa(pressure[~slack]),
+            raw[~slack],
+            color=color,
+            lw=2,
+            label=f'{_mm(length):.0f} mm ({100 * (1 - length / model.spec.nominal_length):.1f} %)',
+        )
+        ax.plot(_kpa(pressure[slack]), raw[slack], color=color, lw=1.3, ls=':')
         at = fmap.length == length
         pulled = fmap.force[at] > 0
-        ax.plot(_kpa(fmap.pressure[at][pulled]), fmap.force[at][pulled], "o", ms=5, color=color)
-        ax.plot(_kpa(fmap.pressure[at][~pulled]), fmap.force[at][~pulled], "o", ms=5, mfc="white", mec=color)
+        ax.plot(_kpa(fmap.pressure[at][pulled]), fmap.force[at][pulled], 'o', ms=5, color=color)
+        ax.plot(
+            _kpa(fmap.pressure[at][~pulled]),
+            fmap.force[at][~pulled],
+            'o',
+            ms=5,
+            mfc='white',
+            mec=color,
+        )
     low = -0.12 * fmap.max_force
     ax.axhspan(low, 0.0, color=SLACK_SHADE, zorder=0)
-    ax.text(0.01, low / 2, "slack: raw model < 0 N, served 0 N", va="center", fontsize=9, color="0.3",
-            transform=ax.get_yaxis_transform(), bbox={"facecolor": SLACK_SHADE, "edgecolor": "none"})
+    ax.text(
+        0.01,
+        low / 2,
+        'slack: raw model < 0 N, served 0 N',
+        va='center',
+        fontsize=9,
+        color='0.3',
+        transform=ax.get_yaxis_transform(),
+        bbox={'facecolor': SLACK_SHADE, 'edgecolor': 'none'},
+    )
     if model.spec.max_pressure < pressure[-1]:
-        ax.axvline(_kpa(model.spec.max_pressure), color="0.4", ls="--", lw=1)
-        ax.text(_kpa(model.spec.max_pressure), 0.98, "rated max pressure ", va="top", ha="right",
-                fontsize=9, color="0.3", transform=ax.get_xaxis_transform())
-    ax.set(xlim=(0, _kpa(pressure[-1]) * 1.01), ylim=(low, 1.05 * fmap.max_force),
-           xlabel="gauge pressure p [kPa]", ylabel="tension F [N]",
-           title=f"{model.spec.name}: measured force map and the {model.model.name} model "
-                 f"(err {err:.2f} %, eq. 23)")
-    lengths = ax.legend(title="length L (contraction)", loc="upper left")
+        ax.axvline(_kpa(model.spec.max_pressure), color='0.4', ls='--', lw=1)
+        ax.text(
+            _kpa(model.spec.max_pressure),
+            0.98,
+            'rated max pressure ',
+            va='top',
+            ha='right',
+            fontsize=9,
+            color='0.3',
+            transform=ax.get_xaxis_transform(),
+        )
+    ax.set(
+        xlim=(0, _kpa(pressure[-1]) * 1.01),
+        ylim=(low, 1.05 * fmap.max_force),
+        xlabel='gauge pressure p [kPa]',
+        ylabel='tension F [N]',
+        title=f'{model.spec.name}: measured force map and the {model.model.name} model '
+        f'(err {err:.2f} %, eq. 23)',
+    )
+    lengths = ax.legend(title='length L (contraction)', loc='upper left')
     ax.add_artist(lengths)
-    ax.legend(handles=[Line2D([], [], color="0.3", marker="o", ls="none", label="measured"),
-                       Line2D([], [], color="0.3", marker="o", mfc="white", ls="none", label="measured 0 N (slack)"),
-                       Line2D([], [], color="0.3", lw=2, label=f"{model.model.name}, served"),
-                       Line2D([], [], color="0.3", lw=1.3, ls=":", label=f"{model.model.name}, raw < 0")],
-              loc="upper left", bbox_to_anchor=(0.0, 0.62))
+    ax.legend(
+        handles=[
+            Line2D([], [], color='0.3', marker='o', ls='none', label='measured'),
+            Line2D(
+                [],
+                [],
+                color='0.3',
+                marker='o',
+                mfc='white',
+                ls='none',
+                label='measured 0 N (slack)',
+            ),
+            Line2D([], [], color='0.3', lw=2, label=f'{model.model.name}, served'),
+            Line2D([], [], color='0.3', lw=1.3, ls=':', label=f'{model.model.name}, raw < 0'),
+        ],
+        loc='upper left',
+        bbox_to_anchor=(0.0, 0.62),
+    )
     return fig
 
 
@@ -103,7 +165,9 @@ def _grid(fmap: ForceMap, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     grid = np.full((pressures.size, lengths.size), np.nan)
     grid[np.searchsorted(pressures, fmap.pressure), np.searchsorted(lengths, fmap.length)] = values
     if np.isnan(grid).any() or grid.size != values.size:
-        raise ValueError("an error map needs a full grid: every pressure measured at every length, once")
+        raise ValueError(
+            'an error map needs a full grid: every pressure measured at every length, once'
+        )
     return pressures, lengths, grid
 
 
@@ -125,31 +189,66 @@ def error_map_figure(fmap: ForceMap, model: MuscleModel) -> Figure:
     error = 100 * (model.force(fmap.pressure, fmap.length).force - fmap.force) / fmap.max_force
     pressures, lengths, grid = _grid(fmap, error)
     limit = max(float(np.abs(error).max()), 1e-9)
-    mesh = ax.pcolormesh(_kpa(_edges(pressures)), _mm(_edges(lengths)), grid.T, cmap="RdBu_r",
-                         norm=TwoSlopeNorm(0.0, -limit, limit), edgecolors="white", linewidth=0.5)
-    fig.colorbar(mesh, ax=ax, label=f"model − measured [% of max measured {fmap.max_force:.0f} N]")
+    mesh = ax.pcolormesh(
+        _kpa(_edges(pressures)),
+        _mm(_edges(lengths)),
+        grid.T,
+        cmap='RdBu_r',
+        norm=TwoSlopeNorm(0.0, -limit, limit),
+        edgecolors='white',
+        linewidth=0.5,
+    )
+    fig.colorbar(mesh, ax=ax, label=f'model − measured [% of max measured {fmap.max_force:.0f} N]')
     slack = fmap.force == 0
-    ax.plot(_kpa(fmap.pressure[slack]), _mm(fmap.length[slack]), "x", color="0.25", ms=5,
-            label="measured 0 N (slack)")
+    ax.plot(
+        _kpa(fmap.pressure[slack]),
+        _mm(fmap.length[slack]),
+        'x',
+        color='0.25',
+        ms=5,
+        label='measured 0 N (slack)',
+    )
     fine = np.linspace(lengths[0], lengths[-1], 200)
     onset = model.pressure(0.0, fine)
     reached = (onset.flags & Flag.SATURATED) == 0
-    ax.plot(_kpa(onset.pressure[reached]), _mm(fine[reached]), "--", color="k", lw=1.5,
-            label=f"{model.model.name} starts to pull")
+    ax.plot(
+        _kpa(onset.pressure[reached]),
+        _mm(fine[reached]),
+        '--',
+        color='k',
+        lw=1.5,
+        label=f'{model.model.name} starts to pull',
+    )
     worst = int(np.argmax(np.abs(error)))
     at = (_kpa(fmap.pressure[worst]), _mm(fmap.length[worst]))
-    ax.plot(*at, "o", ms=14, mfc="none", mec="white", mew=3.5)
-    ax.plot(*at, "o", ms=14, mfc="none", mec="k", mew=1.5, label=f"max |error| {abs(error[worst]):.2f} % (eq. 23)")
-    ax.set(xlabel="gauge pressure p [kPa]", ylabel="length L [mm]", xlim=_kpa(_edges(pressures)[[0, -1]]),
-           title=f"{model.spec.name}: {model.model.name} model error over the measured map")
+    ax.plot(*at, 'o', ms=14, mfc='none', mec='white', mew=3.5)
+    ax.plot(
+        *at,
+        'o',
+        ms=14,
+        mfc='none',
+        mec='k',
+        mew=1.5,
+        label=f'max |error| {abs(error[worst]):.2f} % (eq. 23)',
+    )
+    ax.set(
+        xlabel='gauge pressure p [kPa]',
+        ylabel='length L [mm]',
+        xlim=_kpa(_edges(pressures)[[0, -1]]),
+        title=f'{model.spec.name}: {model.model.name} model error over the measured map',
+    )
     ax.grid(False)
-    fig.legend(loc="outside lower center", ncols=3)
+    fig.legend(loc='outside lower center', ncols=3)
     return fig
 
 
 #: Bars of the model comparison: key in the table, label, colour.
-_BARS = (("paper", "paper (Table 3)", "0.55"), ("paper_protocol", "ours, paper protocol", "tab:blue"),
-         ("best", "ours, best fit", "tab:green"), ("cv", "ours, worst held-out length (CV)", "tab:orange"))
+_BARS = (
+    ('paper', 'paper (Table 3)', '0.55'),
+    ('paper_protocol', 'ours, paper protocol', 'tab:blue'),
+    ('best', 'ours, best fit', 'tab:green'),
+    ('cv', 'ours, worst held-out length (CV)', 'tab:orange'),
+)
 
 
 @matplotlib.rc_context(STYLE)
@@ -163,64 +262,97 @@ def models_figure(table: Mapping[str, Mapping]) -> Figure:
     axes = fig.subplots(len(table), 1, sharex=True, squeeze=False)[:, 0]
     width = 0.8 / len(_BARS)
     for ax, (muscle, rows) in zip(axes, table.items()):
-        names = [name for name in rows if name != "default"]
+        names = [name for name in rows if name != 'default']
         x = np.arange(len(names))
         for i, (key, label, color) in enumerate(_BARS):
             values = [rows[name][key] for name in names]
-            bars = ax.bar(x + (i - (len(_BARS) - 1) / 2) * width, values, width, color=color, label=label)
-            ax.bar_label(bars, labels=[f"{v:.0f}" if v >= 100 else f"{v:.2f}" for v in values], fontsize=7.5,
-                         padding=2, rotation=90)
-        ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            bars = ax.bar(
+                x + (i - (len(_BARS) - 1) / 2) * width, values, width, color=color, label=label
+            )
+            ax.bar_label(
+                bars,
+                labels=[f'{v:.0f}' if v >= 100 else f'{v:.2f}' for v in values],
+                fontsize=7.5,
+                padding=2,
+                rotation=90,
+            )
+        ax.set_yscale('log')
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f'{v:g}'))
         ax.set_ylim(0.1, 1e4)
-        ax.set_ylabel("err, eq. 23 [%], log scale")
-        ax.set_title(f"{muscle} (default model by CV: {rows['default']})", loc="left")
-        ax.grid(axis="x", visible=False)
+        ax.set_ylabel('err, eq. 23 [%], log scale')
+        ax.set_title(f'{muscle} (default model by CV: {rows["default"]})', loc='left')
+        ax.grid(axis='x', visible=False)
     axes[-1].set_xticks(x, names)
-    fig.legend(handles=axes[0].containers, labels=[label for _, label, _ in _BARS], loc="outside upper center",
-               ncols=2)
+    fig.legend(
+        handles=axes[0].containers,
+        labels=[label for _, label, _ in _BARS],
+        loc='outside upper center',
+        ncols=2,
+    )
     return fig
 
 
-def read_force_series(bag: str | Path, namespace: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(time [s] since the first pair, measured [N], estimated [N]) at the header stamps both topics hold.
+def read_force_series(
+    bag: str | Path, namespace: str | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(time [s] since the first pair, measured [N], estimated [N]) at the header stamps both
+    topics hold.
 
-    Reads force.x of ``<ns>/force`` (measured) and ``<ns>/force_estimate`` (as ``pma-model bag estimate``
-    writes it), both WrenchStamped; of several estimates with one stamp the last (the newest pair) counts.
-    ``namespace``: of the muscle's topics, default the only one in the bag.  Raises BagError (one line).
+    Reads force.x of ``<ns>/force`` (measured) and ``<ns>/force_estimate`` (as ``pma-model bag
+    estimate`` writes it), both WrenchStamped; of several estimates with one stamp the last (the
+    newest pair) counts. ``namespace``: of the muscle's topics, default the only one in the bag.
+    Raises BagError (one line).
     """
     with open_bag(bag) as reader:
         ns = muscle_namespace(reader, namespace)
-        series: dict[str, dict[int, float]] = {topic(ns, "force"): {}, topic(ns, "force_estimate"): {}}
+        series: dict[str, dict[int, float]] = {
+            topic(ns, 'force'): {},
+            topic(ns, 'force_estimate'): {},
+        }
         if not set(series) <= {c.topic for c in reader.connections}:
-            raise BagError(f"{bag}: needs {' and '.join(series)}; add estimates with `pma-model bag estimate`")
+            raise BagError(
+                f'{bag}: needs {" and ".join(series)}; add estimates with `pma-model bag estimate`'
+            )
         connections = connections_of(reader, series, dict.fromkeys(series, WRENCH_STAMPED))
         for connection, _, data in messages(reader, connections):
             msg = deserialize(data, connection)
-            series[connection.topic][msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec] = msg.wrench.force.x
+            series[connection.topic][msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec] = (
+                msg.wrench.force.x
+            )
     measured, estimated = series.values()
     stamps = np.array(sorted(measured.keys() & estimated.keys()), dtype=np.int64)
     if stamps.size < 2:
-        raise BagError(f"{bag}: fewer than 2 stamps with both a measured force and an estimate")
-    return ((stamps - stamps[0]) * 1e-9, np.array([measured[s] for s in stamps]),
-            np.array([estimated[s] for s in stamps]))
+        raise BagError(f'{bag}: fewer than 2 stamps with both a measured force and an estimate')
+    return (
+        (stamps - stamps[0]) * 1e-9,
+        np.array([measured[s] for s in stamps]),
+        np.array([estimated[s] for s in stamps]),
+    )
 
 
 @matplotlib.rc_context(STYLE)
-def timeseries_figure(time: np.ndarray, measured: np.ndarray, estimated: np.ndarray, title: str) -> Figure:
-    """Estimated and measured force [N] over time [s] at the same stamps, and their difference [N]."""
+def timeseries_figure(
+    time: np.ndarray, measured: np.ndarray, estimated: np.ndarray, title: str
+) -> Figure:
+    """Estimated and measured force [N] over time [s] at the same stamps, and their difference
+    [N].
+    """
     fig = _figure(5.0)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(2.2, 1))
-    top.plot(time, measured, color="0.2", lw=1.6, label="measured")
-    top.plot(time, estimated, color="tab:orange", lw=1.2, label="estimated")
-    top.set(ylabel="tension F [N]", title=title)
-    top.legend(loc="upper right")
+    top.plot(time, measured, color='0.2', lw=1.6, label='measured')
+    top.plot(time, estimated, color='tab:orange', lw=1.2, label='estimated')
+    top.set(ylabel='tension F [N]', title=title)
+    top.legend(loc='upper right')
     error = estimated - measured
-    bottom.plot(time, error, color="tab:red", lw=1.0)
-    bottom.axhline(0.0, color="0.3", lw=0.8)
-    bottom.set_title(f"error: max |estimated − measured| {np.abs(error).max():.1f} N, "
-                     f"RMS {np.sqrt(np.mean(error**2)):.1f} N over {time.size} stamps", loc="left", fontsize=10)
-    bottom.set(xlabel="time t [s]", ylabel="estimated −\nmeasured [N]", xlim=(time[0], time[-1]))
+    bottom.plot(time, error, color='tab:red', lw=1.0)
+    bottom.axhline(0.0, color='0.3', lw=0.8)
+    bottom.set_title(
+        f'error: max |estimated − measured| {np.abs(error).max():.1f} N, '
+        f'RMS {np.sqrt(np.mean(error**2)):.1f} N over {time.size} stamps',
+        loc='left',
+        fontsize=10,
+    )
+    bottom.set(xlabel='time t [s]', ylabel='estimated −\nmeasured [N]', xlim=(time[0], time[-1]))
     return fig
 
 
@@ -230,49 +362,75 @@ JOINT_LEVELS = (0.0, 200e3, 400e3, 600e3)
 
 @matplotlib.rc_context(STYLE)
 def joint_figure(joint: Joint) -> Figure:
-    """Left: the reachable torque over the joint range, in all and at co-contraction levels (lower pressure).
-    Right: the stiffness K [N·m/rad] at zero torque over angle and co-contraction level."""
+    """Left: the reachable torque over the joint range, in all and at co-contraction levels (lower
+    pressure). Right: the stiffness K [N·m/rad] at zero torque over angle and co-contraction level.
+    """
     fig = _figure(3.8)
     left, right = fig.subplots(1, 2)
     angles = np.linspace(*joint.limits, 81)
     env = envelope(joint, angles, JOINT_LEVELS)
-    left.fill_between(angles, env["torque_min"], env["torque_max"], color="0.9", label="any pressures")
-    for level, low, high, color in zip(JOINT_LEVELS, env["level_min"], env["level_max"],
-                                       _length_colors(len(JOINT_LEVELS))):
-        left.plot(angles, high, color=color, lw=1.4, label=f"lower pressure {level / 1e3:.0f} kPa")
-        left.plot(angles, low, color=color, lw=1.4, ls="--")
-    left.axhline(0.0, color="0.3", lw=0.8)
-    left.set(xlabel="joint angle θ [rad]", ylabel="torque τ [N·m]",
-             title="reachable torque (max solid, min dashed)")
-    left.legend(loc="upper center", fontsize=7.5)
+    left.fill_between(
+        angles, env['torque_min'], env['torque_max'], color='0.9', label='any pressures'
+    )
+    for level, low, high, color in zip(
+        JOINT_LEVELS, env['level_min'], env['level_max'], _length_colors(len(JOINT_LEVELS))
+    ):
+        left.plot(angles, high, color=color, lw=1.4, label=f'lower pressure {level / 1e3:.0f} kPa')
+        left.plot(angles, low, color=color, lw=1.4, ls='--')
+    left.axhline(0.0, color='0.3', lw=0.8)
+    left.set(
+        xlabel='joint angle θ [rad]',
+        ylabel='torque τ [N·m]',
+        title='reachable torque (max solid, min dashed)',
+    )
+    left.legend(loc='upper center', fontsize=7.5)
     p_max = min(m.spec.max_pressure for m in joint.muscles)
     levels = np.linspace(0.0, p_max, 81)
     grid = np.linspace(*joint.limits, 81)
-    stiffness = np.array([[joint.pressures_one(theta, 0.0, level).stiffness for theta in grid] for level in levels])
-    stiffness = np.ma.masked_where(stiffness <= 0, stiffness)   # both muscles slack
+    stiffness = np.array(
+        [[joint.pressures_one(theta, 0.0, level).stiffness for theta in grid] for level in levels]
+    )
+    stiffness = np.ma.masked_where(stiffness <= 0, stiffness)  # both muscles slack
     right.set_facecolor(SLACK_SHADE)
-    mesh = right.pcolormesh(grid, _kpa(levels), stiffness, shading="nearest", cmap="viridis")
-    right.contour(grid, _kpa(levels), stiffness, levels=np.arange(2.0, stiffness.max(), 1.0), colors="white",
-                  linewidths=0.6)
-    right.text(0.5, 0.06, "both muscles slack: K = 0", transform=right.transAxes, ha="center", fontsize=8)
-    fig.colorbar(mesh, ax=right, label="stiffness K = −dτ/dθ [N·m/rad]")
-    right.set(xlabel="joint angle θ [rad]", ylabel="co-contraction: lower pressure [kPa]",
-              title="stiffness at zero torque")
+    mesh = right.pcolormesh(grid, _kpa(levels), stiffness, shading='nearest', cmap='viridis')
+    right.contour(
+        grid,
+        _kpa(levels),
+        stiffness,
+        levels=np.arange(2.0, stiffness.max(), 1.0),
+        colors='white',
+        linewidths=0.6,
+    )
+    right.text(
+        0.5, 0.06, 'both muscles slack: K = 0', transform=right.transAxes, ha='center', fontsize=8
+    )
+    fig.colorbar(mesh, ax=right, label='stiffness K = −dτ/dθ [N·m/rad]')
+    right.set(
+        xlabel='joint angle θ [rad]',
+        ylabel='co-contraction: lower pressure [kPa]',
+        title='stiffness at zero torque',
+    )
     right.grid(False)
-    names = " / ".join(f"{n} ({m.spec.name}, {m.model.name})" for n, m in zip(joint.muscle_names, joint.muscles))
-    fig.suptitle(f"joint '{joint.name}': {names}, r = {joint.transmission.radius(0.0) * 1e3:g} mm at 0 rad",
-                 fontsize=10)
+    names = ' / '.join(
+        f'{n} ({m.spec.name}, {m.model.name})' for n, m in zip(joint.muscle_names, joint.muscles)
+    )
+    fig.suptitle(
+        f"joint '{joint.name}': {names}, r = {joint.transmission.radius(0.0) * 1e3:g} mm at 0 rad",
+        fontsize=10,
+    )
     return fig
 
 
-def save(fig: Figure, out_dir: str | Path, stem: str, formats: Sequence[str] = FORMATS) -> list[Path]:
+def save(
+    fig: Figure, out_dir: str | Path, stem: str, formats: Sequence[str] = FORMATS
+) -> list[Path]:
     """Write ``out_dir/stem.<format>`` for each format (reproducible: no date, fixed SVG ids)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     with matplotlib.rc_context(STYLE):
         for fmt in formats:
-            path = out_dir / f"{stem}.{fmt}"
-            fig.savefig(path, dpi=DPI, metadata={"Date": None} if fmt == "svg" else {})
+            path = out_dir / f'{stem}.{fmt}'
+            fig.savefig(path, dpi=DPI, metadata={'Date': None} if fmt == 'svg' else {})
             paths.append(path)
     return paths

@@ -1,5 +1,7 @@
 """Shared fixtures: identified muscles; for the node tests the colcon install, node processes
-and a private rclpy context per test."""
+and a private rclpy context per test.
+"""
+
 import os
 from pathlib import Path
 import subprocess
@@ -10,17 +12,20 @@ import uuid
 
 import pytest
 
-from pma_model_ros import node_process
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.tools import node_process
 
 REPO = Path(__file__).resolve().parents[1]
-CONFIGS = {"DMSP-10-250": REPO / "config" / "dmsp_10_250.yaml", "DMSP-20-300": REPO / "config" / "dmsp_20_300.yaml",
-           "DMSP-10-100": REPO / "config" / "dmsp_10_100.yaml"}
+CONFIGS = {
+    'DMSP-10-250': REPO / 'config' / 'dmsp_10_250.yaml',
+    'DMSP-20-300': REPO / 'config' / 'dmsp_20_300.yaml',
+    'DMSP-10-100': REPO / 'config' / 'dmsp_10_100.yaml',
+}
 
 
 @pytest.fixture
 def martens_10_250():
-    return muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "martens")
+    return muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 
 
 COLCON = Path(sys.executable).parent / 'colcon'
@@ -32,14 +37,36 @@ def explain(proc):
 
 @pytest.fixture(scope='session')
 def colcon_install(tmp_path_factory):
-    """Run colcon once per session into a tmp dir; the install prefix, site-packages and a run env."""
+    """Run colcon once per session into a tmp dir; the install prefix, site-packages and a run
+    env.
+    """
     assert COLCON.exists(), f'{COLCON} missing: run scripts/setup (installs colcon into .venv)'
     tmp = tmp_path_factory.mktemp('colcon_nodes')
     env = dict(os.environ, COLCON_HOME=str(tmp / 'colcon_home'))
-    proc = subprocess.run([str(c) for c in (COLCON, '--log-base', tmp / 'log', 'build',
-                                            '--base-paths', REPO, '--packages-select', 'pma_model_ros',
-                                            '--build-base', tmp / 'build', '--install-base', tmp / 'install')],
-                          env=env, cwd=tmp, timeout=600, capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            str(c)
+            for c in (
+                COLCON,
+                '--log-base',
+                tmp / 'log',
+                'build',
+                '--base-paths',
+                REPO,
+                '--packages-select',
+                'pma_model_ros',
+                '--build-base',
+                tmp / 'build',
+                '--install-base',
+                tmp / 'install',
+            )
+        ],
+        env=env,
+        cwd=tmp,
+        timeout=600,
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 0, 'colcon build failed: ' + explain(proc)
     prefix = tmp / 'install' / 'pma_model_ros'
     site = sorted(prefix.glob('lib/python3.*/site-packages'))
@@ -61,14 +88,18 @@ class Processes:
         self.tmp = tmp
         self.running: list[tuple[subprocess.Popen, Path]] = []
 
-    def start(self, cmd: list[str], env: dict | None = None, cwd: Path | None = None) -> subprocess.Popen:
+    def start(
+        self, cmd: list[str], env: dict | None = None, cwd: Path | None = None
+    ) -> subprocess.Popen:
         log = self.tmp / f'node{len(self.running)}.log'
         with open(log, 'w') as out:
             proc = node_process.start([str(c) for c in cmd], out, env=env, cwd=cwd)
         self.running.append((proc, log))
         return proc
 
-    def node(self, name: str, namespace: str, params_file: Path | None = None, **params) -> subprocess.Popen:
+    def node(
+        self, name: str, namespace: str, params_file: Path | None = None, **params
+    ) -> subprocess.Popen:
         """Start a node of this package (``params`` as -p overrides; use '__' for '.' in names)."""
         params = {k.replace('__', '.'): v for k, v in params.items()}
         return self.start(node_process.command(name, namespace, params_file, params))
@@ -96,11 +127,18 @@ class Ros:
     def __init__(self, node, executor) -> None:
         self.node, self.executor = node, executor
 
-    def spin_until(self, done: Callable[[], bool], timeout: float, what: str,
-                   every: Callable[[], None] | None = None, period: float = 0.1,
-                   diagnose: Callable[[], str] = str) -> None:
-        """Spin until ``done()``, calling ``every()`` each ``period`` [s]; after ``timeout`` [s] fail with
-        ``what`` and ``diagnose()`` (e.g. the nodes' output)."""
+    def spin_until(
+        self,
+        done: Callable[[], bool],
+        timeout: float,
+        what: str,
+        every: Callable[[], None] | None = None,
+        period: float = 0.1,
+        diagnose: Callable[[], str] = str,
+    ) -> None:
+        """Spin until ``done()``, calling ``every()`` each ``period`` [s]; after ``timeout`` [s]
+        fail with ``what`` and ``diagnose()`` (e.g. the nodes' output).
+        """
         deadline = time.monotonic() + timeout
         next_call = time.monotonic()
         while not done():
@@ -130,15 +168,21 @@ class Ros:
         client = self.node.create_client(srv_type, name)
         self.spin_until(client.service_is_ready, timeout, f'service {name}')
         futures: list = []
-        self.spin_until(lambda: any(f.done() for f in futures), timeout, f'response of {name}',
-                        every=lambda: futures.append(client.call_async(request)), period=1.0)
+        self.spin_until(
+            lambda: any(f.done() for f in futures),
+            timeout,
+            f'response of {name}',
+            every=lambda: futures.append(client.call_async(request)),
+            period=1.0,
+        )
         return next(f for f in futures if f.done()).result()
 
 
 @pytest.fixture
 def ros():
-    import rclpy   # here, not at the top: the core tests must not need rclpy
+    import rclpy  # here, not at the top: the core tests must not need rclpy
     from rclpy.executors import SingleThreadedExecutor
+
     context = rclpy.Context()
     rclpy.init(context=context)
     node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=context)
@@ -152,9 +196,12 @@ def ros():
 
 @pytest.fixture(scope='module')
 def module_ros(tmp_path_factory):
-    """``ros`` and ``processes`` shared by one module's tests: one node process serves many cases."""
+    """``ros`` and ``processes`` shared by one module's tests: one node process serves many
+    cases.
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+
     context = rclpy.Context()
     rclpy.init(context=context)
     node = rclpy.create_node(f'test_{uuid.uuid4().hex[:8]}', context=context)

@@ -1,10 +1,11 @@
 """Message builders shared by the node tests."""
+
 from geometry_msgs.msg import WrenchStamped
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
-AMBIENT = 101325.0      # [Pa], the config's ambient_pressure
-JOINT = 'DMSP-10-250'   # the config's joint_name
+AMBIENT = 101325.0  # [Pa], the config's ambient_pressure
+JOINT = 'DMSP-10-250'  # the config's joint_name
 #: Deep queues for the test's subscriptions: its executor takes one message per spin_once,
 #: so at a few hundred messages per second a shallow queue would drop some.
 SENSOR_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -36,7 +37,9 @@ def stamp_key(msg) -> int:
 
 def model_statuses(diagnostics: list, namespace: str) -> list:
     """The DiagnosticStatus entries of the model_node in ``namespace``, oldest first."""
-    return [s for d in diagnostics for s in d.status if s.name.startswith(f'{namespace}/model_node')]
+    return [
+        s for d in diagnostics for s in d.status if s.name.startswith(f'{namespace}/model_node')
+    ]
 
 
 def status_values(status) -> dict[str, str]:

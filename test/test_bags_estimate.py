@@ -1,4 +1,7 @@
-"""``pma-model bag estimate``: the model node's decisions over a recording, on both storages; bad input."""
+"""``pma-model bag estimate``: the model node's decisions over a recording, on both storages; bad
+input.
+"""
+
 import csv
 import math
 import subprocess
@@ -7,61 +10,92 @@ import sys
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import get_typestore, Stores
 
-from conftest import CONFIGS
-from pma_model_ros.bags.bag_io import (FLUID_PRESSURE, JOINT_STATE, SENSOR_DATA, TYPESTORE, WRENCH_STAMPED,
-                                       BagWriter, read)
-from pma_model_ros.bags.estimate import WrenchStampedCdr, estimate_bag
-from pma_model_ros.bags.synthetic import START_NS, record_simulation
+from pma_model_ros.bags.bag_io import (
+    BagWriter,
+    FLUID_PRESSURE,
+    JOINT_STATE,
+    read,
+    SENSOR_DATA,
+    TYPESTORE,
+    WRENCH_STAMPED,
+)
+from pma_model_ros.bags.estimate import estimate_bag, WrenchStampedCdr
+from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.hysteresis import branches
 from pma_model_ros.core.param_file import node_settings, read_parameters
 
+from conftest import CONFIGS
+
 T = TYPESTORE.types
-SETTINGS = node_settings(read_parameters(CONFIGS["DMSP-10-250"]))
+SETTINGS = node_settings(read_parameters(CONFIGS['DMSP-10-250']))
 JOINT = SETTINGS.joint_name
-NS = "/arm/left"
+NS = '/arm/left'
 
 
 def header(ns: int):
-    return T["std_msgs/msg/Header"](T["builtin_interfaces/msg/Time"](ns // 10**9, ns % 10**9), "sensor")
+    return T['std_msgs/msg/Header'](
+        T['builtin_interfaces/msg/Time'](ns // 10**9, ns % 10**9), 'sensor'
+    )
 
 
 def eventful_bag(path, storage):
-    """3 s at 100 Hz with a NaN pressure, a JointState without the joint, a stale length and force commands."""
-    Vector3, Wrench = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Wrench"]
+    """3 s at 100 Hz with a NaN pressure, a JointState without the joint, a stale length and force
+    commands.
+    """
+    Vector3, Wrench = T['geometry_msgs/msg/Vector3'], T['geometry_msgs/msg/Wrench']
     with BagWriter(path, storage) as bag:
-        p_conn = bag.topic(f"{NS}/pressure", FLUID_PRESSURE, [SENSOR_DATA])
-        s_conn = bag.topic(f"{NS}/muscle_state", JOINT_STATE, [SENSOR_DATA])
-        c_conn = bag.topic(f"{NS}/force_command", WRENCH_STAMPED)
+        p_conn = bag.topic(f'{NS}/pressure', FLUID_PRESSURE, [SENSOR_DATA])
+        s_conn = bag.topic(f'{NS}/muscle_state', JOINT_STATE, [SENSOR_DATA])
+        c_conn = bag.topic(f'{NS}/force_command', WRENCH_STAMPED)
         for k in range(300):
             t = START_NS + k * 10**7
             pressure = 101325.0 + 3e5 + 2e5 * math.sin(k / 20) if k != 50 else math.nan
             bag.write(p_conn, t + 2 * 10**5, T[FLUID_PRESSURE](header(t), pressure, 0.0))
-            stamp = t - 5 * 10**8 if k == 120 else t        # one length 0.5 s old: stale
-            name = ["elbow"] if k == 80 else [JOINT]
-            state = T[JOINT_STATE](header(stamp), name, np.array([0.22 + 0.02 * math.cos(k / 30)]),
-                                   np.array([-0.02 * math.sin(k / 30) / 0.3]), np.array([]))
+            stamp = t - 5 * 10**8 if k == 120 else t  # one length 0.5 s old: stale
+            name = ['elbow'] if k == 80 else [JOINT]
+            state = T[JOINT_STATE](
+                header(stamp),
+                name,
+                np.array([0.22 + 0.02 * math.cos(k / 30)]),
+                np.array([-0.02 * math.sin(k / 30) / 0.3]),
+                np.array([]),
+            )
             bag.write(s_conn, t + 4 * 10**5, state)
             if k % 10 == 5:
-                wrench = T[WRENCH_STAMPED](header(t), Wrench(Vector3(100.0 + k / 3, 0.0, 0.0), Vector3(0.0, 0.0, 0.0)))
+                wrench = T[WRENCH_STAMPED](
+                    header(t), Wrench(Vector3(100.0 + k / 3, 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
+                )
                 bag.write(c_conn, t + 6 * 10**5, wrench)
     return path
 
 
 def node_reference(bag):
-    """What model_node's callbacks make of the bag, message by message (the engine's one-muscle calls)."""
+    """What model_node's callbacks make of the bag, message by message (the engine's one-muscle
+    calls).
+    """
     est = Engine([SETTINGS.config], hold=1.0)
     estimates, commands = [], []
     for topic, time_ns, msg in read(bag):
         now, stamp = time_ns * 1e-9, msg.header.stamp
         force = None
-        if topic.endswith("/pressure"):
-            force = est.pressure(0, msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp)
-        elif topic.endswith("/muscle_state"):
-            force = est.joint_state(0, msg.name, msg.position, msg.velocity, JOINT,
-                                    stamp.sec + stamp.nanosec * 1e-9, now, stamp)
+        if topic.endswith('/pressure'):
+            force = est.pressure(
+                0, msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp
+            )
+        elif topic.endswith('/muscle_state'):
+            force = est.joint_state(
+                0,
+                msg.name,
+                msg.position,
+                msg.velocity,
+                JOINT,
+                stamp.sec + stamp.nanosec * 1e-9,
+                now,
+                stamp,
+            )
         elif (pressure := est.command(0, msg.wrench.force.x, now)) is not None:
             commands.append((time_ns, pressure))
         if force is not None:
@@ -69,170 +103,282 @@ def node_reference(bag):
     return estimates, commands, est.counts(0)
 
 
-@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
-    bag = eventful_bag(tmp_path / "in", storage)
-    summary = estimate_bag(bag, SETTINGS, tmp_path / "out", csv=tmp_path / "est.csv", progress=False)
+    bag = eventful_bag(tmp_path / 'in', storage)
+    summary = estimate_bag(
+        bag, SETTINGS, tmp_path / 'out', csv=tmp_path / 'est.csv', progress=False
+    )
     expected, commands, counts = node_reference(bag)
     out = {}
-    for topic, time_ns, msg in read(tmp_path / "out"):
+    for topic, time_ns, msg in read(tmp_path / 'out'):
         out.setdefault(topic, []).append((time_ns, msg))
-    got = [(t, m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.wrench.force.x)
-           for t, m in out[f"{NS}/force_estimate"]]
-    assert len(expected) > 500 and got == expected                        # same pairs, stamps, forces (exact)
-    assert {m.header.frame_id for _, m in out[f"{NS}/force_estimate"]} == {SETTINGS.frame_id}
-    assert [(t, m.fluid_pressure) for t, m in out[f"{NS}/pressure_command"]] == commands and len(commands) == 30
+    got = [
+        (t, m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.wrench.force.x)
+        for t, m in out[f'{NS}/force_estimate']
+    ]
+    assert len(expected) > 500 and got == expected  # same pairs, stamps, forces (exact)
+    assert {m.header.frame_id for _, m in out[f'{NS}/force_estimate']} == {SETTINGS.frame_id}
+    assert [(t, m.fluid_pressure) for t, m in out[f'{NS}/pressure_command']] == commands and len(
+        commands
+    ) == 30
     assert summary.counts == counts
-    assert counts["rejected pressure"] == 1 and counts["rejected muscle_state"] == 1 and counts["stale skipped"] >= 1
+    assert (
+        counts['rejected pressure'] == 1
+        and counts['rejected muscle_state'] == 1
+        and counts['stale skipped'] >= 1
+    )
     # the originals, unchanged
-    originals = {topic: [(t, m) for t, m in msgs] for topic, msgs in out.items() if "force_" not in topic
-                 and topic != "/diagnostics" and "pressure_command" not in topic}
-    assert {t: len(v) for t, v in originals.items()} == {f"{NS}/pressure": 300, f"{NS}/muscle_state": 300}
-    # diagnostics: ERROR until both inputs are in, OK, ERROR for the bad inputs and the stale length, 1 Hz beside
-    levels = [(t, m.status[0].level, m.status[0].message) for t, m in out["/diagnostics"]]
-    assert levels[0] == (START_NS + 2 * 10**5, 2, "no muscle_state received yet")
-    assert any(m.startswith("invalid input: pressure is nan") for _, _, m in levels)
+    originals = {
+        topic: [(t, m) for t, m in msgs]
+        for topic, msgs in out.items()
+        if 'force_' not in topic and topic != '/diagnostics' and 'pressure_command' not in topic
+    }
+    assert {t: len(v) for t, v in originals.items()} == {
+        f'{NS}/pressure': 300,
+        f'{NS}/muscle_state': 300,
+    }
+    # diagnostics: ERROR until both inputs are in, OK, ERROR for the bad inputs and the stale
+    # length, 1 Hz beside
+    levels = [(t, m.status[0].level, m.status[0].message) for t, m in out['/diagnostics']]
+    assert levels[0] == (START_NS + 2 * 10**5, 2, 'no muscle_state received yet')
+    assert any(m.startswith('invalid input: pressure is nan') for _, _, m in levels)
     assert any("joint 'DMSP-10-250' not in ['elbow']" in m for _, _, m in levels)
-    assert any(m == "estimating" for _, level, m in levels) and levels[-1][1] < 2, levels[-1]
-    assert {m.status[0].name for _, m in out["/diagnostics"]} == \
-        {f"{NS}/model_node: {JOINT}"}
-    with open(tmp_path / "est.csv") as f:
+    assert any(m == 'estimating' for _, level, m in levels) and levels[-1][1] < 2, levels[-1]
+    assert {m.status[0].name for _, m in out['/diagnostics']} == {f'{NS}/model_node: {JOINT}'}
+    with open(tmp_path / 'est.csv') as f:
         rows = list(csv.DictReader(f))
-    assert [(int(r["log_time_ns"]), float(r["force_n"])) for r in rows] == [(t, f) for t, _, f in expected]
+    assert [(int(r['log_time_ns']), float(r['force_n'])) for r in rows] == [
+        (t, f) for t, _, f in expected
+    ]
 
 
 def test_wrench_template_serializes_like_rosbags():
-    cdr = WrenchStampedCdr("dmsp_10_250")
+    cdr = WrenchStampedCdr('dmsp_10_250')
     msg = TYPESTORE.deserialize_cdr(cdr(1767225600, 123456789, 321.5), WRENCH_STAMPED)
-    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (1767225600, 123456789,
-                                                                                     "dmsp_10_250")
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (
+        1767225600,
+        123456789,
+        'dmsp_10_250',
+    )
     assert (msg.wrench.force.x, msg.wrench.force.y, msg.wrench.torque.z) == (321.5, 0.0, 0.0)
 
 
 def test_storage_conversion_and_cli(tmp_path):
-    bag = record_simulation(tmp_path / "sim.mcap", 1.0, "/m1", rate=100.0)
-    proc = subprocess.run([sys.executable, "-m", "pma_model_ros.cli", "bag", "estimate", str(bag), "--config",
-                           str(CONFIGS["DMSP-10-250"]), "--out", str(tmp_path / "out"), "--storage", "sqlite3"],
-                          capture_output=True, text=True, timeout=120)
+    bag = record_simulation(tmp_path / 'sim.mcap', 1.0, '/m1', rate=100.0)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'pma_model_ros.cli',
+            'bag',
+            'estimate',
+            str(bag),
+            '--config',
+            str(CONFIGS['DMSP-10-250']),
+            '--out',
+            str(tmp_path / 'out'),
+            '--storage',
+            'sqlite3',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
-    assert "/m1: 300 messages read; wrote 199 force_estimate" in proc.stdout
-    assert (tmp_path / "out" / "out.db3").is_file()
-    assert sum(1 for topic, _, _ in read(tmp_path / "out") if topic == "/m1/force_estimate") == 199
+    assert '/m1: 300 messages read; wrote 199 force_estimate' in proc.stdout
+    assert (tmp_path / 'out' / 'out.db3').is_file()
+    assert sum(1 for topic, _, _ in read(tmp_path / 'out') if topic == '/m1/force_estimate') == 199
 
 
 def wrong_type_bag(path):
     with BagWriter(path) as bag:
-        conn = bag.topic("/m1/pressure", WRENCH_STAMPED)
-        bag.topic("/m1/muscle_state", JOINT_STATE)
-        bag.write(conn, START_NS, T[WRENCH_STAMPED](header(START_NS), T["geometry_msgs/msg/Wrench"](
-            T["geometry_msgs/msg/Vector3"](1.0, 0.0, 0.0), T["geometry_msgs/msg/Vector3"](0.0, 0.0, 0.0))))
+        conn = bag.topic('/m1/pressure', WRENCH_STAMPED)
+        bag.topic('/m1/muscle_state', JOINT_STATE)
+        bag.write(
+            conn,
+            START_NS,
+            T[WRENCH_STAMPED](
+                header(START_NS),
+                T['geometry_msgs/msg/Wrench'](
+                    T['geometry_msgs/msg/Vector3'](1.0, 0.0, 0.0),
+                    T['geometry_msgs/msg/Vector3'](0.0, 0.0, 0.0),
+                ),
+            ),
+        )
 
 
 def noetic_bag(path):
     store = get_typestore(Stores.ROS1_NOETIC)
     with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
-        writer.add_connection("/m1/pressure", FLUID_PRESSURE, typestore=store)
-        writer.add_connection("/m1/muscle_state", JOINT_STATE, typestore=store)
+        writer.add_connection('/m1/pressure', FLUID_PRESSURE, typestore=store)
+        writer.add_connection('/m1/muscle_state', JOINT_STATE, typestore=store)
 
 
 def truncated_bag(path):
-    record_simulation(path, 1.0, "/m1", rate=100.0)
-    file = path / f"{path.name}.mcap"
+    record_simulation(path, 1.0, '/m1', rate=100.0)
+    file = path / f'{path.name}.mcap'
     file.write_bytes(file.read_bytes()[:20000])
 
 
 def force_only_bag(path):
     with BagWriter(path) as bag:
-        bag.topic("/m1/force", WRENCH_STAMPED)
+        bag.topic('/m1/force', WRENCH_STAMPED)
 
 
-@pytest.mark.parametrize("make, words", [
-    (None, "bag not found"),
-    (truncated_bag, "truncated"),
-    (force_only_bag, "no <namespace>/pressure and <namespace>/muscle_state topics"),
-    (wrong_type_bag, "topic /m1/pressure has type geometry_msgs/msg/WrenchStamped, expected "
-                     "sensor_msgs/msg/FluidPressure"),
-    (noetic_bag, "differs from ROS 2 Jazzy's"),
-])
+@pytest.mark.parametrize(
+    'make, words',
+    [
+        (None, 'bag not found'),
+        (truncated_bag, 'truncated'),
+        (force_only_bag, 'no <namespace>/pressure and <namespace>/muscle_state topics'),
+        (
+            wrong_type_bag,
+            'topic /m1/pressure has type geometry_msgs/msg/WrenchStamped, expected '
+            'sensor_msgs/msg/FluidPressure',
+        ),
+        (noetic_bag, "differs from ROS 2 Jazzy's"),
+    ],
+)
 def test_bad_bags_one_line_exit_2_no_output(tmp_path, make, words):
-    bag = tmp_path / "in"
+    bag = tmp_path / 'in'
     if make is not None:
         make(bag)
-    out_dir = tmp_path / "results"
+    out_dir = tmp_path / 'results'
     out_dir.mkdir()
-    proc = subprocess.run([sys.executable, "-m", "pma_model_ros.cli", "bag", "estimate", str(bag), "--config",
-                           str(CONFIGS["DMSP-10-250"]), "--out", str(out_dir / "out"), "--csv", str(out_dir / "e.csv")],
-                          capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 2 and proc.stdout == ""
-    assert proc.stderr.count("\n") == 1 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'pma_model_ros.cli',
+            'bag',
+            'estimate',
+            str(bag),
+            '--config',
+            str(CONFIGS['DMSP-10-250']),
+            '--out',
+            str(out_dir / 'out'),
+            '--csv',
+            str(out_dir / 'e.csv'),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2 and proc.stdout == ''
+    assert (
+        proc.stderr.count('\n') == 1 and words in proc.stderr and 'Traceback' not in proc.stderr
+    ), proc.stderr
     assert list(out_dir.iterdir()) == []
 
 
-EXAMPLE = CONFIGS["DMSP-10-250"].parent / "example_multi_muscle.yaml"
+EXAMPLE = CONFIGS['DMSP-10-250'].parent / 'example_multi_muscle.yaml'
 
 
 def multi_muscle_bag(path, combined: bool, names: list[str], ticks: int = 200):
-    """``ticks`` at 100 Hz of every muscle of the example file: lengths then pressures each tick, as combined
-    JointStates or as each muscle's own topics; the inputs of each tick."""
+    """``ticks`` at 100 Hz of every muscle of the example file: lengths then pressures each tick,
+    as combined JointStates or as each muscle's own topics; the inputs of each tick.
+    """
     specs = {name: muscle_model(read_parameters(EXAMPLE), name=name) for name in names}
     inputs = []
-    with BagWriter(path, "mcap") as bag:
+    with BagWriter(path, 'mcap') as bag:
         if combined:
-            conns = (bag.topic(f"{NS}/muscle_states", JOINT_STATE, [SENSOR_DATA]),
-                     bag.topic(f"{NS}/muscle_pressures", JOINT_STATE, [SENSOR_DATA]))
+            conns = (
+                bag.topic(f'{NS}/muscle_states', JOINT_STATE, [SENSOR_DATA]),
+                bag.topic(f'{NS}/muscle_pressures', JOINT_STATE, [SENSOR_DATA]),
+            )
         else:
-            conns = {n: (bag.topic(f"{NS}/{n}/muscle_state", JOINT_STATE, [SENSOR_DATA]),
-                         bag.topic(f"{NS}/{n}/pressure", FLUID_PRESSURE, [SENSOR_DATA])) for n in names}
+            conns = {
+                n: (
+                    bag.topic(f'{NS}/{n}/muscle_state', JOINT_STATE, [SENSOR_DATA]),
+                    bag.topic(f'{NS}/{n}/pressure', FLUID_PRESSURE, [SENSOR_DATA]),
+                )
+                for n in names
+            }
         for k in range(ticks):
             t = START_NS + k * 10**7
             gauge = np.array([3e5 + 2e5 * math.sin(k / 15 + i) for i in range(len(names))])
-            length = np.array([specs[n].domain.length_min + (specs[n].domain.length_max - specs[n].domain.length_min)
-                               * (0.5 + 0.5 * math.cos(k / 25 + i)) for i, n in enumerate(names)])
+            length = np.array(
+                [
+                    specs[n].domain.length_min
+                    + (specs[n].domain.length_max - specs[n].domain.length_min)
+                    * (0.5 + 0.5 * math.cos(k / 25 + i))
+                    for i, n in enumerate(names)
+                ]
+            )
             rate = np.array([-0.01 * math.sin(k / 25 + i) for i in range(len(names))])
             inputs.append((t + 4 * 10**5, gauge, length, rate))
             empty = np.zeros(0)
             if combined:
-                bag.write(conns[0], t + 2 * 10**5, T[JOINT_STATE](header(t), list(names), length, rate, empty))
-                bag.write(conns[1], t + 4 * 10**5, T[JOINT_STATE](header(t), list(names), gauge + 101325.0, empty,
-                                                                  empty))
+                bag.write(
+                    conns[0],
+                    t + 2 * 10**5,
+                    T[JOINT_STATE](header(t), list(names), length, rate, empty),
+                )
+                bag.write(
+                    conns[1],
+                    t + 4 * 10**5,
+                    T[JOINT_STATE](header(t), list(names), gauge + 101325.0, empty, empty),
+                )
             else:
                 for i, n in enumerate(names):
-                    bag.write(conns[n][0], t + 2 * 10**5, T[JOINT_STATE](header(t), [n], length[i:i + 1],
-                                                                         rate[i:i + 1], empty))
-                    bag.write(conns[n][1], t + 4 * 10**5, T[FLUID_PRESSURE](header(t), gauge[i] + 101325.0, 0.0))
+                    bag.write(
+                        conns[n][0],
+                        t + 2 * 10**5,
+                        T[JOINT_STATE](header(t), [n], length[i : i + 1], rate[i : i + 1], empty),
+                    )
+                    bag.write(
+                        conns[n][1],
+                        t + 4 * 10**5,
+                        T[FLUID_PRESSURE](header(t), gauge[i] + 101325.0, 0.0),
+                    )
     return inputs
 
 
 def muscle_model(parameters, name):
     from pma_model_ros.core.param_file import muscle_model as build
+
     return build(parameters[name])
 
 
-@pytest.mark.parametrize("mode", ["combined", "per_muscle"])
+@pytest.mark.parametrize('mode', ['combined', 'per_muscle'])
 def test_multi_muscle_parameter_file(tmp_path, mode):
-    """bag estimate of a muscles: file in both input modes: each muscle's force, at each tick's pressures, is its
-    own model's at that tick's inputs (the core, muscle by muscle)."""
+    """Bag estimate of a muscles: file in both input modes: each muscle's force, at each tick's
+    pressures, is its own model's at that tick's inputs (the core, muscle by muscle).
+    """
     from pma_model_ros.core.param_file import all_node_settings
+
     parameters = read_parameters(EXAMPLE)
-    names = parameters["muscles"]
-    inputs = multi_muscle_bag(tmp_path / "in", mode == "combined", names)
-    summary = estimate_bag(tmp_path / "in", all_node_settings(parameters), tmp_path / "out", names=names,
-                           combined=mode == "combined", progress=False)
+    names = parameters['muscles']
+    inputs = multi_muscle_bag(tmp_path / 'in', mode == 'combined', names)
+    summary = estimate_bag(
+        tmp_path / 'in',
+        all_node_settings(parameters),
+        tmp_path / 'out',
+        names=names,
+        combined=mode == 'combined',
+        progress=False,
+    )
     models = [muscle_model(parameters, n) for n in names]
-    # a hysteresis branch follows each muscle's length series (play operator, the default 0.5 mm deadband)
-    branch = np.array([branches([length[i] for _, _, length, _ in inputs], 0.5e-3) for i in range(len(names))]).T
-    expected = {t: [float(m.force(g, L, b).force) for m, g, L, b in zip(models, gauge, length, branch[k])]
-                for k, (t, gauge, length, _) in enumerate(inputs)}
+    # a hysteresis branch follows each muscle's length series (play operator, the default 0.5 mm
+    # deadband)
+    branch = np.array(
+        [branches([length[i] for _, _, length, _ in inputs], 0.5e-3) for i in range(len(names))]
+    ).T
+    expected = {
+        t: [float(m.force(g, L, b).force) for m, g, L, b in zip(models, gauge, length, branch[k])]
+        for k, (t, gauge, length, _) in enumerate(inputs)
+    }
     got: dict[int, dict[str, float]] = {}
-    for topic, time_ns, msg in read(tmp_path / "out"):
-        if topic == f"{NS}/force_estimates":
+    for topic, time_ns, msg in read(tmp_path / 'out'):
+        if topic == f'{NS}/force_estimates':
             got.setdefault(time_ns, {}).update(zip(msg.name, msg.effort.tolist()))
-        elif topic.endswith("/force_estimate") and time_ns in expected:
-            got.setdefault(time_ns, {})[topic.split("/")[-2]] = msg.wrench.force.x
+        elif topic.endswith('/force_estimate') and time_ns in expected:
+            got.setdefault(time_ns, {})[topic.split('/')[-2]] = msg.wrench.force.x
     checked = [t for t in expected if t in got]
     assert len(checked) == len(inputs)
     for t in checked:
         assert [got[t][n] for n in names] == pytest.approx(expected[t], rel=1e-9, abs=1e-6), t
-    assert summary.counts["estimates"] == summary.estimates == 4 * (2 * len(inputs) - 1)
-    statuses = [m.status for topic, _, m in read(tmp_path / "out") if topic == "/diagnostics"]
-    assert {s.name for s in statuses[-1]} == {f"{NS}/model_node: {n}" for n in names}
+    assert summary.counts['estimates'] == summary.estimates == 4 * (2 * len(inputs) - 1)
+    statuses = [m.status for topic, _, m in read(tmp_path / 'out') if topic == '/diagnostics']
+    assert {s.name for s in statuses[-1]} == {f'{NS}/model_node: {n}' for n in names}

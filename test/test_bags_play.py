@@ -1,5 +1,7 @@
-"""Bags over DDS: a recording replayed into the running model node gives the offline estimates, message for
-message; the simulator node records what it publishes."""
+"""Bags over DDS: a recording replayed into the running model node gives the offline estimates,
+message for message; the simulator node records what it publishes.
+"""
+
 import sys
 
 from builtin_interfaces.msg import Time
@@ -8,76 +10,158 @@ from geometry_msgs.msg import WrenchStamped
 import pytest
 from rosgraph_msgs.msg import Clock
 
-from conftest import CONFIGS
-from node_messages import RELIABLE_QOS, SENSOR_QOS, model_statuses, stamp_key
-from pma_model_ros import node_process
 from pma_model_ros.bags.bag_io import read, storage_of
 from pma_model_ros.bags.estimate import estimate_bag
-from pma_model_ros.bags.synthetic import START_NS, record_simulation
+from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.tools import node_process
+
+from conftest import CONFIGS
+from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
 
 pytestmark = pytest.mark.ros
 
-NOISE = {"noise__pressure_std": 200.0, "noise__length_std": 2e-5, "noise__force_std": 0.5}
+NOISE = {'noise__pressure_std': 200.0, 'noise__length_std': 2e-5, 'noise__force_std': 0.5}
 
 
-@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
-def test_replay_into_the_node_equals_offline_estimate(ros, processes, namespace, tmp_path, storage):
-    bag = record_simulation(tmp_path / "rec", 3.0, namespace, storage, rate=100.0, period=2.0, sweep_period=3.0,
-                            seed=5, **NOISE)
-    estimate_bag(bag, node_settings(read_parameters(CONFIGS["DMSP-10-250"])), tmp_path / "offline", progress=False)
-    offline = [(stamp_key(m), m.wrench.force.x) for _, _, m in read(tmp_path / "offline",
-                                                                     [f"{namespace}/force_estimate"])]
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_replay_into_the_node_equals_offline_estimate(
+    ros, processes, namespace, tmp_path, storage
+):
+    bag = record_simulation(
+        tmp_path / 'rec',
+        3.0,
+        namespace,
+        storage,
+        rate=100.0,
+        period=2.0,
+        sweep_period=3.0,
+        seed=5,
+        **NOISE,
+    )
+    estimate_bag(
+        bag,
+        node_settings(read_parameters(CONFIGS['DMSP-10-250'])),
+        tmp_path / 'offline',
+        progress=False,
+    )
+    offline = [
+        (stamp_key(m), m.wrench.force.x)
+        for _, _, m in read(tmp_path / 'offline', [f'{namespace}/force_estimate'])
+    ]
     assert len(offline) == 599
 
-    node = processes.node("model_node", namespace, CONFIGS["DMSP-10-250"], use_sim_time="true")
-    estimates = ros.collect(WrenchStamped, f"{namespace}/force_estimate", RELIABLE_QOS)
-    diagnostics = ros.collect(DiagnosticArray, "/diagnostics", RELIABLE_QOS)
-    clock = ros.node.create_publisher(Clock, "/clock", 10)
+    node = processes.node('model_node', namespace, CONFIGS['DMSP-10-250'], use_sim_time='true')
+    estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
+    diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
+    clock = ros.node.create_publisher(Clock, '/clock', 10)
     start = Clock(clock=Time(sec=START_NS // 10**9, nanosec=START_NS % 10**9))
     # the node runs on the bag's clock once its 1 Hz status timer fires at the bag's start time
-    ros.spin_until(lambda: any(stamp_key(d) >= START_NS for d in diagnostics if model_statuses([d], namespace))
-                   and ros.node.count_publishers(f"{namespace}/force_estimate") >= 1, 30,
-                   "model_node on the bag's clock", every=lambda: clock.publish(start),
-                   diagnose=lambda: processes.output(node))
-    player = processes.start([sys.executable, "-m", "pma_model_ros.cli", "bag", "play", str(bag), "--clock",
-                              "--topics", f"{namespace}/pressure", f"{namespace}/muscle_state",
-                              "--wait-for-subscribers", "20", "--delay", "2"])   # both ends matched
-    ros.spin_until(lambda: player.poll() is not None and estimates and stamp_key(estimates[-1]) == offline[-1][0],
-                   60, f"the replay's last estimate (offline: {len(offline)})",
-                   diagnose=lambda: f"got {len(estimates)}\n" + processes.output(player) + processes.output(node))
+    ros.spin_until(
+        lambda: (
+            any(stamp_key(d) >= START_NS for d in diagnostics if model_statuses([d], namespace))
+            and ros.node.count_publishers(f'{namespace}/force_estimate') >= 1
+        ),
+        30,
+        "model_node on the bag's clock",
+        every=lambda: clock.publish(start),
+        diagnose=lambda: processes.output(node),
+    )
+    player = processes.start(
+        [
+            sys.executable,
+            '-m',
+            'pma_model_ros.cli',
+            'bag',
+            'play',
+            str(bag),
+            '--clock',
+            '--topics',
+            f'{namespace}/pressure',
+            f'{namespace}/muscle_state',
+            '--wait-for-subscribers',
+            '20',
+            '--delay',
+            '2',
+        ]
+    )  # both ends matched
+    ros.spin_until(
+        lambda: (
+            player.poll() is not None and estimates and stamp_key(estimates[-1]) == offline[-1][0]
+        ),
+        60,
+        f"the replay's last estimate (offline: {len(offline)})",
+        diagnose=lambda: (
+            f'got {len(estimates)}\n' + processes.output(player) + processes.output(node)
+        ),
+    )
     assert player.returncode == 0, processes.output(player)
     replayed = [(stamp_key(e), e.wrench.force.x) for e in estimates]
     assert [s for s, _ in replayed] == [s for s, _ in offline]
-    # DDS orders messages per topic, not across topics: a tick's pressure and muscle_state may reach the
-    # node in the other order than recorded. Then the first of that stamp's two estimates pairs the other
-    # input with the previous tick's; the estimate of the complete pair (the last of the stamp) is the same.
-    same = [live == pytest.approx(off, rel=1e-12, abs=1e-9)   # scalar vs vectorised numpy: ulps
-            for (_, live), (_, off) in zip(replayed, offline)]
+    # DDS orders messages per topic, not across topics: a tick's pressure and muscle_state may
+    # reach the node in the other order than recorded. Then the first of that stamp's two estimates
+    # pairs the other input with the previous tick's; the estimate of the complete pair (the last
+    # of the stamp) is the same.
+    same = [
+        live == pytest.approx(off, rel=1e-12, abs=1e-9)  # scalar vs vectorised numpy: ulps
+        for (_, live), (_, off) in zip(replayed, offline)
+    ]
     last = {stamp: i for i, (stamp, _) in enumerate(offline)}
-    assert all(same[i] for i in last.values()), [offline[i][0] for i in last.values() if not same[i]]
-    assert same.count(False) <= len(same) // 100, f"{same.count(False)} of {len(same)} estimates differ"
+    assert all(same[i] for i in last.values()), [
+        offline[i][0] for i in last.values() if not same[i]
+    ]
+    assert same.count(False) <= len(same) // 100, (
+        f'{same.count(False)} of {len(same)} estimates differ'
+    )
 
 
 def test_simulator_records_what_it_publishes(ros, processes, namespace, tmp_path):
-    out = tmp_path / "sim.db3"
-    sim = processes.start([sys.executable, "-m", "pma_model_ros.nodes.simulator_node", "--record", str(out),
-                           "--ros-args", "-r", f"__ns:={namespace}", "-p", "rate:=100.0", "-p", "seed:=3",
-                           "-p", "noise.force_std:=0.5"])
-    forces = ros.collect(WrenchStamped, f"{namespace}/force", SENSOR_QOS)
-    ros.spin_until(lambda: len(forces) >= 100, 30, "100 force messages", diagnose=lambda: processes.output(sim))
-    assert not out.exists()                                   # written beside it until the node stops
+    out = tmp_path / 'sim.db3'
+    sim = processes.start(
+        [
+            sys.executable,
+            '-m',
+            'pma_model_ros.nodes.simulator_node',
+            '--record',
+            str(out),
+            '--ros-args',
+            '-r',
+            f'__ns:={namespace}',
+            '-p',
+            'rate:=100.0',
+            '-p',
+            'seed:=3',
+            '-p',
+            'noise.force_std:=0.5',
+        ]
+    )
+    forces = ros.collect(WrenchStamped, f'{namespace}/force', SENSOR_QOS)
+    ros.spin_until(
+        lambda: len(forces) >= 100,
+        30,
+        '100 force messages',
+        diagnose=lambda: processes.output(sim),
+    )
+    assert not out.exists()  # written beside it until the node stops
     assert node_process.stop(sim) == 0, processes.output(sim)
-    assert storage_of(out) == "sqlite3"
+    assert storage_of(out) == 'sqlite3'
     recorded = {}
     for topic, time_ns, msg in read(out):
         recorded.setdefault(topic, []).append((time_ns, msg))
-    assert sorted(recorded) == [f"{namespace}/{t}" for t in ("force", "muscle_state", "pressure")]
+    assert sorted(recorded) == [f'{namespace}/{t}' for t in ('force', 'muscle_state', 'pressure')]
     counts = {len(v) for v in recorded.values()}
     assert len(counts) == 1 and counts.pop() >= len(forces)
-    by_stamp = {stamp_key(m): m.wrench.force.x for _, m in recorded[f"{namespace}/force"]}
-    assert all(by_stamp[stamp_key(f)] == f.wrench.force.x for f in forces)      # what was received was recorded
-    assert all(t == stamp_key(m) for msgs in recorded.values() for t, m in msgs)  # log time = stamp
-    summary = estimate_bag(out, node_settings(read_parameters(CONFIGS["DMSP-10-250"])), tmp_path / "est",
-                           progress=False)
+    by_stamp = {stamp_key(m): m.wrench.force.x for _, m in recorded[f'{namespace}/force']}
+    assert all(
+        by_stamp[stamp_key(f)] == f.wrench.force.x for f in forces
+    )  # what was received was recorded
+    assert all(
+        t == stamp_key(m) for msgs in recorded.values() for t, m in msgs
+    )  # log time = stamp
+    summary = estimate_bag(
+        out,
+        node_settings(read_parameters(CONFIGS['DMSP-10-250'])),
+        tmp_path / 'est',
+        progress=False,
+    )
     assert summary.estimates >= 2 * len(forces) - 1

@@ -1,4 +1,5 @@
 """The pma-model command line: outputs and one-line errors with exit code 2."""
+
 import json
 import subprocess
 import sys
@@ -6,217 +7,401 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import CONFIGS, REPO
 from pma_model_ros.cli import main
-from pma_model_ros.core.force_map import shipped_force_map
 from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
 
-TABLE3_MODELS = {"mckibben", "andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens"}
+from conftest import CONFIGS, REPO
+
+TABLE3_MODELS = {'mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens'}
 
 
 def test_reproduce_json(capsys):
-    assert main(["reproduce", "--json"]) == 0
-    table = json.loads(capsys.readouterr().out)["table3"]
-    assert set(table) == {"DMSP-10-250", "DMSP-20-300"}
+    assert main(['reproduce', '--json']) == 0
+    table = json.loads(capsys.readouterr().out)['table3']
+    assert set(table) == {'DMSP-10-250', 'DMSP-20-300'}
     for muscle, rows in table.items():
-        assert rows["default"] == "martens"
-        assert set(rows) - {"default"} == TABLE3_MODELS
+        assert rows['default'] == 'martens'
+        assert set(rows) - {'default'} == TABLE3_MODELS
         for row in (rows[m] for m in TABLE3_MODELS):
-            assert set(row) == {"paper", "paper_protocol", "best", "cv"}
-            assert row["best"] <= row["paper"] + 0.05
-    assert table["DMSP-20-300"]["martens"]["paper_protocol"] == pytest.approx(2.35, abs=0.05)
+            assert set(row) == {'paper', 'paper_protocol', 'best', 'cv'}
+            assert row['best'] <= row['paper'] + 0.05
+    assert table['DMSP-20-300']['martens']['paper_protocol'] == pytest.approx(2.35, abs=0.05)
 
 
 def test_force_and_pressure_round_trip(capsys):
-    cfg = str(CONFIGS["DMSP-10-250"])
-    assert main(["pressure", "--config", cfg, "--force", "200", "--length", "0.23"]) == 0
+    cfg = str(CONFIGS['DMSP-10-250'])
+    assert main(['pressure', '--config', cfg, '--force', '200', '--length', '0.23']) == 0
     pressure = float(capsys.readouterr().out.split()[1])
     assert 0 < pressure < 8e5
-    assert main(["force", "--config", cfg, "--pressure", str(pressure), "--length", "0.23"]) == 0
+    assert main(['force', '--config', cfg, '--pressure', str(pressure), '--length', '0.23']) == 0
     out = capsys.readouterr().out
-    assert float(out.split()[1]) == pytest.approx(200, rel=1e-5) and "flags OK" in out
+    assert float(out.split()[1]) == pytest.approx(200, rel=1e-5) and 'flags OK' in out
 
 
 def test_fit_from_csv(tmp_path, capsys):
-    fmap = shipped_force_map("DMSP-20-300")
-    csv = tmp_path / "map.csv"
-    csv.write_text("pressure_pa,length_m,force_n\n" + "".join(
-        f"{p},{L},{F}\n" for p, L, F in zip(fmap.pressure, fmap.length, fmap.force)))
-    spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_20_300.yaml"
-    out = tmp_path / "fit.yaml"
-    assert main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "martens", "--out", str(out)]) == 0
-    assert "default model (the one fitted): martens  err" in capsys.readouterr().out
-    assert main(["force", "--config", str(out), "--pressure", "450000", "--length", "0.25"]) == 0
+    fmap = shipped_force_map('DMSP-20-300')
+    csv = tmp_path / 'map.csv'
+    csv.write_text(
+        'pressure_pa,length_m,force_n\n'
+        + ''.join(f'{p},{L},{F}\n' for p, L, F in zip(fmap.pressure, fmap.length, fmap.force))
+    )
+    spec = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_20_300.yaml'
+    out = tmp_path / 'fit.yaml'
+    assert (
+        main(
+            [
+                'fit',
+                '--data',
+                str(csv),
+                '--muscle',
+                str(spec),
+                '--model',
+                'martens',
+                '--out',
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert 'default model (the one fitted): martens  err' in capsys.readouterr().out
+    assert main(['force', '--config', str(out), '--pressure', '450000', '--length', '0.25']) == 0
     assert float(capsys.readouterr().out.split()[1]) == pytest.approx(252.1, abs=0.03 * 1653.5)
 
 
-@pytest.mark.parametrize("content, message", [
-    (None, "not found"),
-    ("pressure,length,force\n1,2,3\n", "header"),
-    ("pressure_pa,length_m,force_n\n100000,0.25,abc\n", "not 3 numbers"),
-    ("pressure_pa,length_m,force_n\n100000,0.25,nan\n", "NaN"),
-    ("pressure_pa,length_m,force_n\n100000,250,10\n200000,230,5\n300000,250,30\n", "metres"),
-])
+@pytest.mark.parametrize(
+    'content, message',
+    [
+        (None, 'not found'),
+        ('pressure,length,force\n1,2,3\n', 'header'),
+        ('pressure_pa,length_m,force_n\n100000,0.25,abc\n', 'not 3 numbers'),
+        ('pressure_pa,length_m,force_n\n100000,0.25,nan\n', 'NaN'),
+        ('pressure_pa,length_m,force_n\n100000,250,10\n200000,230,5\n300000,250,30\n', 'metres'),
+    ],
+)
 def test_bad_csv_is_one_line_exit_2(tmp_path, capsys, content, message):
-    csv = tmp_path / "map.csv"
+    csv = tmp_path / 'map.csv'
     if content is not None:
         csv.write_text(content)
-    spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_10_250.yaml"
-    code = main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "martens", "--out", str(tmp_path / "o")])
+    spec = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml'
+    code = main(
+        [
+            'fit',
+            '--data',
+            str(csv),
+            '--muscle',
+            str(spec),
+            '--model',
+            'martens',
+            '--out',
+            str(tmp_path / 'o'),
+        ]
+    )
     err = capsys.readouterr().err
-    assert code == 2 and message in err and err.count("\n") == 1
+    assert code == 2 and message in err and err.count('\n') == 1
 
 
-@pytest.mark.parametrize("args, message", [
-    (["force", "--pressure", "300000", "--length", "230"], "metres"),
-    (["force", "--pressure", "nan", "--length", "0.23"], "Pa"),
-    (["force", "--pressure", "300000", "--length", "0.23", "--model", "hill"], "unknown model"),
-    (["pressure", "--force", "200", "--length", "0.4"], "geometry"),
-])
+@pytest.mark.parametrize(
+    'args, message',
+    [
+        (['force', '--pressure', '300000', '--length', '230'], 'metres'),
+        (['force', '--pressure', 'nan', '--length', '0.23'], 'Pa'),
+        (
+            ['force', '--pressure', '300000', '--length', '0.23', '--model', 'hill'],
+            'unknown model',
+        ),
+        (['pressure', '--force', '200', '--length', '0.4'], 'geometry'),
+    ],
+)
 def test_bad_queries_exit_2_without_traceback(args, message):
-    cmd = [sys.executable, "-m", "pma_model_ros.cli", *args[:1], "--config", str(CONFIGS["DMSP-10-250"]), *args[1:]]
+    cmd = [
+        sys.executable,
+        '-m',
+        'pma_model_ros.cli',
+        *args[:1],
+        '--config',
+        str(CONFIGS['DMSP-10-250']),
+        *args[1:],
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and message in proc.stderr
-    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
+    assert 'Traceback' not in proc.stderr and proc.stderr.count('\n') == 1
 
 
-@pytest.mark.parametrize("path, message", [("/dev/zero", "not a regular file"), ("/tmp", "not a regular file"),
-                                           ("/no/such/file.yaml", "not found")])
+@pytest.mark.parametrize(
+    'path, message',
+    [
+        ('/dev/zero', 'not a regular file'),
+        ('/tmp', 'not a regular file'),
+        ('/no/such/file.yaml', 'not found'),
+    ],
+)
 def test_config_must_be_the_named_regular_file(capsys, path, message):
     """A device, a directory or a missing path is refused before any byte is read."""
-    assert main(["force", "--config", path, "--pressure", "300000", "--length", "0.23"]) == 2
+    assert main(['force', '--config', path, '--pressure', '300000', '--length', '0.23']) == 2
     err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1
+    assert message in err and err.count('\n') == 1
 
 
-JOINT = str(REPO / "config" / "example_joint.yaml")
+JOINT = str(REPO / 'config' / 'example_joint.yaml')
 
 
 def test_joint_torque_prints_the_worked_example(capsys):
     """The README's worked example; the numbers are checked by hand in test/test_core_joint.py."""
-    assert main(["joint", "torque", "--config", JOINT, "--angle", "0.5", "--pressures", "400000", "300000"]) == 0
+    assert (
+        main(
+            [
+                'joint',
+                'torque',
+                '--config',
+                JOINT,
+                '--angle',
+                '0.5',
+                '--pressures',
+                '400000',
+                '300000',
+            ]
+        )
+        == 0
+    )
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == "torque -0.69331 N·m  stiffness 3.83917 N·m/rad"
-    assert lines[1].startswith("flexor: length 0.2265 m") and lines[2].startswith("extensor: length 0.2415 m")
+    assert lines[0] == 'torque -0.69331 N·m  stiffness 3.83917 N·m/rad'
+    assert lines[1].startswith('flexor: length 0.2265 m') and lines[2].startswith(
+        'extensor: length 0.2415 m'
+    )
 
 
 def test_joint_pressures_round_trip_through_torque(capsys):
-    assert main(["joint", "pressures", "--config", JOINT, "--angle", "-0.3", "--torque", "2.5",
-                 "--cocontraction", "150000"]) == 0
+    assert (
+        main(
+            [
+                'joint',
+                'pressures',
+                '--config',
+                JOINT,
+                '--angle',
+                '-0.3',
+                '--torque',
+                '2.5',
+                '--cocontraction',
+                '150000',
+            ]
+        )
+        == 0
+    )
     first = capsys.readouterr().out.split()
     flexor, extensor = float(first[1]), float(first[4])
     assert extensor == 150000.0 and flexor > extensor
-    assert main(["joint", "torque", "--config", JOINT, "--angle", "-0.3", "--pressures", repr(flexor),
-                 repr(extensor)]) == 0
-    assert float(capsys.readouterr().out.split()[1]) == pytest.approx(2.5, rel=1e-5)   # printed to 6 digits
+    assert (
+        main(
+            [
+                'joint',
+                'torque',
+                '--config',
+                JOINT,
+                '--angle',
+                '-0.3',
+                '--pressures',
+                repr(flexor),
+                repr(extensor),
+            ]
+        )
+        == 0
+    )
+    assert float(capsys.readouterr().out.split()[1]) == pytest.approx(
+        2.5, rel=1e-5
+    )  # printed to 6 digits
 
 
 def test_joint_pressures_for_a_stiffness_and_out_of_reach(capsys):
-    assert main(["joint", "pressures", "--config", JOINT, "--angle", "0", "--torque", "0", "--stiffness", "4.5"]) == 0
+    assert (
+        main(
+            [
+                'joint',
+                'pressures',
+                '--config',
+                JOINT,
+                '--angle',
+                '0',
+                '--torque',
+                '0',
+                '--stiffness',
+                '4.5',
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
-    assert "flags OK" in out and "stiffness 4.5 N·m/rad" in out
-    assert main(["joint", "pressures", "--config", JOINT, "--angle", "0", "--torque", "50"]) == 0
+    assert 'flags OK' in out and 'stiffness 4.5 N·m/rad' in out
+    assert main(['joint', 'pressures', '--config', JOINT, '--angle', '0', '--torque', '50']) == 0
     out = capsys.readouterr().out
-    assert "flags SATURATED" in out and "flexor 650000 Pa" in out   # the map's top: hildebrandt does not extrapolate
+    assert (
+        'flags SATURATED' in out and 'flexor 650000 Pa' in out
+    )  # the map's top: hildebrandt does not extrapolate
 
 
 def test_joint_envelope_is_symmetric_for_a_symmetric_joint(capsys):
-    assert main(["joint", "envelope", "--config", JOINT, "--steps", "5"]) == 0
+    assert main(['joint', 'envelope', '--config', JOINT, '--steps', '5']) == 0
     rows = [list(map(float, line.split())) for line in capsys.readouterr().out.splitlines()[2:]]
     assert [r[0] for r in rows] == [-1.0, -0.5, 0.0, 0.5, 1.0]
-    for row, mirror in zip(rows, rows[::-1]):   # two equal muscles at equal lengths: τ(-θ) ranges mirror τ(θ)
-        assert row[1] == pytest.approx(-mirror[2], rel=1e-9) and row[3:] == pytest.approx(mirror[3:], rel=1e-9)
+    for row, mirror in zip(
+        rows, rows[::-1]
+    ):  # two equal muscles at equal lengths: τ(-θ) ranges mirror τ(θ)
+        assert row[1] == pytest.approx(-mirror[2], rel=1e-9) and row[3:] == pytest.approx(
+            mirror[3:], rel=1e-9
+        )
 
 
-@pytest.mark.parametrize("args, message", [
-    (["torque", "--angle", "30", "--pressures", "1e5", "1e5"], "radians, not degrees"),
-    (["torque", "--angle", "0", "--pressures", "3", "nan"], "gauge pressures in Pa"),
-    (["pressures", "--angle", "0", "--torque", "1", "--cocontraction", "-5"], "--cocontraction"),
-    (["pressures", "--angle", "0", "--torque", "1", "--joint", "knee"], "choose one of elbow"),
-    (["envelope", "--steps", "1"], "--steps 1"),
-])
+@pytest.mark.parametrize(
+    'args, message',
+    [
+        (['torque', '--angle', '30', '--pressures', '1e5', '1e5'], 'radians, not degrees'),
+        (['torque', '--angle', '0', '--pressures', '3', 'nan'], 'gauge pressures in Pa'),
+        (
+            ['pressures', '--angle', '0', '--torque', '1', '--cocontraction', '-5'],
+            '--cocontraction',
+        ),
+        (['pressures', '--angle', '0', '--torque', '1', '--joint', 'knee'], 'choose one of elbow'),
+        (['envelope', '--steps', '1'], '--steps 1'),
+    ],
+)
 def test_bad_joint_queries_exit_2_without_traceback(args, message):
-    cmd = [sys.executable, "-m", "pma_model_ros.cli", "joint", args[0], "--config", JOINT, *args[1:]]
+    cmd = [
+        sys.executable,
+        '-m',
+        'pma_model_ros.cli',
+        'joint',
+        args[0],
+        '--config',
+        JOINT,
+        *args[1:],
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and message in proc.stderr
-    assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
+    assert 'Traceback' not in proc.stderr and proc.stderr.count('\n') == 1
 
 
 def test_bad_joint_file_exits_2(tmp_path, capsys):
-    bad = tmp_path / "joint.yaml"
-    bad.write_text("/**:\n  ros__parameters:\n    joints: [elbow]\n")
-    assert main(["joint", "envelope", "--config", str(bad)]) == 2
+    bad = tmp_path / 'joint.yaml'
+    bad.write_text('/**:\n  ros__parameters:\n    joints: [elbow]\n')
+    assert main(['joint', 'envelope', '--config', str(bad)]) == 2
     err = capsys.readouterr().err
-    assert "joint 'elbow': no parameters under 'elbow:'" in err and err.count("\n") == 1
+    assert "joint 'elbow': no parameters under 'elbow:'" in err and err.count('\n') == 1
 
 
 def _map_csv(path, fmap) -> str:
-    path.write_text("pressure_pa,length_m,force_n\n" + "".join(
-        f"{p},{L},{F}\n" for p, L, F in zip(fmap.pressure, fmap.length, fmap.force)))
+    path.write_text(
+        'pressure_pa,length_m,force_n\n'
+        + ''.join(f'{p},{L},{F}\n' for p, L, F in zip(fmap.pressure, fmap.length, fmap.force))
+    )
     return str(path)
 
 
 def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_path, capsys):
-    """Issue 13's case: DMSP-20-300 with L0 given 4 mm short (err 5.29 %, against 1.32 % with 0.300 m)."""
-    spec_text = (REPO / "pma_model_ros" / "core" / "data" / "dmsp_20_300.yaml").read_text()
-    spec = tmp_path / "spec.yaml"
-    spec.write_text(spec_text.replace("nominal_length: 0.30 ", "nominal_length: 0.296 "))
-    assert "nominal_length: 0.296" in spec.read_text()
-    csv, out = _map_csv(tmp_path / "map.csv", shipped_force_map("DMSP-20-300")), tmp_path / "fit.yaml"
-    assert main(["fit", "--data", csv, "--muscle", str(spec), "--model", "martens", "--out", str(out)]) == 0
+    """Issue 13's case: DMSP-20-300 with L0 given 4 mm short (err 5.29 %, against 1.32 % with 0.300
+    m).
+    """
+    spec_text = (REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_20_300.yaml').read_text()
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text(spec_text.replace('nominal_length: 0.30 ', 'nominal_length: 0.296 '))
+    assert 'nominal_length: 0.296' in spec.read_text()
+    csv, out = (
+        _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-20-300')),
+        tmp_path / 'fit.yaml',
+    )
+    assert (
+        main(
+            ['fit', '--data', csv, '--muscle', str(spec), '--model', 'martens', '--out', str(out)]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
-    assert text.startswith("geometry calibration ON")
-    assert "0.296    0.282    0.267    0.250    0.237    0.222    worst" in text
+    assert text.startswith('geometry calibration ON')
+    assert '0.296    0.282    0.267    0.250    0.237    0.222    worst' in text
     params = read_parameters(out)
-    entry = params["models"]["martens"]
-    assert entry["err"] <= 1.32 + 0.5
-    assert abs(entry["nominal_length"] - 0.300) <= 0.001
-    assert params["muscle"]["nominal_length"] == entry["nominal_length"]
-    assert "pressure_offset" not in entry and "pressure offset kept 0: not identifiable" in text
+    entry = params['models']['martens']
+    assert entry['err'] <= 1.32 + 0.5
+    assert abs(entry['nominal_length'] - 0.300) <= 0.001
+    assert params['muscle']['nominal_length'] == entry['nominal_length']
+    assert 'pressure_offset' not in entry and 'pressure offset kept 0: not identifiable' in text
 
 
 def test_fit_all_models_defaults_to_the_best_held_out_error(tmp_path, capsys):
-    spec = REPO / "pma_model_ros" / "core" / "data" / "dmsp_10_250.yaml"
-    csv, out = _map_csv(tmp_path / "map.csv", shipped_force_map("DMSP-10-250")), tmp_path / "all.yaml"
-    assert main(["fit", "--data", csv, "--muscle", str(spec), "--model", "all", "--no-calibrate-length",
-                 "--no-calibrate-pressure", "--out", str(out)]) == 0
+    spec = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml'
+    csv, out = (
+        _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-10-250')),
+        tmp_path / 'all.yaml',
+    )
+    assert (
+        main(
+            [
+                'fit',
+                '--data',
+                csv,
+                '--muscle',
+                str(spec),
+                '--model',
+                'all',
+                '--no-calibrate-length',
+                '--no-calibrate-pressure',
+                '--out',
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
-    assert text.startswith("geometry calibration OFF")
+    assert text.startswith('geometry calibration OFF')
     params = read_parameters(out)
-    models = params["models"]
+    models = params['models']
     assert set(models) == TABLE3_MODELS
-    assert params["model"] == min(models, key=lambda m: models[m]["cv_err"])
-    assert params["model"] != min(models, key=lambda m: models[m]["err"])   # Hildebrandt fits best in-sample
-    assert all("nominal_length" not in e and "pressure_offset" not in e for e in models.values())
-    assert f"default model (by held-out error): {params['model']}" in text
+    assert params['model'] == min(models, key=lambda m: models[m]['cv_err'])
+    assert params['model'] != min(
+        models, key=lambda m: models[m]['err']
+    )  # Hildebrandt fits best in-sample
+    assert all('nominal_length' not in e and 'pressure_offset' not in e for e in models.values())
+    assert f'default model (by held-out error): {params["model"]}' in text
 
 
 def test_evaluate_a_config_on_a_measured_map(tmp_path, capsys):
-    fmap = shipped_force_map("DMSP-20-300")
-    config, csv, out = str(CONFIGS["DMSP-20-300"]), _map_csv(tmp_path / "map.csv", fmap), tmp_path / "points.csv"
-    assert main(["evaluate", "--config", config, "--data", csv, "--csv", str(out)]) == 0
+    fmap = shipped_force_map('DMSP-20-300')
+    config, csv, out = (
+        str(CONFIGS['DMSP-20-300']),
+        _map_csv(tmp_path / 'map.csv', fmap),
+        tmp_path / 'points.csv',
+    )
+    assert main(['evaluate', '--config', config, '--data', csv, '--csv', str(out)]) == 0
     text = capsys.readouterr().out
-    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    rows = [line.split(',') for line in out.read_text().splitlines()[1:]]
     assert len(rows) == fmap.force.size
     force, model, error = (np.array([float(r[i]) for r in rows]) for i in (2, 3, 4))
-    assert error == pytest.approx(model - force, abs=1e-4)   # 9 significant digits written
-    printed = float(text.split("err (eq. 23) ")[1].split()[0])
+    assert error == pytest.approx(model - force, abs=1e-4)  # 9 significant digits written
+    printed = float(text.split('err (eq. 23) ')[1].split()[0])
     assert printed == pytest.approx(100 * np.abs(error).max() / force.max(), abs=0.006)
     flags = [r[5] for r in rows]
-    # the 675 kPa points lie above the rated 600 kPa but inside the identified data: served as identified
-    over = fmap.pressure > read_parameters(config)["muscle"]["max_pressure"]
-    assert over.any() and not any("OUT_OF_RANGE" in f or "EXTRAPOLATED" in f for f in flags)
-    # where nothing is flagged the served model is the fitted one: within its in-sample err (eq. 23)
-    served = np.array([f in ("OK", "CLIPPED") for f in flags])
-    err = read_parameters(config)["models"][read_parameters(config)["model"]]["err"]
+    # the 675 kPa points lie above the rated 600 kPa but inside the identified data: served as
+    # identified
+    over = fmap.pressure > read_parameters(config)['muscle']['max_pressure']
+    assert over.any() and not any('OUT_OF_RANGE' in f or 'EXTRAPOLATED' in f for f in flags)
+    # where nothing is flagged the served model is the fitted one: within its in-sample err (eq.
+    # 23)
+    served = np.array([f in ('OK', 'CLIPPED') for f in flags])
+    err = read_parameters(config)['models'][read_parameters(config)['model']]['err']
     assert 100 * np.abs(error[served]).max() / fmap.max_force <= err + 1e-6
-    assert sum(line.startswith(f"{L:>10.4f}") for line in text.splitlines() for L in fmap.lengths) == 6
+    assert (
+        sum(line.startswith(f'{L:>10.4f}') for line in text.splitlines() for L in fmap.lengths)
+        == 6
+    )
 
 
-@pytest.mark.parametrize("data, config, message", [("/no/such.csv", None, "not found"),
-                                                   (None, "/no/such.yaml", "not found")])
+@pytest.mark.parametrize(
+    'data, config, message',
+    [('/no/such.csv', None, 'not found'), (None, '/no/such.yaml', 'not found')],
+)
 def test_evaluate_bad_input_is_one_line_exit_2(tmp_path, capsys, data, config, message):
-    data = data or _map_csv(tmp_path / "map.csv", shipped_force_map("DMSP-10-250"))
-    assert main(["evaluate", "--config", config or str(CONFIGS["DMSP-10-250"]), "--data", data]) == 2
+    data = data or _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-10-250'))
+    assert (
+        main(['evaluate', '--config', config or str(CONFIGS['DMSP-10-250']), '--data', data]) == 2
+    )
     err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1
+    assert message in err and err.count('\n') == 1

@@ -1,13 +1,14 @@
 """Packaging test: `colcon build` of this repo installs a proper ament_python package.
 
-Uses the session's colcon build (test/conftest.py) in a temporary directory -- build, install and log
-bases all live outside the source tree -- then checks the install layout, the
-console scripts, the ament index and that the source tree got no build artifacts.
+Uses the session's colcon build (test/conftest.py) in a temporary directory -- build, install and
+log bases all live outside the source tree -- then checks the install layout, the console scripts,
+the ament index and that the source tree got no build artifacts.
 """
+
 import os
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -23,8 +24,9 @@ ARTIFACT_NAMES = ('build', 'install', 'log', 'dist')
 
 
 def _run(cmd, env=None, timeout=120, cwd=None):
-    return subprocess.run([str(c) for c in cmd], env=env, cwd=cwd, timeout=timeout,
-                          capture_output=True, text=True)
+    return subprocess.run(
+        [str(c) for c in cmd], env=env, cwd=cwd, timeout=timeout, capture_output=True, text=True
+    )
 
 
 def _run_installed(cmd, build):
@@ -76,8 +78,9 @@ def test_executable_installed(build, exe):
 def test_installed_package_is_importable(build):
     proc = _run_installed([sys.executable, '-c', f'import {PKG}; print({PKG}.__file__)'], build)
     assert proc.returncode == 0, explain(proc)
-    assert Path(proc.stdout.strip()).is_relative_to(build['site']), \
+    assert Path(proc.stdout.strip()).is_relative_to(build['site']), (
         f'imported {proc.stdout.strip()}, not the colcon-installed copy'
+    )
 
 
 def test_pma_model_help(build):
@@ -87,8 +90,10 @@ def test_pma_model_help(build):
 
 
 def test_ament_index_finds_share_directory(build):
-    code = ('from ament_index_python.packages import get_package_share_directory as g; '
-            f'print(g("{PKG}"))')
+    code = (
+        'from ament_index_python.packages import get_package_share_directory as g; '
+        f'print(g("{PKG}"))'
+    )
     proc = _run_installed([sys.executable, '-c', code], build)
     assert proc.returncode == 0, explain(proc)
     assert Path(proc.stdout.strip()) == build['prefix'] / 'share' / PKG

@@ -1,34 +1,40 @@
 """Braid geometry (eqs. 1-4) and muscle specs."""
+
 import math
 
 import numpy as np
 import pytest
 
-from pma_model_ros.core import muscle as geo
-from pma_model_ros.core.force_map import SHIPPED_MUSCLES, read_spec_yaml, shipped_spec
-from pma_model_ros.core.muscle import MuscleSpec
+from pma_model_ros.core import geometry as geo
+from pma_model_ros.core.geometry import MuscleSpec
+from pma_model_ros.core.shipped_data import SHIPPED_MUSCLES, shipped_spec
+from pma_model_ros.core.user_files import read_spec_yaml
 
 
-@pytest.mark.parametrize("name", SHIPPED_MUSCLES)
+@pytest.mark.parametrize('name', SHIPPED_MUSCLES)
 def test_initial_state_is_consistent(name):
     spec = shipped_spec(name)
     # eq. 2 at L0 gives back D0, and eq. 4 equals the cylinder of eq. 1.
     assert geo.diameter(spec, spec.nominal_length) == pytest.approx(spec.inner_diameter, rel=1e-12)
     L = np.linspace(0.7, 1.0, 7) * spec.nominal_length
-    assert geo.volume(spec, L) == pytest.approx(math.pi / 4 * geo.diameter(spec, L) ** 2 * L, rel=1e-12)
+    assert geo.volume(spec, L) == pytest.approx(
+        math.pi / 4 * geo.diameter(spec, L) ** 2 * L, rel=1e-12
+    )
 
 
 def test_slopes_are_derivatives():
-    spec = shipped_spec("DMSP-10-250")
+    spec = shipped_spec('DMSP-10-250')
     L, h = np.linspace(0.19, 0.25, 5), 1e-7
-    assert geo.volume_slope(spec, L) == pytest.approx((geo.volume(spec, L + h) - geo.volume(spec, L - h)) / (2 * h),
-                                                      rel=1e-6)
+    assert geo.volume_slope(spec, L) == pytest.approx(
+        (geo.volume(spec, L + h) - geo.volume(spec, L - h)) / (2 * h), rel=1e-6
+    )
     assert geo.diameter_slope(spec, L) == pytest.approx(
-        (geo.diameter(spec, L + h) - geo.diameter(spec, L - h)) / (2 * h), rel=1e-6)
+        (geo.diameter(spec, L + h) - geo.diameter(spec, L - h)) / (2 * h), rel=1e-6
+    )
 
 
 def test_dmsp_10_250_numbers():
-    spec = shipped_spec("DMSP-10-250")
+    spec = shipped_spec('DMSP-10-250')
     assert spec.fiber_angle == pytest.approx(math.radians(28.6))
     assert geo.fiber_length(spec) == pytest.approx(0.25 / math.cos(math.radians(28.6)))
     assert geo.turns(spec) == pytest.approx(0.25 * math.tan(math.radians(28.6)) / (math.pi * 0.01))
@@ -36,24 +42,29 @@ def test_dmsp_10_250_numbers():
     assert 1 - geo.fiber_length(spec) / math.sqrt(3) / 0.25 == pytest.approx(0.34, abs=0.01)
 
 
-@pytest.mark.parametrize("change, message", [
-    ({"nominal_length": -0.25}, "nominal_length"),
-    ({"inner_diameter": 10.0}, "metres"),
-    ({"fiber_angle": 28.6}, "fiber_angle"),
-    ({"max_pressure": "8 bar"}, "max_pressure"),
-    ({"colour": "black"}, "unknown keys"),
-])
+@pytest.mark.parametrize(
+    'change, message',
+    [
+        ({'nominal_length': -0.25}, 'nominal_length'),
+        ({'inner_diameter': 10.0}, 'metres'),
+        ({'fiber_angle': 28.6}, 'fiber_angle'),
+        ({'max_pressure': '8 bar'}, 'max_pressure'),
+        ({'colour': 'black'}, 'unknown keys'),
+    ],
+)
 def test_bad_specs_are_rejected(change, message):
-    data = shipped_spec("DMSP-10-250").to_mapping() | change
+    data = shipped_spec('DMSP-10-250').to_mapping() | change
     with pytest.raises(ValueError, match=message):
         MuscleSpec.from_mapping(data)
 
 
 def test_user_spec_yaml(tmp_path):
-    path = tmp_path / "mine.yaml"
-    path.write_text("name: MAS-20-400\nnominal_length: 0.4\ninner_diameter: 0.02\nmembrane_thickness: 0.0018\n"
-                    "fiber_angle: 0.4992\nmax_pressure: 600000\n")
+    path = tmp_path / 'mine.yaml'
+    path.write_text(
+        'name: MAS-20-400\nnominal_length: 0.4\ninner_diameter: 0.02\nmembrane_thickness: 0.0018\n'
+        'fiber_angle: 0.4992\nmax_pressure: 600000\n'
+    )
     assert read_spec_yaml(path).nominal_length == 0.4
-    path.write_text("- just\n- a list\n")
-    with pytest.raises(ValueError, match="mapping"):
+    path.write_text('- just\n- a list\n')
+    with pytest.raises(ValueError, match='mapping'):
         read_spec_yaml(path)

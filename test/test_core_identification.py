@@ -1,20 +1,22 @@
 """Identification: the paper's Table 3, our best fits, cross-validation, shipped configs."""
+
 import math
 
 import numpy as np
 import pytest
 import yaml
 
-from conftest import CONFIGS
-from pma_model_ros.cli import PAPER_TABLE3, identify_muscle, main
-from pma_model_ros.core.force_map import MAPPED_MUSCLES, shipped_force_map
+from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
+from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map
 
-FITTED = ("andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens")
+from conftest import CONFIGS
+
+FITTED = ('andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope='module')
 def results():
     return {m: identify_muscle(m) for m in MAPPED_MUSCLES}
 
@@ -25,19 +27,26 @@ def test_paper_protocol_reproduces_table3(results):
         for name, rep in reports.items():
             if abs(rep.paper.err - PAPER_TABLE3[muscle][name]) > 0.05:
                 misses.append((muscle, name, round(rep.paper.err, 2)))
-    # One entry does not reproduce (README: fminsearch stops at MaxFunEvals mid-descent): 7.39 % vs 5.1 %.
-    assert misses == [("DMSP-10-250", "sarosi", 7.39)]
+    # One entry does not reproduce (README: fminsearch stops at MaxFunEvals mid-descent): 7.39 % vs
+    # 5.1 %.
+    assert misses == [('DMSP-10-250', 'sarosi', 7.39)]
 
 
 def test_paper_protocol_finds_table2(results):
-    table2 = {"DMSP-10-250": [74.085e6, -689.20e6, 1.8370e9, -848.79e6],
-              "DMSP-20-300": [93.232e6, -715.29e6, 1.5483e9, -502.95e6]}
+    table2 = {
+        'DMSP-10-250': [74.085e6, -689.20e6, 1.8370e9, -848.79e6],
+        'DMSP-20-300': [93.232e6, -715.29e6, 1.5483e9, -502.95e6],
+    }
     for muscle, expected in table2.items():
-        theta = results[muscle][0]["martens"].paper.theta
+        theta = results[muscle][0]['martens'].paper.theta
         assert theta[:4] == pytest.approx(expected, rel=2e-4)
-    assert math.degrees(results["DMSP-20-300"][0]["martens"].paper.theta[4]) == pytest.approx(-4.18, abs=0.01)
+    assert math.degrees(results['DMSP-20-300'][0]['martens'].paper.theta[4]) == pytest.approx(
+        -4.18, abs=0.01
+    )
     # Table 2 prints -5.73 deg for the DMSP-10-250; the same fit lands at -5.87 deg (README).
-    assert math.degrees(results["DMSP-10-250"][0]["martens"].paper.theta[4]) == pytest.approx(-5.87, abs=0.01)
+    assert math.degrees(results['DMSP-10-250'][0]['martens'].paper.theta[4]) == pytest.approx(
+        -5.87, abs=0.01
+    )
 
 
 def test_best_is_at_or_below_the_paper_for_every_fitted_model(results):
@@ -49,57 +58,113 @@ def test_best_is_at_or_below_the_paper_for_every_fitted_model(results):
 
 
 def test_cross_validation_picks_the_default(results):
-    limits = {"DMSP-10-250": 9.0, "DMSP-20-300": 3.0}
+    limits = {'DMSP-10-250': 9.0, 'DMSP-20-300': 3.0}
     for muscle, (reports, default) in results.items():
         assert default == min(reports, key=lambda n: reports[n].cv_err)
-        assert reports[default].cv_err <= limits[muscle], (muscle, default, reports[default].cv_err)
+        assert reports[default].cv_err <= limits[muscle], (
+            muscle,
+            default,
+            reports[default].cv_err,
+        )
         folds = reports[default].cv[reports[default].shipped_objective]
-        assert len(folds) == shipped_force_map(muscle).lengths.size == {"DMSP-10-250": 5, "DMSP-20-300": 6}[muscle]
+        assert (
+            len(folds)
+            == shipped_force_map(muscle).lengths.size
+            == {'DMSP-10-250': 5, 'DMSP-20-300': 6}[muscle]
+        )
 
 
-@pytest.mark.parametrize("muscle", MAPPED_MUSCLES)
+@pytest.mark.parametrize('muscle', MAPPED_MUSCLES)
 def test_regenerated_config_matches_committed(results, muscle, tmp_path):
-    out = tmp_path / "regen.yaml"
+    out = tmp_path / 'regen.yaml'
 
-    assert main(["make-config", muscle, "--out", str(out)]) == 0
+    assert main(['make-config', muscle, '--out', str(out)]) == 0
     fresh, committed = read_parameters(out), read_parameters(CONFIGS[muscle])
-    assert fresh["model"] == committed["model"] and fresh["muscle"] == committed["muscle"]
-    assert fresh["length_range"] == committed["length_range"]
-    assert fresh["pressure_range"] == committed["pressure_range"]
-    for name, entry in committed["models"].items():
-        new = fresh["models"][name]
-        assert new["objective"] == entry["objective"] and new["extrapolates"] == entry["extrapolates"]
-        for key in ("err", "rmse", "r2"):
+    assert fresh['model'] == committed['model'] and fresh['muscle'] == committed['muscle']
+    assert fresh['length_range'] == committed['length_range']
+    assert fresh['pressure_range'] == committed['pressure_range']
+    for name, entry in committed['models'].items():
+        new = fresh['models'][name]
+        assert (
+            new['objective'] == entry['objective'] and new['extrapolates'] == entry['extrapolates']
+        )
+        for key in ('err', 'rmse', 'r2'):
             assert new[key] == pytest.approx(entry[key], rel=1e-4, abs=1e-3), (name, key)
-        for key in ("cv_err", "edge_cv_err"):   # fits of 4-5 lengths: the held-out error varies ~1e-4 by platform
+        for key in (
+            'cv_err',
+            'edge_cv_err',
+        ):  # fits of 4-5 lengths: the held-out error varies ~1e-4 by platform
             assert new[key] == pytest.approx(entry[key], rel=1e-3), (name, key)
-        # Ill-conditioned fits (hildebrandt's 8 parameters) land a few 1e-4 apart by platform: compare what the
-        # parameters serve, the force on the map, to 0.01 % of its max force.
+        # Ill-conditioned fits (hildebrandt's 8 parameters) land a few 1e-4 apart by platform:
+        # compare what the parameters serve, the force on the map, to 0.01 % of its max force.
         fmap = shipped_force_map(muscle)
-        served = [muscle_model(parameters, name).force(fmap.pressure, fmap.length).force
-                  for parameters in (fresh, committed)]
+        served = [
+            muscle_model(parameters, name).force(fmap.pressure, fmap.length).force
+            for parameters in (fresh, committed)
+        ]
         assert np.max(np.abs(served[0] - served[1])) <= 1e-4 * fmap.max_force, name
 
 
 def test_two_branch_model_from_a_map_with_directions(tmp_path):
-    """Sárosi's published DMSP-10-100 branches (Tables 2 and 4) sampled on 0-600 kPa x 0-25 % contraction with
-    their direction; fitting sarosi_hysteresis to that CSV gives both branches back (0.5 % of max force)."""
+    """Sárosi's published DMSP-10-100 branches (Tables 2 and 4) sampled on 0-600 kPa x 0-25 %
+    contraction with their direction; fitting sarosi_hysteresis to that CSV gives both branches
+    back (0.5 % of max force).
+    """
     truth = dmsp_10_100_hysteresis()
     p, L = np.meshgrid(np.linspace(0, 6e5, 7), np.linspace(0.075, 0.1, 6))
-    rows = [(pi, Li, float(truth.force(pi, Li, d).force), d) for d in (1.0, -1.0) for pi, Li in zip(p.ravel(), L.ravel())]
-    csv = tmp_path / "map.csv"
-    csv.write_text("pressure_pa,length_m,force_n,direction\n" + "".join(f"{a},{b},{c},{d:+.0f}\n" for a, b, c, d in rows))
-    spec = tmp_path / "spec.yaml"
+    rows = [
+        (pi, Li, float(truth.force(pi, Li, d).force), d)
+        for d in (1.0, -1.0)
+        for pi, Li in zip(p.ravel(), L.ravel())
+    ]
+    csv = tmp_path / 'map.csv'
+    csv.write_text(
+        'pressure_pa,length_m,force_n,direction\n'
+        + ''.join(f'{a},{b},{c},{d:+.0f}\n' for a, b, c, d in rows)
+    )
+    spec = tmp_path / 'spec.yaml'
     spec.write_text(yaml.safe_dump(truth.spec.to_mapping()))
-    out = tmp_path / "fit.yaml"
-    assert main(["fit", "--data", str(csv), "--muscle", str(spec), "--model", "sarosi_hysteresis",
-                 "--out", str(out)]) == 0
+    out = tmp_path / 'fit.yaml'
+    assert (
+        main(
+            [
+                'fit',
+                '--data',
+                str(csv),
+                '--muscle',
+                str(spec),
+                '--model',
+                'sarosi_hysteresis',
+                '--out',
+                str(out),
+            ]
+        )
+        == 0
+    )
     fitted = muscle_model(read_parameters(out))
     forces = np.array([r[2] for r in rows])
     for d in (1.0, -1.0):
         got = fitted.force(p.ravel(), L.ravel(), d).force
-        assert np.max(np.abs(got - truth.force(p.ravel(), L.ravel(), d).force)) <= 5e-3 * forces.max(), d
-    single = tmp_path / "single.csv"
-    single.write_text("pressure_pa,length_m,force_n\n" + "".join(f"{a},{b},{c}\n" for a, b, c, _ in rows))
-    assert main(["fit", "--data", str(single), "--muscle", str(spec), "--model", "sarosi_hysteresis",
-                 "--out", str(out)]) == 2   # no direction column: one line, exit 2
+        assert (
+            np.max(np.abs(got - truth.force(p.ravel(), L.ravel(), d).force)) <= 5e-3 * forces.max()
+        ), d
+    single = tmp_path / 'single.csv'
+    single.write_text(
+        'pressure_pa,length_m,force_n\n' + ''.join(f'{a},{b},{c}\n' for a, b, c, _ in rows)
+    )
+    assert (
+        main(
+            [
+                'fit',
+                '--data',
+                str(single),
+                '--muscle',
+                str(spec),
+                '--model',
+                'sarosi_hysteresis',
+                '--out',
+                str(out),
+            ]
+        )
+        == 2
+    )  # no direction column: one line, exit 2

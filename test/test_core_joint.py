@@ -1,42 +1,60 @@
-"""Antagonistic joint: torque and stiffness by hand from single-muscle forces, the inverse's round trips
-(hypothesis, every model of every shipped file), saturation, and the float path against the vector path."""
+"""Antagonistic joint: torque and stiffness by hand from single-muscle forces, the inverse's round
+trips (hypothesis, every model of every shipped file), saturation, and the float path against the
+vector path.
+"""
+
 import dataclasses
 import math
 
-from hypothesis import HealthCheck, assume, given, settings, strategies as st
+from hypothesis import assume, given, HealthCheck, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
 
-from conftest import CONFIGS, REPO
 from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.joint import Joint, Transmission, envelope
+from pma_model_ros.core.joint import envelope, Joint, Transmission
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
-EXAMPLE = load_joints(REPO / "config" / "example_joint.yaml")[0]
-#: The highest pressure the example's muscles are commanded: their map's 650 kPa (hildebrandt does not extrapolate).
+from conftest import CONFIGS, REPO
+
+EXAMPLE = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
+#: The highest pressure the example's muscles are commanded: their map's 650 kPa (hildebrandt does
+#: not extrapolate).
 TOP = EXAMPLE.muscles[0].limits.command_top
-#: The README's worked example: the example joint at 0.5 rad, flexor 400 kPa, extensor 300 kPa (gauge).
+#: The README's worked example: the example joint at 0.5 rad, flexor 400 kPa, extensor 300 kPa
+#: (gauge).
 THETA, P_FLEXOR, P_EXTENSOR = 0.5, 400e3, 300e3
 
 
 def paired(muscle) -> Joint:
-    """Two copies of ``muscle`` on a pulley whose ±1 rad spans 80 % of its identified length range."""
+    """Two copies of ``muscle`` on a pulley whose ±1 rad spans 80 % of its identified length
+    range.
+    """
     low, high = muscle.domain.length_min, min(muscle.domain.length_max, muscle.spec.nominal_length)
-    return Joint("test", (muscle, muscle), ("a", "b"), ((low + high) / 2,) * 2,
-                 Transmission((0.4 * (high - low),)), (-1.0, 1.0))
+    return Joint(
+        'test',
+        (muscle, muscle),
+        ('a', 'b'),
+        ((low + high) / 2,) * 2,
+        Transmission((0.4 * (high - low),)),
+        (-1.0, 1.0),
+    )
 
 
-MUSCLES = [muscle_model(read_parameters(path), name) for path in CONFIGS.values()
-           for name in read_parameters(path)["models"]]
+MUSCLES = [
+    muscle_model(read_parameters(path), name)
+    for path in CONFIGS.values()
+    for name in read_parameters(path)['models']
+]
 JOINTS = [paired(m) for m in MUSCLES]
-IDS = [f"{m.spec.name}-{m.model.name}" for m in MUSCLES]
+IDS = [f'{m.spec.name}-{m.model.name}' for m in MUSCLES]
 
 
 def test_worked_example_by_hand():
-    flexor = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "hildebrandt")
+    flexor = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')
 
-    def torque(theta):   # r = 15 mm; the flexor is 0.234 m at 0, shortening by r theta
+    def torque(theta):  # r = 15 mm; the flexor is 0.234 m at 0, shortening by r theta
         f = float(flexor.force(P_FLEXOR, 0.234 - 0.015 * theta).force)
         e = float(flexor.force(P_EXTENSOR, 0.234 + 0.015 * theta).force)
         return 0.015 * (f - e)
@@ -46,38 +64,46 @@ def test_worked_example_by_hand():
     result = EXAMPLE.forward(THETA, P_FLEXOR, P_EXTENSOR)
     assert float(result.torque) == pytest.approx(torque(THETA), rel=1e-12)
     assert float(result.stiffness) == pytest.approx(stiffness, rel=1e-6)
-    assert (round(torque(THETA), 3), round(stiffness, 2)) == (-0.693, 3.84)   # the README's numbers
+    assert (round(torque(THETA), 3), round(stiffness, 2)) == (-0.693, 3.84)  # the README's numbers
     assert not result.flags.any()
 
 
 def test_lengths_follow_the_pulley_and_rep103():
     flexor, extensor = EXAMPLE.lengths(np.array([-1.0, 0.0, 1.0]))
-    assert flexor == pytest.approx([0.249, 0.234, 0.219], abs=1e-15)     # shortens for positive θ
+    assert flexor == pytest.approx([0.249, 0.234, 0.219], abs=1e-15)  # shortens for positive θ
     assert extensor == pytest.approx([0.219, 0.234, 0.249], abs=1e-15)
-    assert float(EXAMPLE.forward(0.0, 500e3, 0.0).torque) > 0              # the flexor alone turns positive
+    assert float(EXAMPLE.forward(0.0, 500e3, 0.0).torque) > 0  # the flexor alone turns positive
 
 
 def test_lever_arm_polynomial_travel_is_its_integral():
     arm = Transmission((0.02, 0.004, -0.003))
     theta = 0.7
-    assert arm.travel(theta) == pytest.approx(0.02 * 0.7 + 0.002 * 0.7**2 - 0.001 * 0.7**3, rel=1e-14)
+    assert arm.travel(theta) == pytest.approx(
+        0.02 * 0.7 + 0.002 * 0.7**2 - 0.001 * 0.7**3, rel=1e-14
+    )
     assert arm.radius_slope(theta) == pytest.approx(0.004 - 0.006 * 0.7, rel=1e-14)
 
 
-@pytest.mark.parametrize("joint", JOINTS, ids=IDS)
+@pytest.mark.parametrize('joint', JOINTS, ids=IDS)
 def test_stiffness_is_minus_the_torque_slope(joint):
-    """Analytic K against a central difference of the torque, where both muscles pull inside the box."""
+    """Analytic K against a central difference of the torque, where both muscles pull inside the
+    box.
+    """
     theta = np.linspace(-0.8, 0.8, 9)
     p0, p1, h = 500e3, 450e3, 1e-5
     k = joint.forward(theta, p0, p1, 1.0).stiffness
-    fd = -(joint.forward(theta + h, p0, p1, 1.0).torque - joint.forward(theta - h, p0, p1, 1.0).torque) / (2 * h)
+    fd = -(
+        joint.forward(theta + h, p0, p1, 1.0).torque - joint.forward(theta - h, p0, p1, 1.0).torque
+    ) / (2 * h)
     assert k == pytest.approx(fd, rel=1e-5, abs=1e-6 * np.abs(fd).max())
 
 
 def test_stiffness_of_a_variable_lever_arm_has_the_r_prime_term():
     joint = dataclasses.replace(EXAMPLE, transmission=Transmission((0.015, 0.002)))
     h = 1e-5
-    fd = -(joint.forward(0.3 + h, 600e3, 200e3).torque - joint.forward(0.3 - h, 600e3, 200e3).torque) / (2 * h)
+    fd = -(
+        joint.forward(0.3 + h, 600e3, 200e3).torque - joint.forward(0.3 - h, 600e3, 200e3).torque
+    ) / (2 * h)
     assert float(joint.forward(0.3, 600e3, 200e3).stiffness) == pytest.approx(float(fd), rel=1e-6)
 
 
@@ -86,7 +112,8 @@ def test_float_path_equals_vector_path():
     for p0, p1 in ((0.0, 0.0), (200e3, 650e3), (800e3, 100e3), (-5e3, 9e5)):
         vector = EXAMPLE.forward(0.3, p0, p1)
         assert EXAMPLE.torque_stiffness(m0, m1, r, r_slope, p0, p1) == pytest.approx(
-            (float(vector.torque), float(vector.stiffness)), rel=1e-9, abs=1e-12)
+            (float(vector.torque), float(vector.stiffness)), rel=1e-9, abs=1e-12
+        )
 
 
 def _scale(joint, theta):
@@ -95,7 +122,9 @@ def _scale(joint, theta):
 
 
 def _top(joint) -> float:
-    """The highest pressure commanded to either muscle [Pa] (:class:`~pma_model_ros.core.muscle_model.Limits`)."""
+    """The highest pressure commanded to either muscle [Pa]
+    (:class:`~pma_model_ros.core.muscle_model.Limits`).
+    """
     return min(m.limits.command_top for m in joint.muscles)
 
 
@@ -107,21 +136,26 @@ def _check_round_trip(joint, theta, wanted, solution):
         assert 0.0 <= p <= muscle.limits.command_top
 
 
-@pytest.mark.parametrize("joint", JOINTS, ids=IDS)
+@pytest.mark.parametrize('joint', JOINTS, ids=IDS)
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
 @given(theta=st.floats(-1.0, 1.0), share=st.floats(0.0, 1.0), level=st.floats(0.0, 1.0))
 def test_round_trip_lower_pressure(joint, theta, share, level):
     p_max = _top(joint)
     level *= p_max
-    low = float(joint.forward(theta, level, p_max).torque)    # reachable with the lower pressure at ``level``
+    low = float(
+        joint.forward(theta, level, p_max).torque
+    )  # reachable with the lower pressure at ``level``
     high = float(joint.forward(theta, p_max, level).torque)
     wanted = low + share * (high - low)
-    solution = joint.pressures_one(theta, wanted, level, "min")
+    solution = joint.pressures_one(theta, wanted, level, 'min')
     _check_round_trip(joint, theta, wanted, solution)
-    assert min(solution.pressures) == pytest.approx(level, abs=1e-9 * p_max) or wanted in (low, high)
+    assert min(solution.pressures) == pytest.approx(level, abs=1e-9 * p_max) or wanted in (
+        low,
+        high,
+    )
 
 
-@pytest.mark.parametrize("joint", JOINTS, ids=IDS)
+@pytest.mark.parametrize('joint', JOINTS, ids=IDS)
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
 @given(theta=st.floats(-1.0, 1.0), share=st.floats(0.0, 1.0), total=st.floats(0.0, 2.0))
 def test_round_trip_pressure_sum(joint, theta, share, total):
@@ -130,31 +164,43 @@ def test_round_trip_pressure_sum(joint, theta, share, total):
     low = float(joint.forward(theta, max(0.0, total - p_max), min(total, p_max)).torque)
     high = float(joint.forward(theta, min(total, p_max), max(0.0, total - p_max)).torque)
     wanted = low + share * (high - low)
-    solution = joint.pressures_one(theta, wanted, total, "sum")
+    solution = joint.pressures_one(theta, wanted, total, 'sum')
     _check_round_trip(joint, theta, wanted, solution)
     assert sum(solution.pressures) == pytest.approx(total, rel=1e-12, abs=1e-6)
 
 
-@pytest.mark.parametrize("joint", JOINTS, ids=IDS)
-@settings(max_examples=40, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.filter_too_much])
+@pytest.mark.parametrize('joint', JOINTS, ids=IDS)
+@settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.filter_too_much],
+)
 @given(theta=st.floats(-1.0, 1.0), u0=st.floats(0.3, 1.0), u1=st.floats(0.3, 1.0))
 def test_round_trip_stiffness(joint, theta, u0, u1):
-    """A pair where both muscles pull gives (τ, K); asking for them gets a pair with that τ and K."""
+    """A pair where both muscles pull gives (τ, K); asking for them gets a pair with that τ and
+    K.
+    """
     p_max = _top(joint)
     given_pair = joint.forward(theta, u0 * p_max, u1 * p_max)
     assume((given_pair.forces > 0).all())
     wanted, stiffness = float(given_pair.torque), float(given_pair.stiffness)
     solution = joint.pressures_one(theta, wanted, stiffness=stiffness)
     _check_round_trip(joint, theta, wanted, solution)
-    assert float(joint.forward(theta, *solution.pressures).stiffness) == pytest.approx(stiffness, rel=1e-9)
+    assert float(joint.forward(theta, *solution.pressures).stiffness) == pytest.approx(
+        stiffness, rel=1e-9
+    )
 
 
 def test_out_of_reach_torque_is_saturated_at_the_bound():
     theta, level = 0.5, 200e3
     top = float(EXAMPLE.forward(theta, TOP, level).torque)
     bottom = float(EXAMPLE.forward(theta, level, TOP).torque)
-    for wanted, bound, pair in ((top + 1.0, top, (TOP, level)), (bottom - 1.0, bottom, (level, TOP))):
+    for wanted, bound, pair in (
+        (top + 1.0, top, (TOP, level)),
+        (bottom - 1.0, bottom, (level, TOP)),
+    ):
         solution = EXAMPLE.pressures_one(theta, wanted, level)
         assert solution.flags & Flag.SATURATED
         assert solution.pressures == pytest.approx(pair, abs=1e-6)
@@ -163,7 +209,9 @@ def test_out_of_reach_torque_is_saturated_at_the_bound():
 
 
 def test_out_of_reach_stiffness_keeps_the_torque():
-    top = float(EXAMPLE.forward(0.0, TOP, TOP).stiffness)   # both muscles at max: the stiffest pair at 0 N·m
+    top = float(
+        EXAMPLE.forward(0.0, TOP, TOP).stiffness
+    )  # both muscles at max: the stiffest pair at 0 N·m
     solution = EXAMPLE.pressures_one(0.0, 0.0, stiffness=top + 10.0)
     assert solution.flags & Flag.SATURATED
     assert abs(solution.torque) <= 1e-9 * _scale(EXAMPLE, 0.0)
@@ -183,39 +231,47 @@ def test_envelope_bounds_every_pressure_pair():
     grid = np.linspace(0, TOP, 41)
     for i, theta in enumerate(angles):
         torques = EXAMPLE.forward(theta, grid[:, None], grid[None, :]).torque
-        assert torques.max() == pytest.approx(env["torque_max"][i], rel=1e-12)
-        assert torques.min() == pytest.approx(env["torque_min"][i], rel=1e-12)
-        assert env["level_max"][0, i] == pytest.approx(env["torque_max"][i], rel=1e-12)
-        assert env["level_min"][1, i] >= env["torque_min"][i] and env["level_max"][1, i] <= env["torque_max"][i]
+        assert torques.max() == pytest.approx(env['torque_max'][i], rel=1e-12)
+        assert torques.min() == pytest.approx(env['torque_min'][i], rel=1e-12)
+        assert env['level_max'][0, i] == pytest.approx(env['torque_max'][i], rel=1e-12)
+        assert (
+            env['level_min'][1, i] >= env['torque_min'][i]
+            and env['level_max'][1, i] <= env['torque_max'][i]
+        )
 
 
 def test_geometry_check_names_the_angle():
     spec = EXAMPLE.muscles[1].spec
-    limit = spec.nominal_length / math.cos(spec.fiber_angle)   # eq. 3: the longest length, 0.2847 m
+    limit = spec.nominal_length / math.cos(spec.fiber_angle)  # eq. 3: the longest length, 0.2847 m
     with pytest.raises(ValueError, match="muscle 'extensor' would be .* at θ = ") as err:
         dataclasses.replace(EXAMPLE, transmission=Transmission((0.1,)), limits=(0.0, 1.0))
-    angle = float(str(err.value).split("θ = ")[1].split(" rad")[0])
+    angle = float(str(err.value).split('θ = ')[1].split(' rad')[0])
     assert angle == pytest.approx((limit - 0.234) / 0.1, abs=0.003)
 
 
 def test_lever_arm_must_stay_positive():
-    with pytest.raises(ValueError, match="lever arm r = .* at θ = -1 rad"):
+    with pytest.raises(ValueError, match='lever arm r = .* at θ = -1 rad'):
         dataclasses.replace(EXAMPLE, transmission=Transmission((0.01, 0.02)))
 
 
 def test_out_of_reach_cocontraction_is_saturated_at_the_nearest_level():
-    solution = EXAMPLE.pressures_one(0.0, 0.0, 900e3)                  # above the identified 650 kPa
+    solution = EXAMPLE.pressures_one(0.0, 0.0, 900e3)  # above the identified 650 kPa
     assert solution.flags & Flag.SATURATED and solution.pressures == (TOP, TOP)
-    solution = EXAMPLE.pressures_one(0.0, 0.0, 2e6, "sum")              # above 650 + 650 kPa
+    solution = EXAMPLE.pressures_one(0.0, 0.0, 2e6, 'sum')  # above 650 + 650 kPa
     assert solution.flags & Flag.SATURATED and solution.pressures == (TOP, TOP)
 
 
 def test_pressures_broadcast_over_samples():
-    # 0.5 N·m: inside the reachable range at each angle and level (at 0.5 rad and 400 kPa: up to 0.519 N·m)
+    # 0.5 N·m: inside the reachable range at each angle and level (at 0.5 rad and 400 kPa: up to
+    # 0.519 N·m)
     solutions = EXAMPLE.pressures(np.array([-0.5, 0.0, 0.5]), 0.5, np.array([[300e3], [400e3]]))
     assert len(solutions) == 6
-    for solution, (theta, level) in zip(solutions, [(t, c) for c in (300e3, 400e3) for t in (-0.5, 0.0, 0.5)]):
+    for solution, (theta, level) in zip(
+        solutions, [(t, c) for c in (300e3, 400e3) for t in (-0.5, 0.0, 0.5)]
+    ):
         assert min(solution.pressures) == level
-        assert float(EXAMPLE.forward(theta, *solution.pressures).torque) == pytest.approx(0.5, rel=1e-9)
+        assert float(EXAMPLE.forward(theta, *solution.pressures).torque) == pytest.approx(
+            0.5, rel=1e-9
+        )
     (stiff,) = EXAMPLE.pressures(0.0, 0.0, stiffness=4.5)
     assert stiff.stiffness == pytest.approx(4.5, rel=1e-9)

@@ -1,14 +1,16 @@
 """Joint parameter files: muscles by file or inline, which muscle is positive, clear errors."""
+
 import copy
 
 import pytest
 import yaml
 
-from conftest import CONFIGS, REPO
 from pma_model_ros.core.joint_file import joints, load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
-EXAMPLE = REPO / "config" / "example_joint.yaml"
+from conftest import CONFIGS, REPO
+
+EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 
 
 def example() -> dict:
@@ -17,62 +19,70 @@ def example() -> dict:
 
 def test_example_joint_reads_both_muscle_files_with_the_model_override():
     (elbow,) = load_joints(EXAMPLE)
-    hildebrandt = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "hildebrandt")
-    assert elbow.muscle_names == ("flexor", "extensor")
+    hildebrandt = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')
+    assert elbow.muscle_names == ('flexor', 'extensor')
     assert elbow.length_at_zero == (0.234, 0.234) and elbow.limits == (-1.0, 1.0)
     assert elbow.transmission.arm == (0.015,)
     for muscle in elbow.muscles:
-        assert muscle.model.name == "hildebrandt" and (muscle.theta == hildebrandt.theta).all()
+        assert muscle.model.name == 'hildebrandt' and (muscle.theta == hildebrandt.theta).all()
 
 
 def test_inline_muscle_equals_its_file():
     parameters = example()
-    single = read_parameters(CONFIGS["DMSP-10-250"])
-    parameters["elbow"]["extensor"] = {key: single[key] for key in ("muscle", "model", "length_range", "models")}
-    parameters["elbow"]["extensor"] |= {"length_at_zero": 0.234, "model": "hildebrandt"}
-    (inline,) = joints(parameters, REPO / "config")
+    single = read_parameters(CONFIGS['DMSP-10-250'])
+    parameters['elbow']['extensor'] = {
+        key: single[key] for key in ('muscle', 'model', 'length_range', 'models')
+    }
+    parameters['elbow']['extensor'] |= {'length_at_zero': 0.234, 'model': 'hildebrandt'}
+    (inline,) = joints(parameters, REPO / 'config')
     (from_file,) = load_joints(EXAMPLE)
     assert inline.forward(0.4, 300e3, 500e3).torque == from_file.forward(0.4, 300e3, 500e3).torque
 
 
 def test_positive_picks_the_muscle_that_shortens():
     parameters = example()
-    parameters["elbow"]["positive"] = "extensor"
-    (elbow,) = joints(parameters, REPO / "config")
-    assert elbow.muscle_names == ("extensor", "flexor")
+    parameters['elbow']['positive'] = 'extensor'
+    (elbow,) = joints(parameters, REPO / 'config')
+    assert elbow.muscle_names == ('extensor', 'flexor')
 
 
-@pytest.mark.parametrize("change, message", [
-    (lambda j: j.update(radius="big"), "radius must be a list of numbers"),
-    (lambda j: j.update(limits=[1.0]), r"limits must be \[min, max\]"),
-    (lambda j: j.update(limits=[1.0, -1.0]), "min < max"),
-    (lambda j: j.update(muscles=["flexor", "flexor"]), "two different names"),
-    (lambda j: j.update(positive="biceps"), "positive must name the muscle"),
-    (lambda j: j.pop("extensor"), "no parameters under 'extensor:'"),
-    (lambda j: j["flexor"].update(file="missing.yaml"), "muscle 'flexor'"),
-    (lambda j: j["flexor"].update(model="nonsense"), "unknown model 'nonsense'"),
-    (lambda j: j["flexor"].pop("length_at_zero"), "length_at_zero must be a length in m"),
-    (lambda j: j["flexor"].update(length_at_zero=0.3), "muscle 'flexor' would be 0.315 m long at θ = -1 rad"),
-])
+@pytest.mark.parametrize(
+    'change, message',
+    [
+        (lambda j: j.update(radius='big'), 'radius must be a list of numbers'),
+        (lambda j: j.update(limits=[1.0]), r'limits must be \[min, max\]'),
+        (lambda j: j.update(limits=[1.0, -1.0]), 'min < max'),
+        (lambda j: j.update(muscles=['flexor', 'flexor']), 'two different names'),
+        (lambda j: j.update(positive='biceps'), 'positive must name the muscle'),
+        (lambda j: j.pop('extensor'), "no parameters under 'extensor:'"),
+        (lambda j: j['flexor'].update(file='missing.yaml'), "muscle 'flexor'"),
+        (lambda j: j['flexor'].update(model='nonsense'), "unknown model 'nonsense'"),
+        (lambda j: j['flexor'].pop('length_at_zero'), 'length_at_zero must be a length in m'),
+        (
+            lambda j: j['flexor'].update(length_at_zero=0.3),
+            "muscle 'flexor' would be 0.315 m long at θ = -1 rad",
+        ),
+    ],
+)
 def test_bad_joint_is_one_clear_error(change, message):
     parameters = example()
-    change(parameters["elbow"])
+    change(parameters['elbow'])
     with pytest.raises(ValueError, match=message) as err:
-        joints(parameters, REPO / "config")
+        joints(parameters, REPO / 'config')
     assert str(err.value).startswith("joint 'elbow'")
 
 
 def test_joint_list_errors(tmp_path):
     parameters = example()
-    parameters["joints"] = "elbow"
-    with pytest.raises(ValueError, match="joints must be a non-empty list"):
-        joints(parameters, REPO / "config")
+    parameters['joints'] = 'elbow'
+    with pytest.raises(ValueError, match='joints must be a non-empty list'):
+        joints(parameters, REPO / 'config')
     parameters = example()
-    parameters["joints"] = ["elbow", "knee"]
-    parameters["knee"] = copy.deepcopy(parameters["elbow"])
-    with pytest.raises(ValueError, match="two joints share a muscle name"):
-        joints(parameters, REPO / "config")
-    path = tmp_path / "joint.yaml"
-    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": example()}}))
+    parameters['joints'] = ['elbow', 'knee']
+    parameters['knee'] = copy.deepcopy(parameters['elbow'])
+    with pytest.raises(ValueError, match='two joints share a muscle name'):
+        joints(parameters, REPO / 'config')
+    path = tmp_path / 'joint.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': example()}}))
     with pytest.raises(ValueError, match="muscle 'flexor'.*dmsp_10_250.yaml"):
-        load_joints(path)    # muscle files are found beside the joint file
+        load_joints(path)  # muscle files are found beside the joint file

@@ -1,102 +1,108 @@
 """Static force models against published numbers."""
+
 import math
 
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.force_map import shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import domain_of, max_error_percent
-from pma_model_ros.core.models import MODELS, coefficient_slopes, force_raw, get_model
+from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis, to_si
+from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+
+from conftest import CONFIGS
 
 # Martens & Boblan 2017, Table 2 (as printed).
-TABLE2 = {"DMSP-10-250": [74.085e6, -689.20e6, 1.8370e9, -848.79e6, math.radians(-5.73)],
-          "DMSP-20-300": [93.232e6, -715.29e6, 1.5483e9, -502.95e6, math.radians(-4.18)]}
+TABLE2 = {
+    'DMSP-10-250': [74.085e6, -689.20e6, 1.8370e9, -848.79e6, math.radians(-5.73)],
+    'DMSP-20-300': [93.232e6, -715.29e6, 1.5483e9, -502.95e6, math.radians(-4.18)],
+}
 
 
 def test_mckibben_reproduces_table3_without_fitting():
-    for muscle, paper in (("DMSP-10-250", 46.1), ("DMSP-20-300", 30.0)):
+    for muscle, paper in (('DMSP-10-250', 46.1), ('DMSP-20-300', 30.0)):
         fmap, spec = shipped_force_map(muscle), shipped_spec(muscle)
-        f = force_raw(get_model("mckibben"), np.zeros(0), spec, domain_of(fmap), fmap.pressure, fmap.length)
+        f = force_raw(
+            get_model('mckibben'), np.zeros(0), spec, domain_of(fmap), fmap.pressure, fmap.length
+        )
         pulled = fmap.force > 0
-        assert max_error_percent(fmap.force[pulled], f[pulled], fmap.max_force) == pytest.approx(paper, abs=0.05)
+        assert max_error_percent(fmap.force[pulled], f[pulled], fmap.max_force) == pytest.approx(
+            paper, abs=0.05
+        )
 
 
 def test_mckibben_matches_eq17_closed_form():
-    spec = shipped_spec("DMSP-20-300")
+    spec = shipped_spec('DMSP-20-300')
     L, p = np.array([0.22, 0.26, 0.3]), 4e5
     cos_t = L / (spec.nominal_length / math.cos(spec.fiber_angle))
     n = spec.nominal_length * math.tan(spec.fiber_angle) / (math.pi * spec.inner_diameter)
-    expected = p * (spec.nominal_length / math.cos(spec.fiber_angle)) ** 2 * (3 * cos_t**2 - 1) / (4 * math.pi * n**2)
-    got = force_raw(get_model("mckibben"), np.zeros(0), spec, domain_of(shipped_force_map("DMSP-20-300")), p, L)
+    expected = (
+        p
+        * (spec.nominal_length / math.cos(spec.fiber_angle)) ** 2
+        * (3 * cos_t**2 - 1)
+        / (4 * math.pi * n**2)
+    )
+    got = force_raw(
+        get_model('mckibben'), np.zeros(0), spec, domain_of(shipped_force_map('DMSP-20-300')), p, L
+    )
     assert got == pytest.approx(expected, rel=1e-12)
 
 
-@pytest.mark.parametrize("muscle, within", [("DMSP-10-250", 4.3), ("DMSP-20-300", 2.4)])
+@pytest.mark.parametrize('muscle, within', [('DMSP-10-250', 4.3), ('DMSP-20-300', 2.4)])
 def test_martens_with_table2_parameters_fits_the_map(muscle, within):
     fmap, spec = shipped_force_map(muscle), shipped_spec(muscle)
-    f = force_raw(get_model("martens"), np.array(TABLE2[muscle]), spec, domain_of(fmap), fmap.pressure, fmap.length)
+    f = force_raw(
+        get_model('martens'),
+        np.array(TABLE2[muscle]),
+        spec,
+        domain_of(fmap),
+        fmap.pressure,
+        fmap.length,
+    )
     pulled = fmap.force > 0
     assert max_error_percent(fmap.force[pulled], f[pulled], fmap.max_force) < within
 
 
 def test_andrikopoulos_with_unit_corrections_is_mckibben_at_l0():
     # eq. 18 with c0 = c1 = 1 equals eq. 17 at L = L0 (Theta = Theta0).
-    spec, fmap = shipped_spec("DMSP-10-250"), shipped_force_map("DMSP-10-250")
+    spec, fmap = shipped_spec('DMSP-10-250'), shipped_force_map('DMSP-10-250')
     args = (spec, domain_of(fmap), 5e5, spec.nominal_length)
-    assert force_raw(get_model("andrikopoulos"), np.array([1.0, 1.0]), *args) == pytest.approx(
-        force_raw(get_model("mckibben"), np.zeros(0), *args), rel=1e-12)
+    assert force_raw(get_model('andrikopoulos'), np.array([1.0, 1.0]), *args) == pytest.approx(
+        force_raw(get_model('mckibben'), np.zeros(0), *args), rel=1e-12
+    )
 
 
 def test_andrikopoulos_at_twelve_percent_contraction_by_hand():
-    """Eq. 18 on the DMSP-10-250 (D0 = 0.01 m, Theta0 = 0.49916 rad) with c0 = 1.2, c1 = 1.5 at L = 0.22 m, 5 bar.
+    """Eq. 18 on the DMSP-10-250 (D0 = 0.01 m, Theta0 = 0.49916 rad) with c0 = 1.2, c1 = 1.5 at L =
+    0.22 m, 5 bar.
 
-    kappa = 0.03 / 0.25 = 0.12; tan^2 Theta0 = 0.297262, sin^2 Theta0 = 0.229146; (1 - 1.5 * 0.12)^2 = 0.6724;
-    3 / 0.297262 * 0.6724 - 1 / 0.229146 = 2.421893; F = 5e5 * 1.2 * pi 1e-4 / 4 * 2.421893 = 114.129 N.
-    (Without the square: 184.32 N.)
+    kappa = 0.03 / 0.25 = 0.12; tan^2 Theta0 = 0.297262, sin^2 Theta0 = 0.229146; (1 - 1.5 *
+    0.12)^2 = 0.6724; 3 / 0.297262 * 0.6724 - 1 / 0.229146 = 2.421893; F = 5e5 * 1.2 * pi 1e-4 / 4
+    * 2.421893 = 114.129 N. (Without the square: 184.32 N.)
     """
-    spec, fmap = shipped_spec("DMSP-10-250"), shipped_force_map("DMSP-10-250")
-    force = force_raw(get_model("andrikopoulos"), np.array([1.2, 1.5]), spec, domain_of(fmap), 5e5, 0.22)
+    spec, fmap = shipped_spec('DMSP-10-250'), shipped_force_map('DMSP-10-250')
+    force = force_raw(
+        get_model('andrikopoulos'), np.array([1.2, 1.5]), spec, domain_of(fmap), 5e5, 0.22
+    )
     assert force == pytest.approx(114.129, abs=1e-3)
 
 
 def test_tondu_lopez_is_an_alias():
-    assert get_model("Tondu_Lopez") is MODELS["andrikopoulos"]
-    with pytest.raises(ValueError, match="unknown model"):
-        get_model("hill")
-
-
-def test_sarosi_si_conversion_matches_published_units():
-    published = [-13.05, 215.62, -0.35, -3.08, 100.49, -215.22]  # Table 2: p in bar, k in %
-    a1, a2, a3, a4, a5, a6 = published
-    spec, fmap = shipped_spec("DMSP-10-100"), shipped_force_map("DMSP-10-250")
-    got = {}
-    for p_bar, k_pct in ((6.0, 0.0), (3.0, 10.0), (6.0, 20.0)):
-        expected = (a1 * p_bar + a2) * math.exp(a3 * k_pct) + a4 * k_pct * p_bar + a5 * p_bar + a6
-        L = spec.nominal_length * (1 - k_pct / 100)
-        got[p_bar, k_pct] = force_raw(get_model("sarosi"), to_si(published), spec, domain_of(fmap), p_bar * 1e5, L)
-        assert got[p_bar, k_pct] == pytest.approx(expected, rel=1e-12)
-    # These units make physical sense: about 525 N at 6 bar and L0, near zero at 20 % contraction.
-    assert got[6.0, 0.0] == pytest.approx(525.0, abs=1.0)
-    assert 0 < got[6.0, 20.0] < 25
-
-
-def test_hysteresis_branches():
-    muscle = dmsp_10_100_hysteresis()
-    up, down, unknown = (muscle.force(6e5, 0.09, rate) for rate in (0.01, -0.01, None))
-    assert float(up.force) > float(unknown.force) > float(down.force) > 0
-    assert float(unknown.force) == pytest.approx((float(up.force) + float(down.force)) / 2)
-    assert unknown.flags == Flag.BRANCH_UNKNOWN and up.flags == down.flags == Flag.OK
+    assert get_model('Tondu_Lopez') is MODELS['andrikopoulos']
+    with pytest.raises(ValueError, match='unknown model'):
+        get_model('hill')
 
 
 def test_physical_force_flags_and_clipping(martens_10_250):
-    res = martens_10_250.force(np.array([3e5, 1e5, -3e4, 9e5, 3e5, np.nan, -5e3]),
-                               np.array([0.23, 0.2, 0.23, 0.23, 0.26, 0.23, 0.23]))
+    res = martens_10_250.force(
+        np.array([3e5, 1e5, -3e4, 9e5, 3e5, np.nan, -5e3]),
+        np.array([0.23, 0.2, 0.23, 0.23, 0.26, 0.23, 0.23]),
+    )
     assert np.all(res.force[:5] >= 0) and np.isnan(res.force[5])
-    vented = martens_10_250.force(0.0, 0.23)   # 5 kPa below ambient: a vented muscle, served as 0 Pa gauge
+    vented = martens_10_250.force(
+        0.0, 0.23
+    )  # 5 kPa below ambient: a vented muscle, served as 0 Pa gauge
     assert res.flags[6] == vented.flags and not res.flags[6] & Flag.PRESSURE_OUT_OF_RANGE
     assert res.force[6] == float(vented.force)
     assert res.flags[0] == Flag.OK
@@ -108,9 +114,10 @@ def test_physical_force_flags_and_clipping(martens_10_250):
 
 
 def test_a_model_that_does_not_extrapolate_is_held_at_the_domain_edge():
-    """Outside length_range or the identified pressures such a model is evaluated at the nearest domain point,
-    flagged (what extrapolating models serve instead: test_core_muscle_model.py)."""
-    m = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "sarosi")
+    """Outside length_range or the identified pressures such a model is evaluated at the nearest
+    domain point, flagged (what extrapolating models serve instead: test_core_muscle_model.py).
+    """
+    m = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'sarosi')
     assert not m.domain.extrapolates and m.domain.pressure_max == 650e3
     low, high = m.domain.length_min, m.domain.length_max
     for length, edge in ((0.26, high), (0.28, high), (0.19, low)):
@@ -122,17 +129,27 @@ def test_a_model_that_does_not_extrapolate_is_held_at_the_domain_edge():
     assert float(m.force(-5e4, 0.25).force) == float(m.force(0.0, 0.25).force)
 
 
-@pytest.mark.parametrize("path", sorted(CONFIGS.values()), ids=lambda p: p.stem)
+@pytest.mark.parametrize('path', sorted(CONFIGS.values()), ids=lambda p: p.stem)
 def test_coefficient_slopes_are_the_length_derivatives(path):
-    """Each model's analytic (dq2, dq1, dq0)/dL against a central difference of its coefficients."""
+    """Each model's analytic (dq2, dq1, dq0)/dL against a central difference of its
+    coefficients.
+    """
     parameters = read_parameters(path)
-    for name in parameters["models"]:
+    for name in parameters['models']:
         m = muscle_model(parameters, name)
         L = np.linspace(m.domain.length_min, min(m.domain.length_max, m.spec.nominal_length), 9)
         for branch in (0.0, 1.0, -1.0):
             h = 1e-6
-            up = np.array(m.model.coefficients(m.theta, m.spec, m.domain, L + h, branch)) + np.zeros_like(L)
-            down = np.array(m.model.coefficients(m.theta, m.spec, m.domain, L - h, branch)) + np.zeros_like(L)
-            slopes = np.array(coefficient_slopes(m.model, m.theta, m.spec, m.domain, L, branch)) + np.zeros_like(L)
+            up = np.array(
+                m.model.coefficients(m.theta, m.spec, m.domain, L + h, branch)
+            ) + np.zeros_like(L)
+            down = np.array(
+                m.model.coefficients(m.theta, m.spec, m.domain, L - h, branch)
+            ) + np.zeros_like(L)
+            slopes = np.array(
+                coefficient_slopes(m.model, m.theta, m.spec, m.domain, L, branch)
+            ) + np.zeros_like(L)
             for fd, got in zip((up - down) / (2 * h), slopes):
-                assert got == pytest.approx(fd, rel=1e-6, abs=1e-6 * np.abs(fd).max() + 1e-300), name
+                assert got == pytest.approx(fd, rel=1e-6, abs=1e-6 * np.abs(fd).max() + 1e-300), (
+                    name
+                )

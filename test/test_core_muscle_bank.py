@@ -1,11 +1,15 @@
-"""MuscleBank: many muscles in one vectorised call per model equal each muscle's own MuscleModel."""
+"""MuscleBank: many muscles in one vectorised call per model equal each muscle's own
+MuscleModel.
+"""
+
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
 from pma_model_ros.core.models import MODELS
 from pma_model_ros.core.muscle_bank import MuscleBank
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+
+from conftest import CONFIGS
 
 
 def shipped_muscles() -> list:
@@ -20,7 +24,8 @@ def shipped_muscles() -> list:
 
 def random_inputs(muscles, rng, shape):
     """Gauge pressures [Pa], lengths [m] and rates [m/s] around and beyond each muscle's domain,
-    with some invalid entries (NaN, lengths the geometry cannot take) and unknown rates."""
+    with some invalid entries (NaN, lengths the geometry cannot take) and unknown rates.
+    """
     lo = np.array([m.domain.length_min for m in muscles])
     top = np.array([m.max_length for m in muscles])
     p = rng.uniform(-0.1, 1.2, shape) * np.array([m.spec.max_pressure for m in muscles])
@@ -34,7 +39,7 @@ def random_inputs(muscles, rng, shape):
 def test_bank_force_and_pressure_equal_each_muscle(shape):
     muscles = shipped_muscles()
     rng = np.random.default_rng(7)
-    order = rng.permutation(len(muscles))            # groups interleaved in the bank
+    order = rng.permutation(len(muscles))  # groups interleaved in the bank
     muscles = [muscles[i] for i in order]
     bank = MuscleBank(muscles)
     assert len(bank.groups) == len(MODELS)
@@ -45,14 +50,25 @@ def test_bank_force_and_pressure_equal_each_muscle(shape):
     for i, m in enumerate(muscles):
         rate_i = np.where(np.isnan(rate[..., i]), 0.0, rate[..., i])
         one = m.force(p[..., i], L[..., i], rate_i)
-        np.testing.assert_allclose(force.force[..., i], one.force, rtol=1e-12, atol=1e-9, err_msg=m.model.name)
-        np.testing.assert_allclose(force.raw[..., i], one.raw, rtol=1e-12, atol=1e-9, err_msg=m.model.name)
+        np.testing.assert_allclose(
+            force.force[..., i], one.force, rtol=1e-12, atol=1e-9, err_msg=m.model.name
+        )
+        np.testing.assert_allclose(
+            force.raw[..., i], one.raw, rtol=1e-12, atol=1e-9, err_msg=m.model.name
+        )
         np.testing.assert_array_equal(force.flags[..., i], one.flags, err_msg=m.model.name)
         inverse = m.pressure(wanted[..., i], L[..., i], rate_i)
-        np.testing.assert_allclose(pressure.pressure[..., i], inverse.pressure, rtol=1e-12, atol=1e-6,
-                                   err_msg=m.model.name)
+        np.testing.assert_allclose(
+            pressure.pressure[..., i],
+            inverse.pressure,
+            rtol=1e-12,
+            atol=1e-6,
+            err_msg=m.model.name,
+        )
         np.testing.assert_array_equal(pressure.flags[..., i], inverse.flags, err_msg=m.model.name)
-    assert np.isnan(force.force).any() and (force.flags != 0).any(), 'inputs missed the invalid cases'
+    assert np.isnan(force.force).any() and (force.flags != 0).any(), (
+        'inputs missed the invalid cases'
+    )
 
 
 def test_homogeneous_bank_is_one_group_and_equals_the_muscle(martens_10_250):

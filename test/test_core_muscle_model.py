@@ -1,21 +1,24 @@
 """What is served outside the identified data (core/muscle_model.py, Domain in core/models.py).
 
 Judged on the measured maps themselves: a model is fitted without an edge length of a map, then
-served at that held-out length.  Where it extrapolates credibly (Martens) its own value is far nearer
-the measurement than the clamped value; where it does not (Sárosi's exponential at L0) clamping is.
+served at that held-out length.  Where it extrapolates credibly (Martens) its own value is far
+nearer the measurement than the clamped value; where it does not (Sárosi's exponential at L0)
+clamping is.
 """
+
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.force_map import shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import fit_best, max_error_percent
 from pma_model_ros.core.models import EDGE_CV_LIMIT, get_model
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+
+from conftest import CONFIGS
 
 
 def served_at_held_out(muscle: str, model: str, objective: str, edge: int, extrapolates: bool):
@@ -26,71 +29,95 @@ def served_at_held_out(muscle: str, model: str, objective: str, edge: int, extra
     fmap, spec = shipped_force_map(muscle), shipped_spec(muscle)
     held_out = fmap.length == fmap.lengths[edge]
     fit = fit_best(get_model(model), spec, fmap.subset(~held_out), objective)
-    served = MuscleModel(spec, get_model(model), fit.theta, replace(fit.domain, extrapolates=extrapolates))
+    served = MuscleModel(
+        spec, get_model(model), fit.theta, replace(fit.domain, extrapolates=extrapolates)
+    )
     result = served.force(fmap.pressure[held_out], fmap.length[held_out])
     return max_error_percent(fmap.force[held_out], result.force, fmap.max_force), result.flags
 
 
 # The issue's targets for the default model held out (9 % / 3 % of max force).
-@pytest.mark.parametrize("muscle, objective, target", [("DMSP-10-250", "minimax", 9.0),
-                                                       ("DMSP-20-300", "least_squares", 3.0)])
+@pytest.mark.parametrize(
+    'muscle, objective, target',
+    [('DMSP-10-250', 'minimax', 9.0), ('DMSP-20-300', 'least_squares', 3.0)],
+)
 def test_martens_extrapolates_to_held_out_longest_length(muscle, objective, target):
-    own, flags = served_at_held_out(muscle, "martens", objective, 0, extrapolates=True)
-    clamped, clamped_flags = served_at_held_out(muscle, "martens", objective, 0, extrapolates=False)
+    own, flags = served_at_held_out(muscle, 'martens', objective, 0, extrapolates=True)
+    clamped, clamped_flags = served_at_held_out(
+        muscle, 'martens', objective, 0, extrapolates=False
+    )
     assert own <= target and own < clamped / 3
     assert np.all(flags & Flag.EXTRAPOLATED) and not np.any(flags & Flag.LENGTH_OUT_OF_RANGE)
-    assert np.all(clamped_flags & Flag.LENGTH_OUT_OF_RANGE) and not np.any(clamped_flags & Flag.EXTRAPOLATED)
+    assert np.all(clamped_flags & Flag.LENGTH_OUT_OF_RANGE) and not np.any(
+        clamped_flags & Flag.EXTRAPOLATED
+    )
 
 
-@pytest.mark.parametrize("muscle, objective", [("DMSP-10-250", "minimax"), ("DMSP-20-300", "least_squares")])
+@pytest.mark.parametrize(
+    'muscle, objective', [('DMSP-10-250', 'minimax'), ('DMSP-20-300', 'least_squares')]
+)
 def test_martens_extrapolates_to_held_out_shortest_length(muscle, objective):
-    own, _ = served_at_held_out(muscle, "martens", objective, -1, extrapolates=True)
-    clamped, _ = served_at_held_out(muscle, "martens", objective, -1, extrapolates=False)
+    own, _ = served_at_held_out(muscle, 'martens', objective, -1, extrapolates=True)
+    clamped, _ = served_at_held_out(muscle, 'martens', objective, -1, extrapolates=False)
     assert own <= 1.0 < clamped
 
 
 def test_sarosi_does_not_extrapolate_to_l0():
-    own, _ = served_at_held_out("DMSP-10-250", "sarosi", "minimax", 0, extrapolates=True)
-    clamped, _ = served_at_held_out("DMSP-10-250", "sarosi", "minimax", 0, extrapolates=False)
+    own, _ = served_at_held_out('DMSP-10-250', 'sarosi', 'minimax', 0, extrapolates=True)
+    clamped, _ = served_at_held_out('DMSP-10-250', 'sarosi', 'minimax', 0, extrapolates=False)
     assert own > 10 * clamped > EDGE_CV_LIMIT
 
 
 def test_shipped_files_extrapolate_where_the_held_out_edges_say_so():
-    for muscle in ("DMSP-10-250", "DMSP-20-300"):
-        models = read_parameters(CONFIGS[muscle])["models"]
-        assert models["martens"]["extrapolates"] and not models["sarosi"]["extrapolates"]
+    for muscle in ('DMSP-10-250', 'DMSP-20-300'):
+        models = read_parameters(CONFIGS[muscle])['models']
+        assert models['martens']['extrapolates'] and not models['sarosi']['extrapolates']
         for entry in models.values():
-            assert entry["extrapolates"] == (entry["edge_cv_err"] <= EDGE_CV_LIMIT)
+            assert entry['extrapolates'] == (entry['edge_cv_err'] <= EDGE_CV_LIMIT)
 
 
 def test_issue_examples_dmsp_20_300_at_nominal_length_and_675_kpa():
-    """Issue 11, 2: at L0 = 0.300 m the model's own 1620.7 N (not the 0.296 m 1446.8 N), flagged; the measured
-    675 kPa points are inside the identified data (served the 675 kPa force, not the 600 kPa one)."""
-    m = muscle_model(read_parameters(CONFIGS["DMSP-20-300"]))
+    """Issue 11, 2: at L0 = 0.300 m the model's own 1620.7 N (not the 0.296 m 1446.8 N), flagged;
+    the measured 675 kPa points are inside the identified data (served the 675 kPa force, not the
+    600 kPa one).
+    """
+    m = muscle_model(read_parameters(CONFIGS['DMSP-20-300']))
     at_l0 = m.force(600e3, 0.300)
-    assert float(at_l0.force) == pytest.approx(1620.7, abs=0.1) and at_l0.flags == Flag.EXTRAPOLATED
-    measured = shipped_force_map("DMSP-20-300")
+    assert (
+        float(at_l0.force) == pytest.approx(1620.7, abs=0.1) and at_l0.flags == Flag.EXTRAPOLATED
+    )
+    measured = shipped_force_map('DMSP-20-300')
     top = (measured.pressure == 675e3) & (measured.length == 0.296)
     served = m.force(675e3, 0.296)
-    assert served.flags == Flag.OK and float(served.force) == pytest.approx(float(measured.force[top][0]), rel=0.02)
-    assert float(m.pressure(1e6, 0.296).pressure) == m.spec.max_pressure   # never commands above the rated 6 bar
+    assert served.flags == Flag.OK and float(served.force) == pytest.approx(
+        float(measured.force[top][0]), rel=0.02
+    )
+    assert (
+        float(m.pressure(1e6, 0.296).pressure) == m.spec.max_pressure
+    )  # never commands above the rated 6 bar
 
 
 def test_issue_example_dmsp_10_250_above_its_map():
-    """Issue 11, 3: the map stops at 650 kPa; 800 kPa at L0 is the model's own 639.6 N, flagged EXTRAPOLATED."""
-    m = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]))
+    """Issue 11, 3: the map stops at 650 kPa; 800 kPa at L0 is the model's own 639.6 N, flagged
+    EXTRAPOLATED.
+    """
+    m = muscle_model(read_parameters(CONFIGS['DMSP-10-250']))
     assert m.force(650e3, 0.25).flags == Flag.OK
     above = m.force(800e3, 0.25)
     assert float(above.force) == pytest.approx(639.6, abs=0.1) and above.flags == Flag.EXTRAPOLATED
-    sarosi = muscle_model(read_parameters(CONFIGS["DMSP-10-250"]), "sarosi")
+    sarosi = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'sarosi')
     held = sarosi.force(800e3, 0.25)
-    assert held.flags == Flag.PRESSURE_OUT_OF_RANGE and float(held.force) == float(sarosi.force(650e3, 0.25).force)
+    assert held.flags == Flag.PRESSURE_OUT_OF_RANGE and float(held.force) == float(
+        sarosi.force(650e3, 0.25).force
+    )
 
 
 def test_envelope_ends_at_the_braids_shortest_length_and_l0(martens_10_250):
     m = martens_10_250
-    shortest = m.spec.nominal_length / np.cos(m.spec.fiber_angle) / np.sqrt(3)   # Theta = 54.7 deg
-    assert m.limits.length_low == pytest.approx(shortest, rel=1e-12) and m.limits.length_high == 0.25
+    shortest = m.spec.nominal_length / np.cos(m.spec.fiber_angle) / np.sqrt(3)  # Theta = 54.7 deg
+    assert (
+        m.limits.length_low == pytest.approx(shortest, rel=1e-12) and m.limits.length_high == 0.25
+    )
     below = m.force(3e5, shortest * 0.9)
     assert below.flags & Flag.LENGTH_OUT_OF_RANGE
     assert float(below.raw) == float(m.force(3e5, shortest).raw)

@@ -1,12 +1,17 @@
 """The core is numpy/scipy only: importing it (and the CLI) never loads rclpy."""
+
 import subprocess
 import sys
 
 
 def test_core_imports_without_ros():
-    code = ("import sys, pkgutil, importlib, pma_model_ros.core as c, pma_model_ros.cli\n"
-            "for m in pkgutil.iter_modules(c.__path__): importlib.import_module('pma_model_ros.core.' + m.name)\n"
-            "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', 'sensor_msgs')]\n"
-            "assert not bad, bad")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    code = (
+        'import sys, pkgutil, importlib, pma_model_ros.core as c, pma_model_ros.cli\n'
+        "for m in pkgutil.iter_modules(c.__path__): importlib.import_module('pma_model_ros.core.' "
+        '+ m.name)\n'
+        "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "
+        "'sensor_msgs')]\n"
+        'assert not bad, bad'
+    )
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr

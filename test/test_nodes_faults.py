@@ -1,18 +1,21 @@
-"""Faults around model_node: its input source stops and comes back; the nodes get SIGINT or SIGTERM.
+"""Faults around model_node: its input source stops and comes back; the nodes get SIGINT or
+SIGTERM.
 
-rclpy (Jazzy) installs handlers for both signals at init (``SignalHandlerOptions.ALL``): they shut the
-context down, ``spin`` returns through ExternalShutdownException (SIGTERM) or KeyboardInterrupt
+rclpy (Jazzy) installs handlers for both signals at init (``SignalHandlerOptions.ALL``): they shut
+the context down, ``spin`` returns through ExternalShutdownException (SIGTERM) or KeyboardInterrupt
 (SIGINT), and ``startup.run`` exits 0.
 """
+
 import signal
 
-import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
+import pytest
+
+from pma_model_ros.tools import node_process
 
 from conftest import CONFIGS
-from node_messages import RELIABLE_QOS, model_statuses, stamp_key
-from pma_model_ros import node_process
+from node_messages import model_statuses, RELIABLE_QOS, stamp_key
 
 pytestmark = pytest.mark.ros
 
@@ -29,11 +32,23 @@ def test_source_stops_and_returns_without_restarting_model_node(ros, processes, 
     why = lambda: processes.output(node) + processes.output(sim)  # noqa: E731
 
     def reaches(level: str, words: str, since: int) -> int:
-        """Spin until model_node reports ``level`` with ``words`` after status ``since``; that status's index."""
+        """Spin until model_node reports ``level`` with ``words`` after status ``since``; that
+        status's index.
+        """
+
         def found():
-            return next((i for i, s in enumerate(model_statuses(diagnostics, namespace)) if i >= since
-                         and LEVELS[s.level] == level and words in s.message), None)
-        ros.spin_until(lambda: found() is not None, 20, f'model_node {level} "{words}"', diagnose=why)
+            return next(
+                (
+                    i
+                    for i, s in enumerate(model_statuses(diagnostics, namespace))
+                    if i >= since and LEVELS[s.level] == level and words in s.message
+                ),
+                None,
+            )
+
+        ros.spin_until(
+            lambda: found() is not None, 20, f'model_node {level} "{words}"', diagnose=why
+        )
         return found()
 
     ok = reaches('OK', 'estimating', 0)
@@ -42,14 +57,21 @@ def test_source_stops_and_returns_without_restarting_model_node(ros, processes, 
     stale = reaches('ERROR', 'stale', ok + 1)
     sim = processes.node('simulator_node', namespace, **STEADY)
     reaches('OK', 'estimating', stale + 1)
-    ros.spin_until(lambda: stamp_key(estimates[-1]) > stopped, 20, 'estimates from the new simulator', diagnose=why)
+    ros.spin_until(
+        lambda: stamp_key(estimates[-1]) > stopped,
+        20,
+        'estimates from the new simulator',
+        diagnose=why,
+    )
     assert node.poll() is None, why()
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_signal_ends_both_nodes_cleanly_under_load(sig, ros, processes, namespace):
-    nodes = [processes.node('simulator_node', namespace, rate=500.0),
-             processes.node('model_node', namespace, CONFIGS['DMSP-10-250'])]
+    nodes = [
+        processes.node('simulator_node', namespace, rate=500.0),
+        processes.node('model_node', namespace, CONFIGS['DMSP-10-250']),
+    ]
     estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
     why = lambda: ''.join(processes.output(p) for p in nodes)  # noqa: E731
     ros.spin_until(lambda: len(estimates) > 100, 30, 'estimates flowing', diagnose=why)

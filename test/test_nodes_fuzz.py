@@ -1,10 +1,11 @@
 """30 s of random messages over DDS on every input topic of a live model_node.
 
-The fuzz mixes plausible readings (so that estimates and commands flow) with garbage: NaN, infinities,
-huge and tiny magnitudes, negative values, random and unset stamps, JointStates with random names and
-array lengths, long and non-ASCII strings.  One run (module fixture) feeds the tests below; ``-s`` prints
-its figures (docs/reliability.md).
+The fuzz mixes plausible readings (so that estimates and commands flow) with garbage: NaN,
+infinities, huge and tiny magnitudes, negative values, random and unset stamps, JointStates with
+random names and array lengths, long and non-ASCII strings.  One run (module fixture) feeds the
+tests below; ``-s`` prints its figures (docs/reliability.md).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -14,16 +15,25 @@ import time
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
-from node_messages import AMBIENT, JOINT, RELIABLE_QOS, model_statuses, pressure, state, status_values
 from pma_model_ros.core.param_file import node_settings, read_parameters
+
+from conftest import CONFIGS
+from node_messages import (
+    AMBIENT,
+    JOINT,
+    model_statuses,
+    pressure,
+    RELIABLE_QOS,
+    state,
+    status_values,
+)
 
 pytestmark = pytest.mark.ros
 
-DURATION = 30.0      # [s] of fuzzing
-RATE = 300.0         # [Hz] messages per input topic (900 messages/s in all)
-WARM_UP = 10.0       # [s] before the resident-memory baseline
-RSS_BOUND = 1024     # [KiB] allowed resident-memory growth after warm-up ("flat")
+DURATION = 30.0  # [s] of fuzzing
+RATE = 300.0  # [Hz] messages per input topic (900 messages/s in all)
+WARM_UP = 10.0  # [s] before the resident-memory baseline
+RSS_BOUND = 1024  # [KiB] allowed resident-memory growth after warm-up ("flat")
 SEED = 20240611
 MODEL = node_settings(read_parameters(CONFIGS['DMSP-10-250'])).config.model
 SPECIAL = np.array([math.nan, math.inf, -math.inf, 0.0, -0.0, 1e308, -1e308, 5e-324, -1.0, 1e9])
@@ -36,7 +46,9 @@ def rss_kib(pid: int) -> int:
 
 
 class Fuzzer:
-    """Random inputs: a third garbage, the rest plausible (fresh stamps, values around the domain)."""
+    """Random inputs: a third garbage, the rest plausible (fresh stamps, values around the
+    domain).
+    """
 
     def __init__(self, seed: int) -> None:
         self.rng = np.random.default_rng(seed)
@@ -52,7 +64,7 @@ class Fuzzer:
     def stamp(self, now) -> tuple[int, int]:
         pick = self.rng.random()
         if pick < 0.1:
-            return int(self.rng.integers(-2**31, 2**31)), int(self.rng.integers(0, 2**32))
+            return int(self.rng.integers(-(2**31), 2**31)), int(self.rng.integers(0, 2**32))
         if pick < 0.15:
             return 0, 0
         ns = now.nanoseconds + int(self.rng.normal(0, 0.05 if pick < 0.3 else 0.005) * 1e9)
@@ -77,11 +89,15 @@ class Fuzzer:
         else:
             n = [int(k) for k in self.rng.integers(0, 4, size=4)]
             msg.name = [self.text() for _ in range(n[0])]
-            msg.position, msg.velocity, msg.effort = ([self.number(0.0, 0.3) for _ in range(k)] for k in n[1:])
+            msg.position, msg.velocity, msg.effort = (
+                [self.number(0.0, 0.3) for _ in range(k)] for k in n[1:]
+            )
         return self.stamped(msg, now)
 
     def command(self, now, msg):
-        msg.wrench.force.x = self.number(-100.0, 1.5 * float(MODEL.force(MODEL.spec.max_pressure, 0.25).force))
+        msg.wrench.force.x = self.number(
+            -100.0, 1.5 * float(MODEL.force(MODEL.spec.max_pressure, 0.25).force)
+        )
         msg.wrench.force.y = self.number(-1.0, 1.0)
         return self.stamped(msg, now)
 
@@ -94,12 +110,14 @@ class Run:
     estimates: list = field(default_factory=list)
     commands: list = field(default_factory=list)
     statuses: list = field(default_factory=list)
-    rss: list[tuple[float, int]] = field(default_factory=list)   # (time since start [s], KiB)
+    rss: list[tuple[float, int]] = field(default_factory=list)  # (time since start [s], KiB)
     alive: bool = False
-    after: list = field(default_factory=list)                    # estimates of good input after the fuzz
+    after: list = field(default_factory=list)  # estimates of good input after the fuzz
 
     def growth(self) -> int:
-        """Resident memory growth after warm-up [KiB]: newest samples' max minus the warm-up sample."""
+        """Resident memory growth after warm-up [KiB]: newest samples' max minus the warm-up
+        sample.
+        """
         base = next(kib for t, kib in self.rss if t >= WARM_UP)
         return max(kib for t, kib in self.rss if t >= WARM_UP) - base
 
@@ -110,6 +128,7 @@ def run(module_ros):
     from geometry_msgs.msg import WrenchStamped
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import FluidPressure, JointState
+
     ros, processes = module_ros
     ns = '/fuzz'
     node = processes.node('model_node', ns, CONFIGS['DMSP-10-250'])
@@ -117,9 +136,11 @@ def run(module_ros):
     estimates = ros.collect(WrenchStamped, f'{ns}/force_estimate', RELIABLE_QOS)
     commands = ros.collect(FluidPressure, f'{ns}/pressure_command', RELIABLE_QOS)
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
-    pubs = [ros.node.create_publisher(FluidPressure, f'{ns}/pressure', qos_profile_sensor_data),
-            ros.node.create_publisher(JointState, f'{ns}/muscle_state', qos_profile_sensor_data),
-            ros.node.create_publisher(WrenchStamped, f'{ns}/force_command', 10)]
+    pubs = [
+        ros.node.create_publisher(FluidPressure, f'{ns}/pressure', qos_profile_sensor_data),
+        ros.node.create_publisher(JointState, f'{ns}/muscle_state', qos_profile_sensor_data),
+        ros.node.create_publisher(WrenchStamped, f'{ns}/force_command', 10),
+    ]
     why = lambda: processes.output(node)  # noqa: E731
     ros.spin_until(lambda: model_statuses(diagnostics, ns), 30, 'model_node up', diagnose=why)
     fuzz = Fuzzer(SEED)
@@ -129,39 +150,66 @@ def run(module_ros):
             out.rss.append((elapsed, rss_kib(node.pid)))
             next_rss += 1.0
         now = ros.now()
-        for pub, make, kind in zip(pubs, (fuzz.pressure, fuzz.state, fuzz.command),
-                                   (FluidPressure, JointState, WrenchStamped)):
+        for pub, make, kind in zip(
+            pubs,
+            (fuzz.pressure, fuzz.state, fuzz.command),
+            (FluidPressure, JointState, WrenchStamped),
+        ):
             pub.publish(make(now, kind()))
         out.sent += 3
-        while (wait := start + out.sent / 3 / RATE - time.monotonic()) > 0:   # take outputs until the next send
+        while (
+            wait := start + out.sent / 3 / RATE - time.monotonic()
+        ) > 0:  # take outputs until the next send
             ros.executor.spin_once(timeout_sec=wait)
     out.alive = node.poll() is None
     out.estimates, out.commands = list(estimates), list(commands)
     out.statuses = model_statuses(diagnostics, ns)
-    if out.alive:   # still serving good input
+    if out.alive:  # still serving good input
         estimates.clear()
-        good = lambda: [pubs[0].publish(pressure(ros.now().to_msg(), AMBIENT + 3e5)),  # noqa: E731
-                        pubs[1].publish(state(ros.now().to_msg(), 0.23))]
+
+        def good() -> None:
+            pubs[0].publish(pressure(ros.now().to_msg(), AMBIENT + 3e5))
+            pubs[1].publish(state(ros.now().to_msg(), 0.23))
+
         expected = float(MODEL.force(3e5, 0.23).force)
-        # The first answers may still pair good input with a fuzz input that is fresh: wait for the good pair.
-        ros.spin_until(lambda: estimates and estimates[-1].wrench.force.x == pytest.approx(expected, rel=1e-9),
-                       10, 'the estimate of good input after the fuzz', every=good, diagnose=why)
+        # The first answers may still pair good input with a fuzz input that is fresh: wait for the
+        # good pair.
+        ros.spin_until(
+            lambda: (
+                estimates and estimates[-1].wrench.force.x == pytest.approx(expected, rel=1e-9)
+            ),
+            10,
+            'the estimate of good input after the fuzz',
+            every=good,
+            diagnose=why,
+        )
         out.after = list(estimates)
     last = status_values(out.statuses[-1]) if out.statuses else {}
-    print(f'\nfuzz: {elapsed:.1f} s, sent {out.sent} messages ({out.sent / elapsed:.0f}/s); model_node received '
-          f"{sum(int(v) for k, v in last.items() if k.startswith('received ') and 'rate' not in k)}, rejected "
-          f"{sum(int(v) for k, v in last.items() if k.startswith('rejected '))}, published {len(out.estimates)} "
-          f'estimates, {len(out.commands)} pressure commands, {len(out.statuses)} statuses received; RSS '
-          f'{out.rss[0][1]} -> {out.rss[-1][1]} KiB, growth after {WARM_UP:g} s warm-up {out.growth()} KiB; '
-          f'largest estimate {max((e.wrench.force.x for e in out.estimates), default=0):.4g} N '
-          f'(in-domain bound {in_domain_max_force():.4g} N)')
+    received = sum(
+        int(v) for k, v in last.items() if k.startswith('received ') and 'rate' not in k
+    )
+    print(
+        f'\nfuzz: {elapsed:.1f} s, sent {out.sent} messages ({out.sent / elapsed:.0f}/s); '
+        f'model_node received '
+        f'{received}, rejected '
+        f'{sum(int(v) for k, v in last.items() if k.startswith("rejected "))}, published '
+        f'{len(out.estimates)} '
+        f'estimates, {len(out.commands)} pressure commands, {len(out.statuses)} statuses '
+        f'received; RSS '
+        f'{out.rss[0][1]} -> {out.rss[-1][1]} KiB, growth after {WARM_UP:g} s warm-up '
+        f'{out.growth()} KiB; '
+        f'largest estimate {max((e.wrench.force.x for e in out.estimates), default=0):.4g} N '
+        f'(in-domain bound {in_domain_max_force():.4g} N)'
+    )
     return out
 
 
 def test_node_survives_and_still_estimates(run):
     assert run.alive
-    assert run.after[-1].wrench.force.x == pytest.approx(float(MODEL.force(3e5, 0.23).force), rel=1e-9)
-    assert len(run.statuses) >= DURATION - 2   # /diagnostics at 1 Hz all along: never stuck
+    assert run.after[-1].wrench.force.x == pytest.approx(
+        float(MODEL.force(3e5, 0.23).force), rel=1e-9
+    )
+    assert len(run.statuses) >= DURATION - 2  # /diagnostics at 1 Hz all along: never stuck
 
 
 def test_fuzz_reached_every_path(run):
@@ -174,7 +222,11 @@ def test_every_output_is_finite_and_physical(run):
     forces = np.array([e.wrench.force.x for e in run.estimates])
     gauges = np.array([c.fluid_pressure for c in run.commands]) - AMBIENT
     assert np.isfinite(forces).all() and (forces >= 0).all()
-    assert np.isfinite(gauges).all() and (gauges >= 0).all() and (gauges <= MODEL.spec.max_pressure).all()
+    assert (
+        np.isfinite(gauges).all()
+        and (gauges >= 0).all()
+        and (gauges <= MODEL.spec.max_pressure).all()
+    )
     assert all(s.level in (b'\x00', b'\x01', b'\x02') for s in run.statuses)
 
 
@@ -184,9 +236,13 @@ def test_memory_is_flat(run):
 
 
 def in_domain_max_force() -> float:
-    """Largest force [N] the model gives inside its validity domain: length_range x [0, max_pressure]."""
-    p, length = np.meshgrid(np.linspace(0, MODEL.spec.max_pressure, 201),
-                            np.linspace(MODEL.domain.length_min, MODEL.domain.length_max, 201))
+    """Largest force [N] the model gives inside its validity domain: length_range x [0,
+    max_pressure].
+    """
+    p, length = np.meshgrid(
+        np.linspace(0, MODEL.spec.max_pressure, 201),
+        np.linspace(MODEL.domain.length_min, MODEL.domain.length_max, 201),
+    )
     return float(np.nanmax(MODEL.force(p, length, 1.0).force))
 
 

@@ -1,8 +1,10 @@
 """joint_node's callbacks called in-process, on a private rclpy Context: no DDS, no timing.
 
-The node is built from the example joint file; the expected torques and stiffnesses come from the single
-muscles' forces (test/test_core_joint.py checks those by hand), the pressure commands from the core inverse.
+The node is built from the example joint file; the expected torques and stiffnesses come from the
+single muscles' forces (test/test_core_joint.py checks those by hand), the pressure commands from
+the core inverse.
 """
+
 import copy
 import math
 import subprocess
@@ -14,15 +16,16 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
-from conftest import REPO
-from node_messages import AMBIENT
-from pma_model_ros import node_process
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.startup import StartupError
+from pma_model_ros.tools import node_process
 
-EXAMPLE = REPO / "config" / "example_joint.yaml"
+from conftest import REPO
+from node_messages import AMBIENT
+
+EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 ELBOW = load_joints(EXAMPLE)[0]
 
 
@@ -32,11 +35,15 @@ def make_node():
 
     def make(params_file=EXAMPLE, **overrides):
         context = rclpy.Context()
-        rclpy.init(context=context, args=["--ros-args", "--params-file", str(params_file)])
-        overrides = {"config_dir": str(REPO / "config")} | overrides
-        node = JointNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
+        overrides = {'config_dir': str(REPO / 'config')} | overrides
+        node = JointNode(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+        )
         made.append((node, context))
         return node
+
     yield make
     for node, context in made:
         node.destroy_node()
@@ -45,12 +52,15 @@ def make_node():
 
 def record(publisher) -> list:
     sent = []
-    publisher.publish = lambda msg: sent.append(deserialize_message(msg, publisher.msg_type)
-                                                if isinstance(msg, bytes) else copy.deepcopy(msg))
+    publisher.publish = lambda msg: sent.append(
+        deserialize_message(msg, publisher.msg_type)
+        if isinstance(msg, bytes)
+        else copy.deepcopy(msg)
+    )
     return sent
 
 
-def joint_state(node, theta, name="elbow", velocity=0.0):
+def joint_state(node, theta, name='elbow', velocity=0.0):
     msg = JointState(name=[name], position=[theta], velocity=[velocity])
     msg.header.stamp = node.get_clock().now().to_msg()
     return msg
@@ -70,15 +80,17 @@ def test_estimate_is_the_worked_example(make_node):
     node = make_node()
     torques, stiffnesses = record(node._torque_pub), record(node._stiffness_pub)
     node._on_states(joint_state(node, 0.5))
-    assert torques == []                                              # no pressures yet
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 400e3))          # flexor
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))          # extensor
+    assert torques == []  # no pressures yet
+    node._on_pressure(0, 0, pressure(node, AMBIENT + 400e3))  # flexor
+    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))  # extensor
     state = joint_state(node, 0.5)
     node._on_states(state)
     expected = ELBOW.forward(0.5, 400e3, 300e3)
-    assert torques[-1].name == ["elbow"] and torques[-1].header.stamp == state.header.stamp
+    assert torques[-1].name == ['elbow'] and torques[-1].header.stamp == state.header.stamp
     assert torques[-1].effort[0] == pytest.approx(float(expected.torque), rel=1e-9)
-    assert round(torques[-1].effort[0], 3) == -0.693 and round(stiffnesses[-1].effort[0], 2) == 3.84
+    assert (
+        round(torques[-1].effort[0], 3) == -0.693 and round(stiffnesses[-1].effort[0], 2) == 3.84
+    )
     assert stiffnesses[-1].effort[0] == pytest.approx(float(expected.stiffness), rel=1e-9)
 
 
@@ -93,7 +105,7 @@ def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
     assert torques == []
     node.publish_status()
     status = diagnostics[-1].status[0]
-    assert status.level == b"\x02" and "no estimate yet" in status.message
+    assert status.level == b'\x02' and 'no estimate yet' in status.message
 
 
 def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_node):
@@ -101,11 +113,14 @@ def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_no
     flexor, extensor = (record(p) for p in node._command_pubs[0])
     node._on_states(joint_state(node, -0.3))
     node._on_torque(command(elbow=2.5))
-    expected = ELBOW.pressures_one(-0.3, 2.5, 300e3, "min")           # the file's co-contraction: min 300 kPa
+    expected = ELBOW.pressures_one(
+        -0.3, 2.5, 300e3, 'min'
+    )  # the file's co-contraction: min 300 kPa
     assert flexor[-1].fluid_pressure == pytest.approx(expected.pressures[0] + AMBIENT, rel=1e-12)
     assert extensor[-1].fluid_pressure == pytest.approx(300e3 + AMBIENT, rel=1e-12)
-    assert ELBOW.forward(-0.3, flexor[-1].fluid_pressure - AMBIENT,
-                         extensor[-1].fluid_pressure - AMBIENT).torque == pytest.approx(2.5, rel=1e-9)
+    assert ELBOW.forward(
+        -0.3, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT
+    ).torque == pytest.approx(2.5, rel=1e-9)
 
 
 def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
@@ -114,7 +129,9 @@ def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
     node._on_states(joint_state(node, 0.2))
     node._on_level(node.engine.stiffness, command(elbow=4.5))
     node._on_torque(command(elbow=1.0))
-    got = ELBOW.forward(0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT)
+    got = ELBOW.forward(
+        0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT
+    )
     assert (float(got.torque), float(got.stiffness)) == pytest.approx((1.0, 4.5), rel=1e-9)
     node._on_level(node.engine.cocontraction, command(elbow=400e3))
     node._on_torque(command(elbow=-1.0))
@@ -128,26 +145,31 @@ def test_out_of_reach_command_saturates_and_warns(make_node):
     node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
     node._on_states(joint_state(node, 0.0))
     node.publish_status()
-    assert diagnostics[-1].status[0].level == b"\x00"
+    assert diagnostics[-1].status[0].level == b'\x00'
     node._on_torque(command(elbow=100.0))
-    assert flexor[-1].fluid_pressure == pytest.approx(650e3 + AMBIENT)   # the map's top (hildebrandt: no extrapolation)
+    assert flexor[-1].fluid_pressure == pytest.approx(
+        650e3 + AMBIENT
+    )  # the map's top (hildebrandt: no extrapolation)
     node.publish_status()
     status = diagnostics[-1].status[0]
-    assert status.level == b"\x01" and "SATURATED" in status.message
+    assert status.level == b'\x01' and 'SATURATED' in status.message
 
 
-@pytest.mark.parametrize("message, problem", [
-    (JointState(name=["elbow"], position=[]), "1 names, 0 positions"),
-    (JointState(name=["elbow"], position=[math.nan]), "angle is nan rad"),
-    (JointState(name=["elbow"], position=[9.0]), "outside its geometry"),
-])
+@pytest.mark.parametrize(
+    'message, problem',
+    [
+        (JointState(name=['elbow'], position=[]), '1 names, 0 positions'),
+        (JointState(name=['elbow'], position=[math.nan]), 'angle is nan rad'),
+        (JointState(name=['elbow'], position=[9.0]), 'outside its geometry'),
+    ],
+)
 def test_bad_joint_states_are_errors(make_node, message, problem):
     node = make_node()
     diagnostics = record(node._diag_pub)
     node._on_states(message)
     node.publish_status()
     status = diagnostics[-1].status[0]
-    assert status.level == b"\x02" and problem in status.message
+    assert status.level == b'\x02' and problem in status.message
 
 
 def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
@@ -155,7 +177,7 @@ def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
     diagnostics = record(node._diag_pub)
     node._on_torque(command(elbow=1.0))
     node.publish_status()
-    assert "before any angle" in diagnostics[-1].status[0].message
+    assert 'before any angle' in diagnostics[-1].status[0].message
     node._on_pressure(0, 1, pressure(node, -3.0))
     node.publish_status()
     assert "muscle 'extensor': negative absolute pressure" in diagnostics[-1].status[0].message
@@ -163,21 +185,30 @@ def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
 
 def test_bad_parameters_fail_at_startup(make_node):
     with pytest.raises(StartupError, match="joint 'elbow': positive must name"):
-        make_node(**{"elbow.positive": "biceps"})
-    with pytest.raises(StartupError, match="cocontraction_mode"):
-        make_node(**{"elbow.cocontraction_mode": "max"})
+        make_node(**{'elbow.positive': 'biceps'})
+    with pytest.raises(StartupError, match='cocontraction_mode'):
+        make_node(**{'elbow.cocontraction_mode': 'max'})
 
 
 def arm_file(tmp_path, n=4):
-    """A joint file of ``n`` copies of the example elbow, muscles ``j<k>_flexor``/``j<k>_extensor``."""
-    elbow = read_parameters(EXAMPLE)["elbow"]
+    """A joint file of ``n`` copies of the example elbow, muscles
+    ``j<k>_flexor``/``j<k>_extensor``.
+    """
+    elbow = read_parameters(EXAMPLE)['elbow']
     joints = {}
     for k in range(n):
-        joints[f"j{k}"] = {key: copy.deepcopy(v) for key, v in elbow.items() if key not in ("flexor", "extensor")} | {
-            "muscles": [f"j{k}_flexor", f"j{k}_extensor"], "positive": f"j{k}_flexor",
-            f"j{k}_flexor": dict(elbow["flexor"]), f"j{k}_extensor": dict(elbow["extensor"])}
-    path = tmp_path / "arm.yaml"
-    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"joints": list(joints), **joints}}}))
+        joints[f'j{k}'] = {
+            key: copy.deepcopy(v) for key, v in elbow.items() if key not in ('flexor', 'extensor')
+        } | {
+            'muscles': [f'j{k}_flexor', f'j{k}_extensor'],
+            'positive': f'j{k}_flexor',
+            f'j{k}_flexor': dict(elbow['flexor']),
+            f'j{k}_extensor': dict(elbow['extensor']),
+        }
+    path = tmp_path / 'arm.yaml'
+    path.write_text(
+        yaml.safe_dump({'/**': {'ros__parameters': {'joints': list(joints), **joints}}})
+    )
     return path
 
 
@@ -189,38 +220,56 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
         for m in (0, 1):
             node._on_pressure(k, m, pressure(node, AMBIENT + pair[m]))
     angles = [-0.6, -0.2, 0.2, 0.6]
-    msg = JointState(name=["j3", "j0", "j2", "j1"], position=[angles[3], angles[0], angles[2], angles[1]],
-                     velocity=[0.0] * 4)
+    msg = JointState(
+        name=['j3', 'j0', 'j2', 'j1'],
+        position=[angles[3], angles[0], angles[2], angles[1]],
+        velocity=[0.0] * 4,
+    )
     msg.header.stamp = node.get_clock().now().to_msg()
     node._on_states(msg)
-    assert len(torques) == 1 and torques[0].name == msg.name          # in the order of joint_states
+    assert len(torques) == 1 and torques[0].name == msg.name  # in the order of joint_states
     for k in range(4):
-        expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f"j{k}")
+        expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f'j{k}')
         assert torques[0].effort[i] == pytest.approx(float(expected.torque), rel=1e-9)
         assert stiffnesses[0].effort[i] == pytest.approx(float(expected.stiffness), rel=1e-9)
-    msg.name, msg.position = ["j0", "j1", "j2", "j3"], angles                # the node's order: its prebuilt message
+    msg.name, msg.position = (
+        ['j0', 'j1', 'j2', 'j3'],
+        angles,
+    )  # the node's order: its prebuilt message
     node._on_states(msg)
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
-        [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9)
+        [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9
+    )
 
 
 def test_parameter_changes_are_refused(make_node):
     node = make_node()
-    result = node.set_parameters([Parameter("elbow.cocontraction", value=200e3)])[0]
-    assert not result.successful and "start-up" in result.reason
-    assert node.get_parameter("elbow.cocontraction").value == 300e3
+    result = node.set_parameters([Parameter('elbow.cocontraction', value=200e3)])[0]
+    assert not result.successful and 'start-up' in result.reason
+    assert node.get_parameter('elbow.cocontraction').value == 300e3
 
 
 def test_a_new_declaration_is_no_change(make_node):
     """startup.run declares ``executor`` after the node is built."""
     node = make_node()
-    assert node.declare_parameter("executor", "events").value == "events"
+    assert node.declare_parameter('executor', 'events').value == 'events'
 
 
 def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
-    """Started as a process, without ``config_dir`` the example's muscle files are not found from the repo root."""
-    proc = subprocess.run(node_process.command("joint_node", "/bad_joint", EXAMPLE), capture_output=True, text=True,
-                          timeout=60, cwd=REPO)
+    """Started as a process, without ``config_dir`` the example's muscle files are not found from
+    the repo root.
+    """
+    proc = subprocess.run(
+        node_process.command('joint_node', '/bad_joint', EXAMPLE),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+    )
     assert proc.returncode == 1
     lines = (proc.stdout + proc.stderr).strip().splitlines()
-    assert len(lines) == 1 and "joint 'elbow', muscle 'flexor'" in lines[0] and "dmsp_10_250.yaml" in lines[0]
+    assert (
+        len(lines) == 1
+        and "joint 'elbow', muscle 'flexor'" in lines[0]
+        and 'dmsp_10_250.yaml' in lines[0]
+    )

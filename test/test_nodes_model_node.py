@@ -4,8 +4,11 @@ Each test builds the node from a shipped parameter file, hands messages to its s
 callbacks and reads what it published (each publisher's ``publish`` replaced by a list's append).
 The expected forces come from each muscle's own single-muscle file through the core.
 """
+
 import copy
 import math
+import subprocess
+import sys
 
 import pytest
 import rclpy
@@ -13,10 +16,11 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
-from conftest import CONFIGS, REPO
-from node_messages import AMBIENT, JOINT, force_command, pressure, state
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
+
+from conftest import CONFIGS, REPO
+from node_messages import AMBIENT, force_command, JOINT, pressure, state
 
 EXAMPLE = REPO / 'config' / 'example_multi_muscle.yaml'
 MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
@@ -24,15 +28,21 @@ MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 
 @pytest.fixture
 def make_node():
-    """``make_node(params_file, **overrides)``: a ModelNode on its own Context, destroyed after the test."""
+    """``make_node(params_file, **overrides)``: a ModelNode on its own Context, destroyed after the
+    test.
+    """
     made = []
 
     def make(params_file, **overrides):
         context = rclpy.Context()
         rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
-        node = ModelNode(context=context, parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        node = ModelNode(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+        )
         made.append((node, context))
         return node
+
     yield make
     for node, context in made:
         node.destroy_node()
@@ -40,10 +50,15 @@ def make_node():
 
 
 def record(publisher) -> list:
-    """What ``publisher`` publishes from now on, as messages (the node publishes some serialized)."""
+    """What ``publisher`` publishes from now on, as messages (the node publishes some
+    serialized).
+    """
     sent = []
-    publisher.publish = lambda msg: sent.append(deserialize_message(msg, publisher.msg_type)
-                                                if isinstance(msg, bytes) else copy.deepcopy(msg))
+    publisher.publish = lambda msg: sent.append(
+        deserialize_message(msg, publisher.msg_type)
+        if isinstance(msg, bytes)
+        else copy.deepcopy(msg)
+    )
     return sent
 
 
@@ -53,54 +68,80 @@ def test_one_muscle_answers_each_input_with_the_newest_pair(make_node):
     estimates = record(topics._estimate_pubs[0])
     first, second = node.get_clock().now().to_msg(), node.get_clock().now().to_msg()
     topics._on_pressure(0, pressure(first, AMBIENT + 300e3))
-    assert estimates == []                                        # no length yet
+    assert estimates == []  # no length yet
     topics._on_state(0, state(second, 0.23, 0.0))
     topics._on_pressure(0, pressure(second, AMBIENT + 500e3))
     assert [m.wrench.force.x for m in estimates] == pytest.approx(
-        [float(MARTENS.force(300e3, 0.23).force), float(MARTENS.force(500e3, 0.23).force)], rel=1e-9)
+        [float(MARTENS.force(300e3, 0.23).force), float(MARTENS.force(500e3, 0.23).force)],
+        rel=1e-9,
+    )
     assert all(m.header.stamp == second and m.header.frame_id == 'dmsp_10_250' for m in estimates)
     assert estimates[0].wrench.force.x > 0 and math.isfinite(estimates[1].wrench.force.x)
 
 
 def test_one_muscle_command_and_diagnostics_on_change(make_node):
     node = make_node(CONFIGS['DMSP-10-250'])
-    node.engine.report_interval = 0.0   # every change at once (the callbacks run within the 1.5 ms limit)
+    # every change at once (the callbacks run within the 1.5 ms limit)
+    node.engine.report_interval = 0.0
     topics = node.topics
     commands, diagnostics = record(topics._command_pubs[0]), record(node._diag_pub)
     now = node.get_clock().now().to_msg()
     topics._on_state(0, state(now, 0.23, 0.0))
-    assert [d.status[0].message for d in diagnostics] == ['no pressure received yet']   # first report: a change
+    assert [d.status[0].message for d in diagnostics] == [
+        'no pressure received yet'
+    ]  # first report: a change
     topics._on_command(0, force_command(100.0))
     gauge = commands[0].fluid_pressure - AMBIENT
     assert float(MARTENS.force(gauge, 0.23).force) == pytest.approx(100.0, abs=1e-6)
     topics._on_pressure(0, pressure(now, AMBIENT + 300e3))
     assert diagnostics[-1].status[0].message == 'estimating' and len(diagnostics) == 2
-    topics._on_state(0, state(now, 0.23, 0.0, name='elbow'))   # not this muscle's joint: rejected, ERROR at once
-    assert diagnostics[-1].status[0].message == "invalid input: joint 'DMSP-10-250' not in ['elbow']"
+    topics._on_state(
+        0, state(now, 0.23, 0.0, name='elbow')
+    )  # not this muscle's joint: rejected, ERROR at once
+    assert (
+        diagnostics[-1].status[0].message == "invalid input: joint 'DMSP-10-250' not in ['elbow']"
+    )
 
 
 def test_gauge_sensor_readings_and_commands(make_node):
-    """pressure_reference: gauge: a reading of 300 kPa is 300 kPa gauge, and commands are published in gauge."""
+    """pressure_reference: gauge: a reading of 300 kPa is 300 kPa gauge, and commands are published
+    in gauge.
+    """
     node = make_node(CONFIGS['DMSP-10-250'], pressure_reference='gauge')
     topics = node.topics
     estimates, commands = record(topics._estimate_pubs[0]), record(topics._command_pubs[0])
     now = node.get_clock().now().to_msg()
     topics._on_state(0, state(now, 0.25, 0.0))
     topics._on_pressure(0, pressure(now, 300e3))
-    assert estimates[-1].wrench.force.x == pytest.approx(float(MARTENS.force(300e3, 0.25).force), rel=1e-9)
+    assert estimates[-1].wrench.force.x == pytest.approx(
+        float(MARTENS.force(300e3, 0.25).force), rel=1e-9
+    )
     topics._on_command(0, force_command(100.0))
-    assert float(MARTENS.force(commands[0].fluid_pressure, 0.25).force) == pytest.approx(100.0, abs=1e-6)
+    assert float(MARTENS.force(commands[0].fluid_pressure, 0.25).force) == pytest.approx(
+        100.0, abs=1e-6
+    )
 
 
 def expected_forces(inputs: dict) -> dict[str, float]:
     example = read_parameters(EXAMPLE)
-    # after one length sample a hysteresis branch is unknown (it follows the motion, not the rate): branch 0
-    return {name: float(muscle_model(read_parameters(REPO / 'config' / f'{cfg}.yaml'), example[name]['model'])
-                        .force(p, L, 0.0).force) for name, (cfg, p, L, rate) in inputs.items()}
+    # after one length sample a hysteresis branch is unknown (it follows the motion, not the rate):
+    # branch 0
+    return {
+        name: float(
+            muscle_model(read_parameters(REPO / 'config' / f'{cfg}.yaml'), example[name]['model'])
+            .force(p, L, 0.0)
+            .force
+        )
+        for name, (cfg, p, L, rate) in inputs.items()
+    }
 
 
-INPUTS = {'biceps': ('dmsp_20_300', 400e3, 0.26, 0.0), 'triceps': ('dmsp_20_300', 250e3, 0.28, -0.02),
-          'wrist_flexor': ('dmsp_10_250', 500e3, 0.23, 0.01), 'finger': ('dmsp_10_100', 600e3, 0.095, 0.01)}
+INPUTS = {
+    'biceps': ('dmsp_20_300', 400e3, 0.26, 0.0),
+    'triceps': ('dmsp_20_300', 250e3, 0.28, -0.02),
+    'wrist_flexor': ('dmsp_10_250', 500e3, 0.23, 0.01),
+    'finger': ('dmsp_10_100', 600e3, 0.095, 0.01),
+}
 
 
 def joint_states(stamp, names, values, rates=()):
@@ -114,18 +155,25 @@ def test_combined_mode_one_vector_call_per_message(make_node):
     topics = node.topics
     estimates = record(topics._states_pub)
     stamp = node.get_clock().now().to_msg()
-    order = list(reversed(INPUTS))   # states in another order than the pressures
-    topics._on_states(joint_states(stamp, order, [INPUTS[n][2] for n in order], [INPUTS[n][3] for n in order]))
+    order = list(reversed(INPUTS))  # states in another order than the pressures
+    topics._on_states(
+        joint_states(stamp, order, [INPUTS[n][2] for n in order], [INPUTS[n][3] for n in order])
+    )
     assert estimates == []
     topics._on_pressures(joint_states(stamp, INPUTS, [AMBIENT + v[1] for v in INPUTS.values()]))
     expected = expected_forces(INPUTS)
     assert list(estimates[-1].name) == list(INPUTS) and estimates[-1].header.stamp == stamp
     assert list(estimates[-1].effort) == pytest.approx([expected[n] for n in INPUTS], rel=1e-9)
     # a states message without the finger: the others answered, the finger rejected
-    topics._on_states(joint_states(stamp, order[1:], [INPUTS[n][2] for n in order[1:]],
-                                   [INPUTS[n][3] for n in order[1:]]))
+    topics._on_states(
+        joint_states(
+            stamp, order[1:], [INPUTS[n][2] for n in order[1:]], [INPUTS[n][3] for n in order[1:]]
+        )
+    )
     assert list(estimates[-1].name) == ['biceps', 'triceps', 'wrist_flexor']
-    assert node.engine.level(3, node.now())[1] == "invalid input: joint 'finger' not in " + str(order[1:])
+    assert node.engine.level(3, node.now())[1] == "invalid input: joint 'finger' not in " + str(
+        order[1:]
+    )
 
 
 def test_approximate_time_pairing_answers_once_per_tick(make_node):
@@ -137,7 +185,11 @@ def test_approximate_time_pairing_answers_once_per_tick(make_node):
         topics._on_state(0, state(tick, 0.23, 0.0))
         topics._on_pressure(0, pressure(tick, AMBIENT + 300e3))
     assert len(estimates) == 3
-    assert node.engine.counts(0)['received pressure'] == node.engine.counts(0)['received muscle_state'] == 3
+    assert (
+        node.engine.counts(0)['received pressure']
+        == node.engine.counts(0)['received muscle_state']
+        == 3
+    )
 
 
 def test_runtime_model_swap_is_used_by_the_next_estimate(make_node):
@@ -150,5 +202,15 @@ def test_runtime_model_swap_is_used_by_the_next_estimate(make_node):
     topics._on_state(0, state(now, 0.23, 0.0))
     topics._on_pressure(0, pressure(now, AMBIENT + 300e3))
     hildebrandt = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')
-    assert estimates[-1].wrench.force.x == pytest.approx(float(hildebrandt.force(300e3, 0.23).force), rel=1e-9)
+    assert estimates[-1].wrench.force.x == pytest.approx(
+        float(hildebrandt.force(300e3, 0.23).force), rel=1e-9
+    )
     assert JOINT == node.settings[0].joint_name
+
+
+def test_the_node_does_not_load_the_identification_tools():
+    # scipy.optimize serves only the offline fits (core/identification.py); loading it cost the
+    # node ~0.3 s of start-up (bench/startup.py).
+    code = "import sys, pma_model_ros.nodes.model_node; print('scipy.optimize' in sys.modules)"
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == 'False'

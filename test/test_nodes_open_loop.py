@@ -1,4 +1,5 @@
-"""Open loop: simulator sweeps the whole DMSP-10-250 map; model_node's estimate vs the measured force.
+"""Open loop: simulator sweeps the whole DMSP-10-250 map; model_node's estimate vs the measured
+force.
 
 Both nodes are separate processes talking over DDS.  An estimate is matched to the
 measured force of the same stamp (the last estimate of a stamp: the one computed once
@@ -11,16 +12,18 @@ Bounds, in % of the map's max force (542.5 N):
 * everywhere: the model's max error against the ground truth (pchip between the measured
   points, computed here from the core: 7.9 % between the 0.234 and 0.25 m curves) + NOISE_MARGIN.
 """
+
+from geometry_msgs.msg import WrenchStamped
 import numpy as np
 import pytest
-from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import FluidPressure, JointState
+
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.simulation import GroundTruth
 
 from conftest import CONFIGS
 from node_messages import AMBIENT, RELIABLE_QOS, SENSOR_QOS, stamp_key
-from pma_model_ros.core.force_map import shipped_force_map
-from pma_model_ros.core.ground_truth import GroundTruth
-from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 pytestmark = pytest.mark.ros
 
@@ -28,17 +31,22 @@ NOISE = {'noise.pressure_std': 200.0, 'noise.length_std': 2e-5, 'noise.force_std
 #: Sensor noise (sigma 0.5 N force + 200 Pa * <= 0.9 N/kPa + 0.02 mm * <= 16 N/mm: about 0.6 N,
 #: 4 sigma = 2.5 N = 0.46 %) plus pchip between measured pressures (0.27 % above err at 0.25 m).
 NOISE_MARGIN = 1.0
-LENGTH_WINDOW = 0.25e-3   # [m]
+LENGTH_WINDOW = 0.25e-3  # [m]
 #: LENGTH_WINDOW times the steepest dF/dL of the map (about 16 N/mm at 650 kPa): 4 N.
 LENGTH_WINDOW_MARGIN = 0.75
-SWEEP_PERIOD = 6.0        # [s] pressure triangle; the length triangle has period 2 s
+SWEEP_PERIOD = 6.0  # [s] pressure triangle; the length triangle has period 2 s
 
 
 def model_gap_to_truth(model, truth) -> float:
     """Max |model - ground truth| over a dense (pressure, length) grid [% of max force]."""
-    p, L = np.meshgrid(np.linspace(truth.pressures[0], truth.pressures[-1], 80),
-                       np.linspace(truth.lengths[0], truth.lengths[-1], 80), indexing='ij')
-    return float(np.max(np.abs(model.force(p, L).force - truth.force(p, L)))) / truth.max_force * 100
+    p, L = np.meshgrid(
+        np.linspace(truth.pressures[0], truth.pressures[-1], 80),
+        np.linspace(truth.lengths[0], truth.lengths[-1], 80),
+        indexing='ij',
+    )
+    return (
+        float(np.max(np.abs(model.force(p, L).force - truth.force(p, L)))) / truth.max_force * 100
+    )
 
 
 def test_estimate_follows_measured_force_over_the_map(ros, processes, namespace):
@@ -46,8 +54,15 @@ def test_estimate_follows_measured_force_over_the_map(ros, processes, namespace)
     model = muscle_model(params)
     identified = params['models'][model.model.name]['err']
     truth = GroundTruth(shipped_force_map('DMSP-10-250'))
-    sim = processes.node('simulator_node', namespace, trajectory='sweep', period=2.0,
-                         sweep_period=SWEEP_PERIOD, seed=3, **{k.replace('.', '__'): v for k, v in NOISE.items()})
+    sim = processes.node(
+        'simulator_node',
+        namespace,
+        trajectory='sweep',
+        period=2.0,
+        sweep_period=SWEEP_PERIOD,
+        seed=3,
+        **{k.replace('.', '__'): v for k, v in NOISE.items()},
+    )
     node = processes.node('model_node', namespace, CONFIGS['DMSP-10-250'])
     forces = ros.collect(WrenchStamped, f'{namespace}/force', SENSOR_QOS)
     estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
@@ -56,29 +71,45 @@ def test_estimate_follows_measured_force_over_the_map(ros, processes, namespace)
     why = lambda: processes.output(sim) + processes.output(node)  # noqa: E731
     ros.spin_until(lambda: estimates, 30, 'a first force estimate', diagnose=why)
     first = stamp_key(estimates[0])
-    ros.spin_until(lambda: forces and stamp_key(forces[-1]) - first > (SWEEP_PERIOD + 0.5) * 1e9, 30,
-                   'a full sweep', diagnose=why)
+    ros.spin_until(
+        lambda: forces and stamp_key(forces[-1]) - first > (SWEEP_PERIOD + 0.5) * 1e9,
+        30,
+        'a full sweep',
+        diagnose=why,
+    )
 
     assert all(np.isfinite(e.wrench.force.x) for e in estimates)
-    estimate = {stamp_key(e): e.wrench.force.x for e in estimates}      # the last one per stamp
+    estimate = {stamp_key(e): e.wrench.force.x for e in estimates}  # the last one per stamp
     length = {stamp_key(s): s.position[0] for s in states}
     gauge = {stamp_key(p): p.fluid_pressure - AMBIENT for p in pressures}
     last = stamp_key(estimates[-1]) - 0.2e9
-    rows = np.array([(length[k], gauge[k], f.wrench.force.x, estimate[k]) for f in forces
-                     if (k := stamp_key(f)) in estimate and k in length and k in gauge and k <= last])
+    rows = np.array(
+        [
+            (length[k], gauge[k], f.wrench.force.x, estimate[k])
+            for f in forces
+            if (k := stamp_key(f)) in estimate and k in length and k in gauge and k <= last
+        ]
+    )
     assert len(rows) > 200, f'only {len(rows)} matched samples'
     L, p, measured, estimated = rows.T
-    assert p.min() < 100e3 and p.max() > 550e3 and L.min() < 0.2 and L.max() > 0.249, 'sweep did not cover the map'
+    assert p.min() < 100e3 and p.max() > 550e3 and L.min() < 0.2 and L.max() > 0.249, (
+        'sweep did not cover the map'
+    )
     error = np.abs(estimated - measured) / truth.max_force * 100
 
     gap = model_gap_to_truth(model, truth)
     worst = int(np.argmax(error))
-    assert error.max() <= gap + NOISE_MARGIN, \
-        f'max error {error.max():.2f} % at p={p[worst]:.0f} Pa L={L[worst]:.4f} m > {gap:.2f} + {NOISE_MARGIN} %'
+    assert error.max() <= gap + NOISE_MARGIN, (
+        f'max error {error.max():.2f} % at p={p[worst]:.0f} Pa L={L[worst]:.4f} m > {gap:.2f} + '
+        f'{NOISE_MARGIN} %'
+    )
 
     bound = identified + NOISE_MARGIN + LENGTH_WINDOW_MARGIN
     for grid_length in truth.lengths:
         near = np.abs(L - grid_length) <= LENGTH_WINDOW
-        assert near.any(), f'no sample within {LENGTH_WINDOW * 1e3} mm of the measured length {grid_length} m'
-        assert error[near].max() <= bound, \
+        assert near.any(), (
+            f'no sample within {LENGTH_WINDOW * 1e3} mm of the measured length {grid_length} m'
+        )
+        assert error[near].max() <= bound, (
             f'at L={grid_length} m: max error {error[near].max():.2f} % > {bound:.2f} %'
+        )

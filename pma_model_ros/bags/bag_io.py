@@ -1,4 +1,5 @@
-"""Reading and writing rosbag2 bags (mcap and sqlite3 storage) with ``rosbags`` and ROS 2 Jazzy types.
+"""Reading and writing rosbag2 bags (mcap and sqlite3 storage) with ``rosbags`` and ROS 2 Jazzy
+types.
 
 The one function most tools need::
 
@@ -17,6 +18,7 @@ Jazzy's) raises :class:`BagError`, whose text is one line.
 temporary name beside the target and renamed on :meth:`BagWriter.close`, so an
 interrupted or failed run never leaves a partial bag at the target path.
 """
+
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -26,44 +28,85 @@ import struct
 import tempfile
 from typing import Collection, Iterable, Iterator
 
-from rosbags.interfaces import (Connection, MessageDefinitionFormat, Qos, QosDurability, QosHistory,
-                                QosLiveliness, QosReliability, QosTime)
+import apsw  # rosbags' SQLite binding
+from rosbags.interfaces import (
+    Connection,
+    MessageDefinitionFormat,
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.serde import SerdeError
-from rosbags.typesys import Stores, TypesysError, get_types_from_idl, get_types_from_msg, get_typestore
-import apsw   # rosbags' SQLite binding
+from rosbags.typesys import (
+    get_types_from_idl,
+    get_types_from_msg,
+    get_typestore,
+    Stores,
+    TypesysError,
+)
 import yaml
 
 #: Message definitions of ROS 2 Jazzy: what every bag is read and written with.
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 #: Storage plugin names (as in ``ros2 bag record -s``) and their ``rosbags`` plugins.
-STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
-_SUFFIXES = {".mcap": "mcap", ".db3": "sqlite3", ".sqlite3": "sqlite3"}
-_INFINITE = QosTime(9223372036, 854775807)   # rmw's "infinite" duration, as rosbag2 records it
-#: Errors ``rosbags`` raises on a damaged bag (truncated files surface as struct, EOF or SQLite errors).
-_DAMAGED = (ReaderError, SerdeError, TypesysError, apsw.Error, struct.error, EOFError, KeyError, IndexError,
-            AssertionError, ValueError, OSError)
+STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+_SUFFIXES = {'.mcap': 'mcap', '.db3': 'sqlite3', '.sqlite3': 'sqlite3'}
+_INFINITE = QosTime(9223372036, 854775807)  # rmw's "infinite" duration, as rosbag2 records it
+#: Errors ``rosbags`` raises on a damaged bag (truncated files surface as struct, EOF or SQLite
+#: errors).
+_DAMAGED = (
+    ReaderError,
+    SerdeError,
+    TypesysError,
+    apsw.Error,
+    struct.error,
+    EOFError,
+    KeyError,
+    IndexError,
+    AssertionError,
+    ValueError,
+    OSError,
+)
 
 
 def qos(reliable: bool, depth: int) -> Qos:
     """A keep-last, volatile QoS profile as rosbag2 records it."""
-    return Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
-               QosDurability.VOLATILE, _INFINITE, _INFINITE, QosLiveliness.AUTOMATIC, _INFINITE, False)
+    return Qos(
+        QosHistory.KEEP_LAST,
+        depth,
+        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        QosDurability.VOLATILE,
+        _INFINITE,
+        _INFINITE,
+        QosLiveliness.AUTOMATIC,
+        _INFINITE,
+        False,
+    )
 
 
-#: rclpy's ``qos_profile_sensor_data`` (pressure, muscle_state, force) and the nodes' reliable depth-10 outputs.
+#: rclpy's ``qos_profile_sensor_data`` (pressure, muscle_state, force) and the nodes' reliable
+#: depth-10 outputs.
 SENSOR_DATA = qos(reliable=False, depth=5)
 RELIABLE = qos(reliable=True, depth=10)
 
 
 #: The message types of this package's topics.
-FLUID_PRESSURE, JOINT_STATE = "sensor_msgs/msg/FluidPressure", "sensor_msgs/msg/JointState"
-WRENCH_STAMPED, DIAGNOSTIC_ARRAY = "geometry_msgs/msg/WrenchStamped", "diagnostic_msgs/msg/DiagnosticArray"
+FLUID_PRESSURE, JOINT_STATE = 'sensor_msgs/msg/FluidPressure', 'sensor_msgs/msg/JointState'
+WRENCH_STAMPED, DIAGNOSTIC_ARRAY = (
+    'geometry_msgs/msg/WrenchStamped',
+    'diagnostic_msgs/msg/DiagnosticArray',
+)
 
 
 def topic(namespace: str, name: str) -> str:
-    """``name`` in ``namespace`` as ROS resolves a relative name (``/`` + name in the root namespace)."""
-    return f"{namespace.rstrip('/')}/{name}"
+    """``name`` in ``namespace`` as ROS resolves a relative name (``/`` + name in the root
+    namespace).
+    """
+    return f'{namespace.rstrip("/")}/{name}'
 
 
 class BagError(ValueError):
@@ -71,32 +114,36 @@ class BagError(ValueError):
 
 
 def _one_line(err: BaseException) -> str:
-    text = " ".join(str(err).split()) or type(err).__name__
-    return text if len(text) < 200 else text[:197] + "..."
+    text = ' '.join(str(err).split()) or type(err).__name__
+    return text if len(text) < 200 else text[:197] + '...'
 
 
 def storage_of(path: str | Path) -> str:
-    """Storage plugin of a bag (``mcap`` or ``sqlite3``): the directory's metadata or the file's suffix."""
+    """Storage plugin of a bag (``mcap`` or ``sqlite3``): the directory's metadata or the file's
+    suffix.
+    """
     path = Path(path)
     if path.is_dir():
         try:
-            info = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
-            storage = info["rosbag2_bagfile_information"]["storage_identifier"]
+            info = yaml.safe_load((path / 'metadata.yaml').read_text(encoding='utf-8'))
+            storage = info['rosbag2_bagfile_information']['storage_identifier']
         except (OSError, yaml.YAMLError, KeyError, TypeError) as err:
-            raise BagError(f"{path}: no readable metadata.yaml ({_one_line(err)})") from None
+            raise BagError(f'{path}: no readable metadata.yaml ({_one_line(err)})') from None
     else:
-        storage = _SUFFIXES.get(path.suffix, "")
+        storage = _SUFFIXES.get(path.suffix, '')
     if storage not in STORAGES:
-        raise BagError(f"{path}: storage {storage or path.suffix!r} is neither mcap nor sqlite3")
+        raise BagError(f'{path}: storage {storage or path.suffix!r} is neither mcap nor sqlite3')
     return storage
 
 
 def storage_for(out: str | Path, storage: str | None = None) -> str:
-    """Storage of a new bag: ``storage`` if given, else from the suffix of ``out``, else mcap (Jazzy's default)."""
+    """Storage of a new bag: ``storage`` if given, else from the suffix of ``out``, else mcap
+    (Jazzy's default).
+    """
     if storage is None:
-        storage = _SUFFIXES.get(Path(out).suffix, "mcap")
+        storage = _SUFFIXES.get(Path(out).suffix, 'mcap')
     if storage not in STORAGES:
-        raise BagError(f"unknown storage {storage!r}; one of {', '.join(STORAGES)}")
+        raise BagError(f'unknown storage {storage!r}; one of {", ".join(STORAGES)}')
     return storage
 
 
@@ -105,36 +152,42 @@ def open_bag(path: str | Path) -> Iterator[Reader]:
     """An open ``rosbags`` reader of ``path``; a missing or unreadable bag is a BagError."""
     path = Path(path)
     if not path.exists():
-        raise BagError(f"bag not found: {path}")
+        raise BagError(f'bag not found: {path}')
     try:
         reader = Reader(path)
         reader.open()
     except _DAMAGED as err:
-        raise BagError(f"{path}: not a readable rosbag2 bag, or truncated ({_one_line(err)})") from None
+        raise BagError(
+            f'{path}: not a readable rosbag2 bag, or truncated ({_one_line(err)})'
+        ) from None
     try:
         yield reader
     finally:
         reader.close()
 
 
-def messages(reader: Reader, connections: Collection[Connection]) -> Iterator[tuple[Connection, int, bytes]]:
+def messages(
+    reader: Reader, connections: Collection[Connection]
+) -> Iterator[tuple[Connection, int, bytes]]:
     """``reader.messages(connections)`` (log-time order); a damaged storage file is a BagError."""
     try:
         yield from reader.messages(connections)
     except _DAMAGED as err:
-        raise BagError(f"{reader.path}: damaged or truncated bag ({_one_line(err)})") from None
+        raise BagError(f'{reader.path}: damaged or truncated bag ({_one_line(err)})') from None
 
 
 def _definition_hash(connection: Connection) -> str | None:
-    """RIHS01 hash of the definition the bag holds for the connection's type; None if it holds none."""
+    """RIHS01 hash of the definition the bag holds for the connection's type; None if it holds
+    none.
+    """
     definition = connection.msgdef
     if definition.format == MessageDefinitionFormat.MSG and definition.data:
         types = get_types_from_msg(definition.data, connection.msgtype)
     elif definition.format == MessageDefinitionFormat.IDL and definition.data:
         types = {}
-        for part in definition.data.split("=" * 80 + "\n"):
-            if part.startswith("IDL: "):
-                types.update(get_types_from_idl(part.split("\n", 1)[1]))
+        for part in definition.data.split('=' * 80 + '\n'):
+            if part.startswith('IDL: '):
+                types.update(get_types_from_idl(part.split('\n', 1)[1]))
     else:
         return connection.digest or None
     store = get_typestore(Stores.EMPTY)
@@ -143,39 +196,52 @@ def _definition_hash(connection: Connection) -> str | None:
 
 
 def check_connection(connection: Connection, msgtype: str | None = None) -> None:
-    """Raise BagError unless the connection carries ``msgtype`` (if given) with Jazzy's definition of it.
+    """Raise BagError unless the connection carries ``msgtype`` (if given) with Jazzy's definition
+    of it.
 
     A bag without definitions (old sqlite3 bags) is trusted by type name; one whose
     definitions differ (ROS 1 ``Header.seq``, another distro's changed message) is refused.
     """
-    where = f"topic {connection.topic}"
+    where = f'topic {connection.topic}'
     if msgtype is not None and connection.msgtype != msgtype:
-        raise BagError(f"{where} has type {connection.msgtype}, expected {msgtype}")
+        raise BagError(f'{where} has type {connection.msgtype}, expected {msgtype}')
     if connection.msgtype not in TYPESTORE.fielddefs:
-        raise BagError(f"{where}: type {connection.msgtype} is not a ROS 2 Jazzy message type")
+        raise BagError(f'{where}: type {connection.msgtype} is not a ROS 2 Jazzy message type')
     try:
         recorded = _definition_hash(connection)
     except (TypesysError, KeyError, ValueError) as err:
-        raise BagError(f"{where}: unreadable message definition of {connection.msgtype} ({_one_line(err)})") from None
+        raise BagError(
+            f'{where}: unreadable message definition of {connection.msgtype} ({_one_line(err)})'
+        ) from None
     if recorded is not None and recorded != TYPESTORE.hash_rihs01(connection.msgtype):
-        raise BagError(f"{where}: the bag's definition of {connection.msgtype} differs from ROS 2 Jazzy's "
-                       "(recorded with another ROS distro?)")
+        raise BagError(
+            f"{where}: the bag's definition of {connection.msgtype} differs from ROS 2 Jazzy's "
+            '(recorded with another ROS distro?)'
+        )
 
 
-def connections_of(reader: Reader, topics: Collection[str] | None,
-                   types: dict[str, str] | None = None) -> list[Connection]:
-    """The checked connections of ``topics`` (all if None); ``types`` maps topics to their required type."""
+def connections_of(
+    reader: Reader, topics: Collection[str] | None, types: dict[str, str] | None = None
+) -> list[Connection]:
+    """The checked connections of ``topics`` (all if None); ``types`` maps topics to their required
+    type.
+    """
     present = {c.topic for c in reader.connections}
     missing = sorted(set(topics or ()) - present)
     if missing:
-        raise BagError(f"{reader.path}: no topic {', '.join(missing)} (topics: {', '.join(sorted(present)) or 'none'})")
+        raise BagError(
+            f'{reader.path}: no topic {", ".join(missing)} (topics: '
+            f'{", ".join(sorted(present)) or "none"})'
+        )
     chosen = [c for c in reader.connections if topics is None or c.topic in topics]
     for connection in chosen:
         check_connection(connection, (types or {}).get(connection.topic))
     return chosen
 
 
-def read(path: str | Path, topics: Collection[str] | None = None) -> Iterator[tuple[str, int, object]]:
+def read(
+    path: str | Path, topics: Collection[str] | None = None
+) -> Iterator[tuple[str, int, object]]:
     """``(topic, log_time_ns, message)`` of a bag in log-time order, for ``topics`` (None: all).
 
     Messages are :data:`TYPESTORE` classes.  Raises BagError (one line) for a missing,
@@ -192,12 +258,14 @@ def deserialize(data: bytes | memoryview, connection: Connection) -> object:
     try:
         return TYPESTORE.deserialize_cdr(data, connection.msgtype)
     except (SerdeError, struct.error, IndexError, ValueError, UnicodeDecodeError) as err:
-        raise BagError(f"topic {connection.topic}: cannot decode a {connection.msgtype} "
-                       f"({_one_line(err)})") from None
+        raise BagError(
+            f'topic {connection.topic}: cannot decode a {connection.msgtype} ({_one_line(err)})'
+        ) from None
 
 
 class BagWriter:
-    """A new rosbag2 bag at ``out``, written under a temporary name beside it; renamed by :meth:`close`.
+    """A new rosbag2 bag at ``out``, written under a temporary name beside it; renamed by
+    :meth:`close`.
 
     ``out`` must not exist.  Use as a context manager (an exception aborts: nothing is
     left at ``out``) or call :meth:`close` / :meth:`abort` yourself.
@@ -207,33 +275,50 @@ class BagWriter:
         self.out = Path(out)
         self.storage = storage_for(out, storage)
         if self.out.exists() or self.out.is_symlink():
-            raise BagError(f"{self.out} exists already; not overwriting it")
+            raise BagError(f'{self.out} exists already; not overwriting it')
         if not self.out.parent.is_dir():
-            raise BagError(f"directory {self.out.parent} does not exist")
-        self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.", suffix=".partial", dir=self.out.parent))
-        self._writer = Writer(self._tmp / self.out.name, version=Writer.VERSION_LATEST,
-                              storage_plugin=STORAGES[self.storage])
+            raise BagError(f'directory {self.out.parent} does not exist')
+        self._tmp = Path(
+            tempfile.mkdtemp(prefix=f'.{self.out.name}.', suffix='.partial', dir=self.out.parent)
+        )
+        self._writer = Writer(
+            self._tmp / self.out.name,
+            version=Writer.VERSION_LATEST,
+            storage_plugin=STORAGES[self.storage],
+        )
         try:
             self._writer.open()
         except BaseException:
             shutil.rmtree(self._tmp, ignore_errors=True)
             raise
 
-    def topic(self, topic: str, msgtype: str, offered_qos: Iterable[Qos] = (RELIABLE,)) -> Connection:
+    def topic(
+        self, topic: str, msgtype: str, offered_qos: Iterable[Qos] = (RELIABLE,)
+    ) -> Connection:
         """A new topic of Jazzy type ``msgtype`` (e.g. ``geometry_msgs/msg/WrenchStamped``)."""
-        return self._writer.add_connection(topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=list(offered_qos))
+        return self._writer.add_connection(
+            topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=list(offered_qos)
+        )
 
     def copy_topic(self, connection: Connection, topic: str | None = None) -> Connection:
-        """A topic like a read bag's ``connection`` (same type, definition, hash and recorded QoS)."""
+        """A topic like a read bag's ``connection`` (same type, definition, hash and recorded
+        QoS).
+        """
         return self._writer.add_connection(
-            topic or connection.topic, connection.msgtype, msgdef=connection.msgdef.data or None,
-            rihs01=connection.digest or None, typestore=TYPESTORE,
+            topic or connection.topic,
+            connection.msgtype,
+            msgdef=connection.msgdef.data or None,
+            rihs01=connection.digest or None,
+            typestore=TYPESTORE,
             serialization_format=connection.ext.serialization_format,
-            offered_qos_profiles=connection.ext.offered_qos_profiles)
+            offered_qos_profiles=connection.ext.offered_qos_profiles,
+        )
 
     def write(self, connection: Connection, time_ns: int, message: object) -> None:
         """Serialize and write one message at log time ``time_ns``."""
-        self._writer.write(connection, time_ns, TYPESTORE.serialize_cdr(message, connection.msgtype))
+        self._writer.write(
+            connection, time_ns, TYPESTORE.serialize_cdr(message, connection.msgtype)
+        )
 
     def write_raw(self, connection: Connection, time_ns: int, data: bytes | memoryview) -> None:
         """Write one already serialized (CDR) message at log time ``time_ns``."""
@@ -246,7 +331,7 @@ class BagWriter:
             (self._tmp / self.out.name).rename(self.out)
         except (WriterError, OSError) as err:
             self.abort()
-            raise BagError(f"cannot write {self.out}: {_one_line(err)}") from None
+            raise BagError(f'cannot write {self.out}: {_one_line(err)}') from None
         shutil.rmtree(self._tmp, ignore_errors=True)
         return self.out
 

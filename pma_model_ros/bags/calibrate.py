@@ -1,4 +1,5 @@
-"""Calibration from a recording: the quasi-static samples of pressure, length and measured force as a force map.
+"""Calibration from a recording: the quasi-static samples of pressure, length and measured force as
+a force map.
 
 A recording holds ``<ns>/pressure`` (FluidPressure, absolute Pa), ``<ns>/muscle_state``
 (JointState: position = length [m] of the entry ``joint``) and a measured tension [N]: a load
@@ -14,16 +15,17 @@ pressure changes (air temperature, sensor lag), and the slope over a window, unl
 difference of neighbours, is not dominated by sensor noise.
 
 Each sample also carries the hysteresis branch it was reached on (the play operator of the length,
-:mod:`~pma_model_ros.core.hysteresis`, with model_node's default deadband): the direction of the last
-motion, so a two-branch model can be identified from the held points (``two_branches``: then the
-samples from before the muscle's first motion, branch unknown, are left out).
+:mod:`~pma_model_ros.core.hysteresis`, with model_node's default deadband): the direction of the
+last motion, so a two-branch model can be identified from the held points (``two_branches``: then
+the samples from before the muscle's first motion, branch unknown, are left out).
 
-The kept samples are averaged in cells of ``PRESSURE_CELL`` x ``LENGTH_CELL`` x branch (equal weight
-per region of the map however long the recording stayed there; far fewer points for the
-fit), measured forces below 0 N (noise on a slack muscle) are set to 0 N, and the result is
-a :class:`~pma_model_ros.core.force_map.ForceMap`: identification is then exactly that of a
-force-map CSV (:func:`~pma_model_ros.core.identification.fit_best`).
+The kept samples are averaged in cells of ``PRESSURE_CELL`` x ``LENGTH_CELL`` x branch (equal
+weight per region of the map however long the recording stayed there; far fewer points for the
+fit), measured forces below 0 N (noise on a slack muscle) are set to 0 N, and the result is a
+:class:`~pma_model_ros.core.force_map.ForceMap`: identification is then exactly that of a force-map
+CSV (:func:`~pma_model_ros.core.identification.fit_best`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,50 +37,64 @@ from ..core.engine import seconds
 from ..core.force_map import ForceMap
 from ..core.hysteresis import branches
 from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
-from .bag_io import (FLUID_PRESSURE, JOINT_STATE, WRENCH_STAMPED, BagError, connections_of, deserialize, messages,
-                     open_bag, topic)
+from .bag_io import (
+    BagError,
+    connections_of,
+    deserialize,
+    FLUID_PRESSURE,
+    JOINT_STATE,
+    messages,
+    open_bag,
+    topic,
+    WRENCH_STAMPED,
+)
 from .estimate import muscle_namespace
 
-MIN_SAMPLES = 3          #: fewest samples in a window for a slope
-PRESSURE_CELL = 5e3      #: [Pa] pressure side of an averaging cell
-LENGTH_CELL = 0.5e-3     #: [m] length side of an averaging cell
+MIN_SAMPLES = 3  #: fewest samples in a window for a slope
+PRESSURE_CELL = 5e3  #: [Pa] pressure side of an averaging cell
+LENGTH_CELL = 0.5e-3  #: [m] length side of an averaging cell
 
 
 @dataclass(frozen=True)
 class QuasiStatic:
     """The quasi-static criterion (module docstring)."""
 
-    window: float = 1.0               #: [s] centred window of the slopes
-    max_length_rate: float = 1e-3     #: [m/s]
-    max_pressure_rate: float = 50e3   #: [Pa/s]
+    window: float = 1.0  #: [s] centred window of the slopes
+    max_length_rate: float = 1e-3  #: [m/s]
+    max_pressure_rate: float = 50e3  #: [Pa/s]
 
     def __post_init__(self) -> None:
-        for name in ("window", "max_length_rate", "max_pressure_rate"):
+        for name in ('window', 'max_length_rate', 'max_pressure_rate'):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"quasi-static {name} must be > 0, got {value}")
+                raise ValueError(f'quasi-static {name} must be > 0, got {value}')
 
 
 @dataclass(frozen=True)
 class Samples:
-    """Aligned samples at the force stamps: time [s], gauge pressure [Pa], length [m], measured force [N]."""
+    """Aligned samples at the force stamps: time [s], gauge pressure [Pa], length [m], measured
+    force [N].
+    """
 
     time: np.ndarray
     pressure: np.ndarray
     length: np.ndarray
     force: np.ndarray
-    direction: np.ndarray   #: hysteresis branch of the length's motion so far: +1, -1, 0 before the first motion
+    #: hysteresis branch of the length's motion so far: +1, -1, 0 before the first motion
+    direction: np.ndarray
 
 
 def window_slopes(t: np.ndarray, x: np.ndarray, window: float) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares slope of ``x`` over ``t`` in the centred ``window`` around each sample, and the count in it."""
+    """Least-squares slope of ``x`` over ``t`` in the centred ``window`` around each sample, and
+    the count in it.
+    """
     t0 = t - t[0]
-    lo = np.searchsorted(t0, t0 - window / 2, "left")
-    hi = np.searchsorted(t0, t0 + window / 2, "right")
+    lo = np.searchsorted(t0, t0 - window / 2, 'left')
+    hi = np.searchsorted(t0, t0 + window / 2, 'right')
     sums = [np.concatenate([[0.0], np.cumsum(v)]) for v in (t0, x, t0 * t0, t0 * x)]
     s_t, s_x, s_tt, s_tx = (c[hi] - c[lo] for c in sums)
     n = (hi - lo).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid='ignore', divide='ignore'):
         slope = (n * s_tx - s_t * s_x) / (n * s_tt - s_t * s_t)
     return slope, hi - lo
 
@@ -89,74 +105,106 @@ def quasi_static(samples: Samples, criterion: QuasiStatic) -> np.ndarray:
     inside = (t - t[0] >= criterion.window / 2) & (t[-1] - t >= criterion.window / 2)
     dl, n = window_slopes(t, samples.length, criterion.window)
     dp, _ = window_slopes(t, samples.pressure, criterion.window)
-    return (inside & (n >= MIN_SAMPLES) & (np.abs(dl) <= criterion.max_length_rate)
-            & (np.abs(dp) <= criterion.max_pressure_rate))
+    return (
+        inside
+        & (n >= MIN_SAMPLES)
+        & (np.abs(dl) <= criterion.max_length_rate)
+        & (np.abs(dp) <= criterion.max_pressure_rate)
+    )
 
 
-def read_samples(bag: str | Path, joint: str, ambient_pressure: float, namespace: str | None = None,
-                 force_topic: str | None = None) -> Samples:
-    """Pressure, length and measured force of a recording, aligned at the force stamps (module docstring).
+def read_samples(
+    bag: str | Path,
+    joint: str,
+    ambient_pressure: float,
+    namespace: str | None = None,
+    force_topic: str | None = None,
+) -> Samples:
+    """Pressure, length and measured force of a recording, aligned at the force stamps (module
+    docstring).
 
     ``force_topic``: relative to the namespace or absolute; WrenchStamped (force.x) or JointState
-    (effort of ``joint``).  Default: ``<ns>/force`` if recorded, else the effort in ``muscle_state``.
+    (effort of ``joint``).  Default: ``<ns>/force`` if recorded, else the effort in
+    ``muscle_state``.
     """
     with open_bag(bag) as reader:
         ns = muscle_namespace(reader, namespace)
         have = {c.topic: c.msgtype for c in reader.connections}
-        pressure, state = topic(ns, "pressure"), topic(ns, "muscle_state")
+        pressure, state = topic(ns, 'pressure'), topic(ns, 'muscle_state')
         if force_topic is None:
-            force_topic = topic(ns, "force") if topic(ns, "force") in have else state
-        elif not force_topic.startswith("/"):
+            force_topic = topic(ns, 'force') if topic(ns, 'force') in have else state
+        elif not force_topic.startswith('/'):
             force_topic = topic(ns, force_topic)
         if have.get(force_topic) not in (WRENCH_STAMPED, JOINT_STATE, None):
-            raise BagError(f"topic {force_topic} has type {have[force_topic]}, expected {WRENCH_STAMPED} "
-                           f"or {JOINT_STATE}")
-        connections = connections_of(reader, {pressure, state, force_topic},
-                                      {pressure: FLUID_PRESSURE, state: JOINT_STATE})
-        series: dict[str, list[tuple[float, float]]] = {"pressure": [], "length": [], "force": []}
+            raise BagError(
+                f'topic {force_topic} has type {have[force_topic]}, expected {WRENCH_STAMPED} '
+                f'or {JOINT_STATE}'
+            )
+        connections = connections_of(
+            reader, {pressure, state, force_topic}, {pressure: FLUID_PRESSURE, state: JOINT_STATE}
+        )
+        series: dict[str, list[tuple[float, float]]] = {'pressure': [], 'length': [], 'force': []}
         for connection, _, data in messages(reader, connections):
             msg = deserialize(data, connection)
             stamp = seconds(msg.header.stamp)
             if connection.topic == pressure:
-                series["pressure"].append((stamp, msg.fluid_pressure - ambient_pressure))
+                series['pressure'].append((stamp, msg.fluid_pressure - ambient_pressure))
             if connection.topic == force_topic and connection.msgtype == WRENCH_STAMPED:
-                series["force"].append((stamp, msg.wrench.force.x))
+                series['force'].append((stamp, msg.wrench.force.x))
             if connection.msgtype == JOINT_STATE and joint in msg.name:
                 i = msg.name.index(joint)
                 if connection.topic == state and i < len(msg.position):
-                    series["length"].append((stamp, msg.position[i]))
+                    series['length'].append((stamp, msg.position[i]))
                 if connection.topic == force_topic and i < len(msg.effort):
-                    series["force"].append((stamp, msg.effort[i]))
+                    series['force'].append((stamp, msg.effort[i]))
     return _align(series, str(bag), joint, force_topic)
 
 
-def _align(series: dict[str, list[tuple[float, float]]], bag: str, joint: str, force_topic: str) -> Samples:
+def _align(
+    series: dict[str, list[tuple[float, float]]], bag: str, joint: str, force_topic: str
+) -> Samples:
     arrays = {}
     for name, rows in series.items():
         data = np.array(rows, float).reshape(-1, 2)
         data = data[np.all(np.isfinite(data), axis=1)]
         if len(data) < 2:
-            where = f" (joint '{joint}' in {force_topic})" if name == "force" else f" (joint '{joint}')"
-            raise BagError(f"{bag}: fewer than 2 valid {name} samples{where if name != 'pressure' else ''}")
-        arrays[name] = data[np.argsort(data[:, 0], kind="stable")]
-    t, force = arrays["force"].T
-    start = max(arrays["pressure"][0, 0], arrays["length"][0, 0])
-    end = min(arrays["pressure"][-1, 0], arrays["length"][-1, 0])
+            where = (
+                f" (joint '{joint}' in {force_topic})"
+                if name == 'force'
+                else f" (joint '{joint}')"
+            )
+            raise BagError(
+                f'{bag}: fewer than 2 valid {name} samples{where if name != "pressure" else ""}'
+            )
+        arrays[name] = data[np.argsort(data[:, 0], kind='stable')]
+    t, force = arrays['force'].T
+    start = max(arrays['pressure'][0, 0], arrays['length'][0, 0])
+    end = min(arrays['pressure'][-1, 0], arrays['length'][-1, 0])
     keep = (t >= start) & (t <= end)
     if keep.sum() < 2:
-        raise BagError(f"{bag}: the force samples do not overlap the pressure and length samples in time")
+        raise BagError(
+            f'{bag}: the force samples do not overlap the pressure and length samples in time'
+        )
     t, force = t[keep], force[keep]
-    pressure = np.interp(t, *arrays["pressure"].T)
-    length = np.interp(t, *arrays["length"].T)
-    return Samples(t, pressure, length, force, branches(length, SPECS["hysteresis.length_deadband"].default))
+    pressure = np.interp(t, *arrays['pressure'].T)
+    length = np.interp(t, *arrays['length'].T)
+    return Samples(
+        t, pressure, length, force, branches(length, SPECS['hysteresis.length_deadband'].default)
+    )
 
 
 def cell_means(samples: Samples, mask: np.ndarray) -> ForceMap:
-    """The masked samples averaged per PRESSURE_CELL x LENGTH_CELL x branch cell; negative forces set to 0 N.
+    """The masked samples averaged per PRESSURE_CELL x LENGTH_CELL x branch cell; negative forces
+    set to 0 N.
 
-    The map carries each cell's direction where every masked sample's branch is known."""
-    p, L, F, d = (samples.pressure[mask], samples.length[mask], np.maximum(samples.force[mask], 0.0),
-                  samples.direction[mask])
+    The map carries each cell's direction where every masked sample's branch is known.
+    """
+    p, L, F, d = (
+        samples.pressure[mask],
+        samples.length[mask],
+        np.maximum(samples.force[mask], 0.0),
+        samples.direction[mask],
+    )
     cells = np.column_stack([np.floor(p / PRESSURE_CELL), np.floor(L / LENGTH_CELL), d])
     _, cell, count = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
     p, L, F, d = (np.bincount(cell.ravel(), weights=v) / count for v in (p, L, F, d))
@@ -165,23 +213,32 @@ def cell_means(samples: Samples, mask: np.ndarray) -> ForceMap:
 
 @dataclass(frozen=True)
 class Calibration:
-    force_map: ForceMap   #: cell means of the quasi-static samples
-    samples: int          #: aligned force samples in the recording
-    kept: int             #: of which quasi-static
+    force_map: ForceMap  #: cell means of the quasi-static samples
+    samples: int  #: aligned force samples in the recording
+    kept: int  #: of which quasi-static
 
 
-def force_map_from_bag(bag: str | Path, joint: str, ambient_pressure: float = STANDARD_ATMOSPHERE,
-                       criterion: QuasiStatic = QuasiStatic(), namespace: str | None = None,
-                       force_topic: str | None = None, two_branches: bool = False) -> Calibration:
-    """The force map of a recording's quasi-static samples (module docstring); ``two_branches``: only samples
-    whose hysteresis branch is known, the map carrying each point's direction."""
+def force_map_from_bag(
+    bag: str | Path,
+    joint: str,
+    ambient_pressure: float = STANDARD_ATMOSPHERE,
+    criterion: QuasiStatic = QuasiStatic(),
+    namespace: str | None = None,
+    force_topic: str | None = None,
+    two_branches: bool = False,
+) -> Calibration:
+    """The force map of a recording's quasi-static samples (module docstring); ``two_branches``:
+    only samples whose hysteresis branch is known, the map carrying each point's direction.
+    """
     samples = read_samples(bag, joint, ambient_pressure, namespace, force_topic)
     mask = quasi_static(samples, criterion)
     if two_branches:
         mask &= samples.direction != 0
     if mask.sum() < 3:
-        raise BagError(f"{bag}: only {int(mask.sum())} of {mask.size} samples are quasi-static "
-                       f"(|dL/dt| <= {criterion.max_length_rate:g} m/s and |dp/dt| <= "
-                       f"{criterion.max_pressure_rate:g} Pa/s over {criterion.window:g} s); record slower or "
-                       "loosen the criterion")
+        raise BagError(
+            f'{bag}: only {int(mask.sum())} of {mask.size} samples are quasi-static '
+            f'(|dL/dt| <= {criterion.max_length_rate:g} m/s and |dp/dt| <= '
+            f'{criterion.max_pressure_rate:g} Pa/s over {criterion.window:g} s); record slower or '
+            'loosen the criterion'
+        )
     return Calibration(cell_means(samples, mask), int(mask.size), int(mask.sum()))

@@ -3,112 +3,208 @@
 Only argparse here: rosbags (and rclpy, for ``bag play``) are imported when a command runs,
 so the rest of ``pma-model`` works without them.
 """
+
 from __future__ import annotations
 
 import argparse
 
 from ..core.force_map import ForceMap
-from ..core.muscle import MuscleSpec
+from ..core.geometry import MuscleSpec
 from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     """Add ``bag estimate`` and ``bag play`` to the ``pma-model`` subparsers."""
-    bag = sub.add_parser("bag", help="rosbag2 recordings (mcap, sqlite3): offline estimation, replay")
-    commands = bag.add_subparsers(dest="bag_command", required=True)
-    p = commands.add_parser("estimate", help="what model_node would publish for a recording, into a new bag",
-                            description="Replays a recording's <ns>/pressure, <ns>/muscle_state (and "
-                                        "<ns>/force_command) through model_node's logic and writes a new bag: "
-                                        "the original messages plus <ns>/force_estimate, <ns>/pressure_command "
-                                        "and /diagnostics (docs/bags.md). A parameter file with `muscles:` "
-                                        "reads each muscle's topics under <ns>/<name>/, or the combined "
-                                        "JointStates, as model_node does.")
-    p.add_argument("bag", help="input bag (directory, or .mcap / .db3 file)")
-    p.add_argument("--config", required=True, help="model_node parameter file, e.g. config/dmsp_10_250.yaml")
-    p.add_argument("--out", required=True, help="output bag directory (must not exist)")
-    p.add_argument("--csv", help="also write the estimates to this CSV file")
-    p.add_argument("--storage", choices=("mcap", "sqlite3"), help="output storage (default: the input's)")
-    p.add_argument("--namespace", help="namespace of the muscle's topics (default: the only one in the bag)")
-    p.add_argument("--model", help="override the file's default model")
-    p.add_argument("--pressure-reference", choices=PRESSURE_REFERENCES,
-                   help="what the recorded fluid_pressure holds (default: the file's `pressure_reference`, "
-                        "else absolute)")
+    bag = sub.add_parser(
+        'bag', help='rosbag2 recordings (mcap, sqlite3): offline estimation, replay'
+    )
+    commands = bag.add_subparsers(dest='bag_command', required=True)
+    p = commands.add_parser(
+        'estimate',
+        help='what model_node would publish for a recording, into a new bag',
+        description="Replays a recording's <ns>/pressure, <ns>/muscle_state (and "
+        "<ns>/force_command) through model_node's logic and writes a new bag: "
+        'the original messages plus <ns>/force_estimate, <ns>/pressure_command '
+        'and /diagnostics (docs/bags.md). A parameter file with `muscles:` '
+        "reads each muscle's topics under <ns>/<name>/, or the combined "
+        'JointStates, as model_node does.',
+    )
+    p.add_argument('bag', help='input bag (directory, or .mcap / .db3 file)')
+    p.add_argument(
+        '--config', required=True, help='model_node parameter file, e.g. config/dmsp_10_250.yaml'
+    )
+    p.add_argument('--out', required=True, help='output bag directory (must not exist)')
+    p.add_argument('--csv', help='also write the estimates to this CSV file')
+    p.add_argument(
+        '--storage', choices=('mcap', 'sqlite3'), help="output storage (default: the input's)"
+    )
+    p.add_argument(
+        '--namespace', help="namespace of the muscle's topics (default: the only one in the bag)"
+    )
+    p.add_argument('--model', help="override the file's default model")
+    p.add_argument(
+        '--pressure-reference',
+        choices=PRESSURE_REFERENCES,
+        help="what the recorded fluid_pressure holds (default: the file's `pressure_reference`, "
+        'else absolute)',
+    )
     p.set_defaults(func=cmd_bag_estimate)
-    p = commands.add_parser("play", help="publish a recording's messages with their recorded timing (rclpy)",
-                            description="Like `ros2 bag play`: each message on its topic at its recorded log "
-                                        "time (scaled by --rate), with the recorded QoS.")
-    p.add_argument("bag", help="input bag (directory, or .mcap / .db3 file)")
-    p.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default 1)")
-    p.add_argument("--clock", type=float, nargs="?", const=40.0, default=None, metavar="HZ",
-                   help="publish /clock (bag time) before every message and at HZ between them (default 40 Hz), "
-                        "for nodes with use_sim_time")
-    p.add_argument("--topics", nargs="+", metavar="TOPIC", help="play only these topics")
-    p.add_argument("--remap", nargs="+", default=[], metavar="FROM:=TO", help="publish topic FROM on TO")
-    p.add_argument("--delay", type=float, default=0.0, help="wait this long [s] before the first message "
-                                                            "(with --clock: publishing the start time)")
-    p.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="TIMEOUT",
-                   help="first wait up to TIMEOUT [s] until every played topic has a subscriber")
+    p = commands.add_parser(
+        'play',
+        help="publish a recording's messages with their recorded timing (rclpy)",
+        description='Like `ros2 bag play`: each message on its topic at its recorded log '
+        'time (scaled by --rate), with the recorded QoS.',
+    )
+    p.add_argument('bag', help='input bag (directory, or .mcap / .db3 file)')
+    p.add_argument('--rate', type=float, default=1.0, help='playback speed factor (default 1)')
+    p.add_argument(
+        '--clock',
+        type=float,
+        nargs='?',
+        const=40.0,
+        default=None,
+        metavar='HZ',
+        help='publish /clock (bag time) before every message and at HZ between them '
+        '(default 40 Hz), for nodes with use_sim_time',
+    )
+    p.add_argument('--topics', nargs='+', metavar='TOPIC', help='play only these topics')
+    p.add_argument(
+        '--remap', nargs='+', default=[], metavar='FROM:=TO', help='publish topic FROM on TO'
+    )
+    p.add_argument(
+        '--delay',
+        type=float,
+        default=0.0,
+        help='wait this long [s] before the first message '
+        '(with --clock: publishing the start time)',
+    )
+    p.add_argument(
+        '--wait-for-subscribers',
+        type=float,
+        default=0.0,
+        metavar='TIMEOUT',
+        help='first wait up to TIMEOUT [s] until every played topic has a subscriber',
+    )
     p.set_defaults(func=cmd_bag_play)
 
 
 def cmd_bag_estimate(args: argparse.Namespace) -> None:
     from ..core.param_file import all_node_settings, read_parameters
     from .estimate import estimate_bag
+
     parameters = read_parameters(args.config)
     if args.pressure_reference:
-        parameters["pressure_reference"] = args.pressure_reference
+        parameters['pressure_reference'] = args.pressure_reference
     settings = all_node_settings(parameters, args.model)
-    summary = estimate_bag(args.bag, settings, args.out, names=parameters.get("muscles") or [],
-                           combined=parameters.get("input_mode") == "combined", storage=args.storage,
-                           namespace=args.namespace, csv=args.csv)
-    rejected = sum(n for key, n in summary.counts.items() if key.startswith("rejected"))
-    print(f"{summary.namespace}: {summary.messages} messages read; wrote {summary.estimates} force_estimate, "
-          f"{summary.commands} pressure_command, {summary.diagnostics} /diagnostics ({rejected} inputs rejected) "
-          f"-> {args.out}" + (f" and {args.csv}" if args.csv else ""))
+    summary = estimate_bag(
+        args.bag,
+        settings,
+        args.out,
+        names=parameters.get('muscles') or [],
+        combined=parameters.get('input_mode') == 'combined',
+        storage=args.storage,
+        namespace=args.namespace,
+        csv=args.csv,
+    )
+    rejected = sum(n for key, n in summary.counts.items() if key.startswith('rejected'))
+    print(
+        f'{summary.namespace}: {summary.messages} messages read; wrote {summary.estimates} '
+        f'force_estimate, '
+        f'{summary.commands} pressure_command, {summary.diagnostics} /diagnostics ({rejected} '
+        f'inputs rejected) '
+        f'-> {args.out}' + (f' and {args.csv}' if args.csv else '')
+    )
 
 
 def cmd_bag_play(args: argparse.Namespace) -> None:
     from .play import play
+
     remaps = {}
     for rule in args.remap:
-        source, sep, target = rule.partition(":=")
+        source, sep, target = rule.partition(':=')
         if not (sep and source and target):
-            raise ValueError(f"--remap {rule!r}: expected FROM:=TO")
+            raise ValueError(f'--remap {rule!r}: expected FROM:=TO')
         remaps[source] = target
-    if not (args.rate > 0 and args.delay >= 0 and args.wait_for_subscribers >= 0
-            and (args.clock is None or args.clock > 0)):
-        raise ValueError("--rate and --clock must be > 0, --delay and --wait-for-subscribers >= 0")
-    count = play(args.bag, rate=args.rate, clock=args.clock, topics=args.topics, remaps=remaps, delay=args.delay,
-                 wait_for_subscribers=args.wait_for_subscribers)
-    print(f"published {count} messages")
+    if not (
+        args.rate > 0
+        and args.delay >= 0
+        and args.wait_for_subscribers >= 0
+        and (args.clock is None or args.clock > 0)
+    ):
+        raise ValueError('--rate and --clock must be > 0, --delay and --wait-for-subscribers >= 0')
+    count = play(
+        args.bag,
+        rate=args.rate,
+        clock=args.clock,
+        topics=args.topics,
+        remaps=remaps,
+        delay=args.delay,
+        wait_for_subscribers=args.wait_for_subscribers,
+    )
+    print(f'published {count} messages')
 
 
 def add_fit_bag_options(p: argparse.ArgumentParser) -> None:
     """The options of ``fit --bag`` (the calibration from a recording)."""
-    g = p.add_argument_group("with --bag (quasi-static samples of a recording; docs/bags.md)")
-    g.add_argument("--namespace", help="namespace of the muscle's topics (default: the only one in the bag)")
-    g.add_argument("--force-topic", help="measured force: WrenchStamped (force.x) or JointState (effort); "
-                                         "default <ns>/force if recorded, else the effort in <ns>/muscle_state")
-    g.add_argument("--joint", help="JointState entry of the muscle (default: the spec's name)")
-    g.add_argument("--ambient-pressure", type=float, default=STANDARD_ATMOSPHERE,
-                   help=f"[Pa absolute] (default {STANDARD_ATMOSPHERE:g})")
-    g.add_argument("--pressure-reference", choices=PRESSURE_REFERENCES, default="absolute",
-                   help="what the recorded fluid_pressure holds (default absolute, the message's definition)")
-    g.add_argument("--window", type=float, default=1.0, help="quasi-static window [s] (default 1)")
-    g.add_argument("--max-length-rate", type=float, default=1e-3, help="quasi-static |dL/dt| bound [m/s] "
-                                                                      "(default 0.001)")
-    g.add_argument("--max-pressure-rate", type=float, default=50e3, help="quasi-static |dp/dt| bound [Pa/s] "
-                                                                        "(default 50000)")
+    g = p.add_argument_group('with --bag (quasi-static samples of a recording; docs/bags.md)')
+    g.add_argument(
+        '--namespace', help="namespace of the muscle's topics (default: the only one in the bag)"
+    )
+    g.add_argument(
+        '--force-topic',
+        help='measured force: WrenchStamped (force.x) or JointState (effort); '
+        'default <ns>/force if recorded, else the effort in <ns>/muscle_state',
+    )
+    g.add_argument('--joint', help="JointState entry of the muscle (default: the spec's name)")
+    g.add_argument(
+        '--ambient-pressure',
+        type=float,
+        default=STANDARD_ATMOSPHERE,
+        help=f'[Pa absolute] (default {STANDARD_ATMOSPHERE:g})',
+    )
+    g.add_argument(
+        '--pressure-reference',
+        choices=PRESSURE_REFERENCES,
+        default='absolute',
+        help="what the recorded fluid_pressure holds (default absolute, the message's definition)",
+    )
+    g.add_argument('--window', type=float, default=1.0, help='quasi-static window [s] (default 1)')
+    g.add_argument(
+        '--max-length-rate',
+        type=float,
+        default=1e-3,
+        help='quasi-static |dL/dt| bound [m/s] (default 0.001)',
+    )
+    g.add_argument(
+        '--max-pressure-rate',
+        type=float,
+        default=50e3,
+        help='quasi-static |dp/dt| bound [Pa/s] (default 50000)',
+    )
 
 
-def bag_force_map(args: argparse.Namespace, spec: MuscleSpec, two_branches: bool = False) -> ForceMap:
-    """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell (per hysteresis
-    branch with ``two_branches``)."""
-    from .calibrate import QuasiStatic, force_map_from_bag
+def bag_force_map(
+    args: argparse.Namespace, spec: MuscleSpec, two_branches: bool = False
+) -> ForceMap:
+    """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell (per
+    hysteresis branch with ``two_branches``).
+    """
+    from .calibrate import force_map_from_bag, QuasiStatic
+
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)
-    ambient = 0.0 if args.pressure_reference == "gauge" else args.ambient_pressure   # reading - ambient = gauge
-    calibration = force_map_from_bag(args.bag, args.joint or spec.name, ambient, criterion,
-                                     args.namespace, args.force_topic, two_branches)
-    print(f"{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static, "
-          f"{calibration.force_map.force.size} cells")
+    # reading - ambient = gauge
+    ambient = 0.0 if args.pressure_reference == 'gauge' else args.ambient_pressure
+    calibration = force_map_from_bag(
+        args.bag,
+        args.joint or spec.name,
+        ambient,
+        criterion,
+        args.namespace,
+        args.force_topic,
+        two_branches,
+    )
+    print(
+        f'{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static, '
+        f'{calibration.force_map.force.size} cells'
+    )
     return calibration.force_map

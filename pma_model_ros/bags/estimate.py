@@ -1,4 +1,5 @@
-"""Offline force estimation: what ``model_node`` would publish for a recording, written to a new bag.
+"""Offline force estimation: what ``model_node`` would publish for a recording, written to a new
+bag.
 
 The recording's input topics drive one :class:`~pma_model_ros.core.engine.Engine` in log-time
 order, through the same calls as the node's callbacks, with "now" = the message's log time (what
@@ -6,22 +7,24 @@ the node's clock reads when the bag is played with ``--clock`` into a node with 
 The topics are those of the parameter file's muscles, under the recording's namespace:
 
 * one muscle: ``<ns>/pressure`` (FluidPressure), ``<ns>/muscle_state`` (JointState) and, if
-  recorded, ``<ns>/force_command`` (WrenchStamped); with ``muscles:`` and ``input_mode: per_muscle``
-  the same under ``<ns>/<name>/``;
-* ``input_mode: combined``: ``<ns>/muscle_pressures``, ``<ns>/muscle_states``, ``<ns>/force_commands``
-  (JointStates of every muscle).
+  recorded, ``<ns>/force_command`` (WrenchStamped); with ``muscles:`` and ``input_mode:
+  per_muscle`` the same under ``<ns>/<name>/``;
+* ``input_mode: combined``: ``<ns>/muscle_pressures``, ``<ns>/muscle_states``,
+  ``<ns>/force_commands`` (JointStates of every muscle).
 
 So the output holds, beside every original message (copied as recorded):
 
-* ``force_estimate`` per muscle (WrenchStamped: stamp = the newer input's header stamp, ``frame_id``,
-  force.x = tension [N]), or one ``force_estimates`` JointState (combined), at the log time of the
-  input that completed it;
-* ``pressure_command`` (FluidPressure, absolute Pa), or ``pressure_commands`` (JointState), for each
-  usable force command, stamped with its log time;
-* ``/diagnostics``: the node's status of every muscle every second of bag time and on each level change.
+* ``force_estimate`` per muscle (WrenchStamped: stamp = the newer input's header stamp,
+  ``frame_id``, force.x = tension [N]), or one ``force_estimates`` JointState (combined), at the
+  log time of the input that completed it;
+* ``pressure_command`` (FluidPressure, absolute Pa), or ``pressure_commands`` (JointState), for
+  each usable force command, stamped with its log time;
+* ``/diagnostics``: the node's status of every muscle every second of bag time and on each level
+  change.
 
 Topics of these names already in the recording are replaced (``/diagnostics`` is kept and merged).
 """
+
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -38,59 +41,105 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
-from ..core.cdr import StampedTemplate, sentinels
-from ..core.engine import REPORT_INTERVAL_PER_MUSCLE, CombinedInputs, Engine, seconds
+from ..core.cdr import sentinels, StampedTemplate
+from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
 from ..core.flags import describe
 from ..core.param_file import NodeSettings
-from .bag_io import (DIAGNOSTIC_ARRAY, FLUID_PRESSURE, JOINT_STATE, RELIABLE, TYPESTORE, WRENCH_STAMPED, BagError,
-                     BagWriter, connections_of, deserialize, messages, open_bag, storage_of, topic)
+from .bag_io import (
+    BagError,
+    BagWriter,
+    connections_of,
+    deserialize,
+    DIAGNOSTIC_ARRAY,
+    FLUID_PRESSURE,
+    JOINT_STATE,
+    messages,
+    open_bag,
+    RELIABLE,
+    storage_of,
+    topic,
+    TYPESTORE,
+    WRENCH_STAMPED,
+)
+
 #: The node's input topics of one muscle (relative names) and their types.
-INPUTS = {"pressure": FLUID_PRESSURE, "muscle_state": JOINT_STATE, "force_command": WRENCH_STAMPED}
+INPUTS = {'pressure': FLUID_PRESSURE, 'muscle_state': JOINT_STATE, 'force_command': WRENCH_STAMPED}
 #: The node's input topics in combined mode, all JointStates.
-COMBINED_INPUTS = ("muscle_pressures", "muscle_states", "force_commands")
+COMBINED_INPUTS = ('muscle_pressures', 'muscle_states', 'force_commands')
 #: The node's output topics (relative names) written here: per muscle, and in combined mode.
-OUTPUTS = ("force_estimate", "pressure_command")
-COMBINED_OUTPUTS = ("force_estimates", "pressure_commands")
-DIAGNOSTICS = "/diagnostics"
-DIAGNOSTIC_PERIOD_NS = 1_000_000_000   # model_node's status timer [ns]
-CHUNK = 20_000                         # messages read and written per step
+OUTPUTS = ('force_estimate', 'pressure_command')
+COMBINED_OUTPUTS = ('force_estimates', 'pressure_commands')
+DIAGNOSTICS = '/diagnostics'
+DIAGNOSTIC_PERIOD_NS = 1_000_000_000  # model_node's status timer [ns]
+CHUNK = 20_000  # messages read and written per step
 _PRESSURE, _STATE, _COMMAND = range(3)
-CSV_COLUMNS = ("log_time_ns", "stamp_s", "pressure_pa", "length_m", "length_rate_mps", "force_n", "flags", "joint")
+CSV_COLUMNS = (
+    'log_time_ns',
+    'stamp_s',
+    'pressure_pa',
+    'length_m',
+    'length_rate_mps',
+    'force_n',
+    'flags',
+    'joint',
+)
 
 T = TYPESTORE.types
-Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
+Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
 
 
-def muscle_namespace(reader: Reader, namespace: str | None = None, first: str = "pressure",
-                     second: str = "muscle_state") -> str:
+def muscle_namespace(
+    reader: Reader,
+    namespace: str | None = None,
+    first: str = 'pressure',
+    second: str = 'muscle_state',
+) -> str:
     """The namespace whose ``first`` and ``second`` topics (relative names) the recording holds.
 
     ``namespace`` if given; else the only one found (a BagError if none or several).
     """
     if namespace is not None:
-        return "/" + namespace.strip("/")
+        return '/' + namespace.strip('/')
     have = {c.topic for c in reader.connections}
-    suffix = f"/{first}"
-    found = sorted({t.removesuffix(suffix) or "/" for t in have
-                    if t.endswith(suffix) and topic(t.removesuffix(suffix) or "/", second) in have})
+    suffix = f'/{first}'
+    found = sorted(
+        {
+            t.removesuffix(suffix) or '/'
+            for t in have
+            if t.endswith(suffix) and topic(t.removesuffix(suffix) or '/', second) in have
+        }
+    )
     if len(found) != 1:
-        what = f"several muscles ({', '.join(found)}); choose one with --namespace" if found else \
-            (f"no <namespace>/{first} and <namespace>/{second} topics "
-             f"(topics: {', '.join(sorted(have)) or 'none'})")
-        raise BagError(f"{reader.path}: {what}")
+        what = (
+            f'several muscles ({", ".join(found)}); choose one with --namespace'
+            if found
+            else (
+                f'no <namespace>/{first} and <namespace>/{second} topics '
+                f'(topics: {", ".join(sorted(have)) or "none"})'
+            )
+        )
+        raise BagError(f'{reader.path}: {what}')
     return found[0]
 
 
 class WrenchStampedCdr:
-    """Little-endian CDR bytes of a WrenchStamped with a fixed ``frame_id``: stamp and force.x patched in a
-    template (:class:`~pma_model_ros.core.cdr.StampedTemplate`)."""
+    """Little-endian CDR bytes of a WrenchStamped with a fixed ``frame_id``: stamp and force.x
+    patched in a template (:class:`~pma_model_ros.core.cdr.StampedTemplate`).
+    """
 
     def __init__(self, frame_id: str) -> None:
-        Wrench, Vector3 = T["geometry_msgs/msg/Wrench"], T["geometry_msgs/msg/Vector3"]
+        Wrench, Vector3 = T['geometry_msgs/msg/Wrench'], T['geometry_msgs/msg/Vector3']
         zero = Vector3(0.0, 0.0, 0.0)
-        self._template = StampedTemplate(TYPESTORE.serialize_cdr(
-            T[WRENCH_STAMPED](Header(Time(0, 0), frame_id), Wrench(Vector3(sentinels(1)[0], 0.0, 0.0), zero)),
-            WRENCH_STAMPED, little_endian=True), 1)
+        self._template = StampedTemplate(
+            TYPESTORE.serialize_cdr(
+                T[WRENCH_STAMPED](
+                    Header(Time(0, 0), frame_id), Wrench(Vector3(sentinels(1)[0], 0.0, 0.0), zero)
+                ),
+                WRENCH_STAMPED,
+                little_endian=True,
+            ),
+            1,
+        )
 
     def __call__(self, sec: int, nanosec: int, force: float) -> bytes:
         self._template.values[0] = force
@@ -102,27 +151,52 @@ class Summary:
     """What :func:`estimate_bag` read and wrote."""
 
     namespace: str
-    messages: int = 0       #: messages read (all topics)
-    estimates: int = 0      #: force estimates written (one per muscle estimated)
-    commands: int = 0       #: pressure commands written (one per muscle commanded)
-    diagnostics: int = 0    #: /diagnostics messages written
-    counts: dict[str, int] = field(default_factory=dict)   #: the engine's counters at the end, summed over muscles
+    messages: int = 0  #: messages read (all topics)
+    estimates: int = 0  #: force estimates written (one per muscle estimated)
+    commands: int = 0  #: pressure commands written (one per muscle commanded)
+    diagnostics: int = 0  #: /diagnostics messages written
+    #: the engine's counters at the end, summed over muscles
+    counts: dict[str, int] = field(default_factory=dict)
 
 
 class _OfflineNode:
     """The model node's callbacks over a recording, writing what it would publish."""
 
-    def __init__(self, settings: list[NodeSettings], names: list[str], combined: bool, namespace: str,
-                 reader: Reader, writer: BagWriter, rows: csv_module.writer | None) -> None:
-        inputs = {topic(namespace, name): (role, -1) for role, name in enumerate(COMBINED_INPUTS)} if combined else {
-            topic(namespace, f"{prefix}{name}"): (role, k)
-            for k, prefix in enumerate([f"{n}/" for n in names] or [""]) for role, name in enumerate(INPUTS)}
-        types = {t: JOINT_STATE if combined else list(INPUTS.values())[role] for t, (role, _) in inputs.items()}
+    def __init__(
+        self,
+        settings: list[NodeSettings],
+        names: list[str],
+        combined: bool,
+        namespace: str,
+        reader: Reader,
+        writer: BagWriter,
+        rows: csv_module.writer | None,
+    ) -> None:
+        inputs = (
+            {topic(namespace, name): (role, -1) for role, name in enumerate(COMBINED_INPUTS)}
+            if combined
+            else {
+                topic(namespace, f'{prefix}{name}'): (role, k)
+                for k, prefix in enumerate([f'{n}/' for n in names] or [''])
+                for role, name in enumerate(INPUTS)
+            }
+        )
+        types = {
+            t: JOINT_STATE if combined else list(INPUTS.values())[role]
+            for t, (role, _) in inputs.items()
+        }
         present = {c.topic for c in reader.connections}
         connections_of(reader, [t for t in inputs if t in present], types)
         self.roles = {c.id: inputs[c.topic] for c in reader.connections if c.topic in inputs}
-        replaced = {topic(namespace, name) for name in COMBINED_OUTPUTS} if combined else {
-            topic(namespace, f"{prefix}{name}") for prefix in [f"{n}/" for n in names] or [""] for name in OUTPUTS}
+        replaced = (
+            {topic(namespace, name) for name in COMBINED_OUTPUTS}
+            if combined
+            else {
+                topic(namespace, f'{prefix}{name}')
+                for prefix in [f'{n}/' for n in names] or ['']
+                for name in OUTPUTS
+            }
+        )
         self.copies: dict[int, Connection] = {}
         self._diagnostics = None
         for c in reader.connections:
@@ -135,32 +209,55 @@ class _OfflineNode:
             self._diagnostics = writer.topic(DIAGNOSTICS, DIAGNOSTIC_ARRAY, [RELIABLE])
         has_commands = any(role == _COMMAND for role, _ in self.roles.values())
         if combined:
-            self._estimates = [writer.topic(topic(namespace, "force_estimates"), JOINT_STATE, [RELIABLE])]
-            self._commands = [writer.topic(topic(namespace, "pressure_commands"), JOINT_STATE, [RELIABLE])]
+            self._estimates = [
+                writer.topic(topic(namespace, 'force_estimates'), JOINT_STATE, [RELIABLE])
+            ]
+            self._commands = [
+                writer.topic(topic(namespace, 'pressure_commands'), JOINT_STATE, [RELIABLE])
+            ]
         else:
-            prefixes = [f"{n}/" for n in names] or [""]
-            self._estimates = [writer.topic(topic(namespace, f"{p}force_estimate"), WRENCH_STAMPED, [RELIABLE])
-                               for p in prefixes]
-            self._commands = [writer.topic(topic(namespace, f"{p}pressure_command"), FLUID_PRESSURE, [RELIABLE])
-                              for p in prefixes] if has_commands else []
+            prefixes = [f'{n}/' for n in names] or ['']
+            self._estimates = [
+                writer.topic(topic(namespace, f'{p}force_estimate'), WRENCH_STAMPED, [RELIABLE])
+                for p in prefixes
+            ]
+            self._commands = (
+                [
+                    writer.topic(
+                        topic(namespace, f'{p}pressure_command'), FLUID_PRESSURE, [RELIABLE]
+                    )
+                    for p in prefixes
+                ]
+                if has_commands
+                else []
+            )
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
-        self.engine = Engine([s.config for s in settings], hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
-                             report_interval=REPORT_INTERVAL_PER_MUSCLE * len(settings))
+        self.engine = Engine(
+            [s.config for s in settings],
+            hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
+            report_interval=REPORT_INTERVAL_PER_MUSCLE * len(settings),
+        )
         self.joints = [s.joint_name for s in settings]
         self._inputs = CombinedInputs(self.engine, self.joints)
         self.summary = Summary(namespace)
-        self._names = [f"{namespace.rstrip('/')}/model_node: {joint}" for joint in self.joints]
+        self._names = [f'{namespace.rstrip("/")}/model_node: {joint}' for joint in self.joints]
         self._wrenches = [WrenchStampedCdr(s.frame_id) for s in settings]
         self._next_status_ns: int | None = None
 
     def process(self, chunk: list[tuple[Connection, int, bytes]]) -> None:
         """One chunk of the recording, in log-time order."""
-        engine, write, copies, roles, joints = self.engine, self.writer.write_raw, self.copies, self.roles, self.joints
+        engine, write, copies, roles, joints = (
+            self.engine,
+            self.writer.write_raw,
+            self.copies,
+            self.roles,
+            self.joints,
+        )
         if self._next_status_ns is None and chunk:
             self._next_status_ns = chunk[0][1] + DIAGNOSTIC_PERIOD_NS
         next_status = self._next_status_ns
         for connection, time_ns, data in chunk:
-            while time_ns >= next_status:   # the node's status timer
+            while time_ns >= next_status:  # the node's status timer
                 self._status(next_status)
                 next_status += DIAGNOSTIC_PERIOD_NS
             copy = copies.get(connection.id)
@@ -175,10 +272,17 @@ class _OfflineNode:
                 self._combined(role, msg, now, time_ns)
                 k = None
             elif role == _PRESSURE:
-                self._estimate(k, engine.pressure(k, msg.fluid_pressure, seconds(tag), now, tag), time_ns)
+                self._estimate(
+                    k, engine.pressure(k, msg.fluid_pressure, seconds(tag), now, tag), time_ns
+                )
             elif role == _STATE:
-                self._estimate(k, engine.joint_state(k, msg.name, msg.position, msg.velocity, joints[k], seconds(tag),
-                                                     now, tag), time_ns)
+                self._estimate(
+                    k,
+                    engine.joint_state(
+                        k, msg.name, msg.position, msg.velocity, joints[k], seconds(tag), now, tag
+                    ),
+                    time_ns,
+                )
             else:
                 self._command(k, engine.command(k, msg.wrench.force.x, now), time_ns)
             if engine.status_due(now, k):
@@ -190,15 +294,27 @@ class _OfflineNode:
         if force is None:
             return
         tag = self.engine.tag
-        self.writer.write_raw(self._estimates[k], time_ns, self._wrenches[k](tag.sec, tag.nanosec, force))
+        self.writer.write_raw(
+            self._estimates[k], time_ns, self._wrenches[k](tag.sec, tag.nanosec, force)
+        )
         self.summary.estimates += 1
         self._row(k, time_ns, tag, force, self.engine.flags)
 
     def _row(self, k: int, time_ns: int, tag, force: float, flags: int) -> None:
         if self.rows is not None:
             gauge, length, rate = self.engine.inputs(k)
-            self.rows.writerow((time_ns, f"{tag.sec}.{tag.nanosec:09d}", gauge, length, rate, force,
-                                describe(flags), self.joints[k]))
+            self.rows.writerow(
+                (
+                    time_ns,
+                    f'{tag.sec}.{tag.nanosec:09d}',
+                    gauge,
+                    length,
+                    rate,
+                    force,
+                    describe(flags),
+                    self.joints[k],
+                )
+            )
 
     def _command(self, k: int, pressure: float | None, time_ns: int) -> None:
         if pressure is None or not self._commands:
@@ -208,40 +324,65 @@ class _OfflineNode:
         self.summary.commands += 1
 
     def _combined(self, role: int, msg, now: float, time_ns: int) -> None:
-        """One combined JointState: every muscle's pressure or length in one vectorised call, or commands."""
+        """One combined JointState: every muscle's pressure or length in one vectorised call, or
+        commands.
+        """
         engine, inputs = self.engine, self._inputs
         empty = np.zeros(0)
         if role == _COMMAND:
             joints, pressures = inputs.commands(list(msg.name), msg.effort, now)
             if joints:
-                header = Header(Time(time_ns // 10**9, time_ns % 10**9), "")
-                self.writer.write(self._commands[0], time_ns, T[JOINT_STATE](header, joints, np.array(pressures),
-                                                                             empty, empty))
+                header = Header(Time(time_ns // 10**9, time_ns % 10**9), '')
+                self.writer.write(
+                    self._commands[0],
+                    time_ns,
+                    T[JOINT_STATE](header, joints, np.array(pressures), empty, empty),
+                )
                 self.summary.commands += len(joints)
             return
         if role == _PRESSURE:
             estimated = inputs.pressures(list(msg.name), msg.position, msg.header.stamp, now)
         else:
-            estimated = inputs.lengths(list(msg.name), msg.position, msg.velocity, msg.header.stamp, now)
+            estimated = inputs.lengths(
+                list(msg.name), msg.position, msg.velocity, msg.header.stamp, now
+            )
         if not estimated.any():
             return
         tag = engine.newest_tag(estimated)
-        self.writer.write(self._estimates[0], time_ns, T[JOINT_STATE](
-            Header(Time(tag.sec, tag.nanosec), ""), [j for j, e in zip(inputs.joints, estimated.tolist()) if e],
-            empty, empty, engine.forces[estimated]))
+        self.writer.write(
+            self._estimates[0],
+            time_ns,
+            T[JOINT_STATE](
+                Header(Time(tag.sec, tag.nanosec), ''),
+                [j for j, e in zip(inputs.joints, estimated.tolist()) if e],
+                empty,
+                empty,
+                engine.forces[estimated],
+            ),
+        )
         self.summary.estimates += int(estimated.sum())
         for k in np.flatnonzero(estimated).tolist():
             self._row(k, time_ns, tag, float(engine.forces[k]), int(engine.flags[k]))
 
     def _status(self, time_ns: int) -> None:
         now = time_ns * 1e-9
-        KeyValue, DiagnosticStatus = T["diagnostic_msgs/msg/KeyValue"], T["diagnostic_msgs/msg/DiagnosticStatus"]
+        KeyValue, DiagnosticStatus = (
+            T['diagnostic_msgs/msg/KeyValue'],
+            T['diagnostic_msgs/msg/DiagnosticStatus'],
+        )
         entries = []
         for k, (name, s) in enumerate(zip(self._names, self.settings)):
             status = self.engine.status(k, now)
-            entries.append(DiagnosticStatus(int(status.level), name, status.message, s.config.model.spec.name,
-                                            [KeyValue(key, value) for key, value in status.values.items()]))
-        header = Header(Time(time_ns // 10**9, time_ns % 10**9), "")
+            entries.append(
+                DiagnosticStatus(
+                    int(status.level),
+                    name,
+                    status.message,
+                    s.config.model.spec.name,
+                    [KeyValue(key, value) for key, value in status.values.items()],
+                )
+            )
+        header = Header(Time(time_ns // 10**9, time_ns % 10**9), '')
         self.writer.write(self._diagnostics, time_ns, T[DIAGNOSTIC_ARRAY](header, entries))
         self.summary.diagnostics += 1
 
@@ -259,14 +400,16 @@ def _chunks(items: Iterable, size: int) -> Iterator[list]:
 
 @contextmanager
 def _csv_rows(path: str | Path | None) -> Iterator[csv_module.writer | None]:
-    """A CSV writer of the estimates to ``path`` (written beside it, renamed on success); None without a path."""
+    """A CSV writer of the estimates to ``path`` (written beside it, renamed on success); None
+    without a path.
+    """
     if path is None:
         yield None
         return
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.partial', dir=path.parent)
     try:
-        with os.fdopen(fd, "w", newline="", encoding="utf-8") as out:
+        with os.fdopen(fd, 'w', newline='', encoding='utf-8') as out:
             rows = csv_module.writer(out)
             rows.writerow(CSV_COLUMNS)
             yield rows
@@ -287,27 +430,46 @@ class _Progress:
         if self.enabled and (final or time.monotonic() - self._shown > 0.5):
             self._shown = time.monotonic()
             share = done / self.total if self.total else 1.0
-            bar = "#" * int(30 * share)
-            self.stream.write(f"\r[{bar:<30}] {done}/{self.total} messages ({100 * share:.0f} %)"
-                              + ("\n" if final else ""))
+            bar = '#' * int(30 * share)
+            self.stream.write(
+                f'\r[{bar:<30}] {done}/{self.total} messages ({100 * share:.0f} %)'
+                + ('\n' if final else '')
+            )
             self.stream.flush()
 
 
-def estimate_bag(bag: str | Path, settings: NodeSettings | list[NodeSettings], out: str | Path, *,
-                 names: list[str] | None = None, combined: bool = False, storage: str | None = None,
-                 namespace: str | None = None, csv: str | Path | None = None, progress: bool = True) -> Summary:
-    """Write ``out``: the recording ``bag`` plus what the model node with ``settings`` would publish.
+def estimate_bag(
+    bag: str | Path,
+    settings: NodeSettings | list[NodeSettings],
+    out: str | Path,
+    *,
+    names: list[str] | None = None,
+    combined: bool = False,
+    storage: str | None = None,
+    namespace: str | None = None,
+    csv: str | Path | None = None,
+    progress: bool = True,
+) -> Summary:
+    """Write ``out``: the recording ``bag`` plus what the model node with ``settings`` would
+    publish.
 
     ``settings``: one muscle's, or every muscle's of a ``muscles:`` file, with their ``names`` and
     ``combined`` for ``input_mode: combined``; ``storage``: of ``out`` (default: the input's);
-    ``namespace``: of the muscles' topics (default: the only one in the bag); ``csv``: also write the
-    estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name).  Raises BagError (nothing
-    written) on bad input.
+    ``namespace``: of the muscles' topics (default: the only one in the bag); ``csv``: also write
+    the estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name).  Raises BagError
+    (nothing written) on bad input.
     """
     settings = [settings] if isinstance(settings, NodeSettings) else list(settings)
     names = list(names or [])
-    first, second = ("muscle_pressures", "muscle_states") if combined else \
-        ((f"{names[0]}/pressure", f"{names[0]}/muscle_state") if names else ("pressure", "muscle_state"))
+    first, second = (
+        ('muscle_pressures', 'muscle_states')
+        if combined
+        else (
+            (f'{names[0]}/pressure', f'{names[0]}/muscle_state')
+            if names
+            else ('pressure', 'muscle_state')
+        )
+    )
     with open_bag(bag) as reader:
         ns = muscle_namespace(reader, namespace, first, second)
         with BagWriter(out, storage or storage_of(bag)) as writer, _csv_rows(csv) as rows:

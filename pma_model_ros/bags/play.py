@@ -1,4 +1,5 @@
-"""``pma-model bag play``: publish a recording's messages with their recorded timing, like ``ros2 bag play``.
+"""``pma-model bag play``: publish a recording's messages with their recorded timing, like ``ros2
+bag play``.
 
 Each message is published, as its recorded CDR bytes (no conversion), on its topic (or
 its ``--remap`` target) at start + (log time - first log time) / rate, with the
@@ -8,6 +9,7 @@ offered QoS recorded in the bag; without one, sensor-data QoS for ``pressure`` a
 ``use_sim_time`` sees "now" = the log time of what it receives, as ``pma-model bag
 estimate`` assumes) and at ``clock`` Hz in between.  Only this module needs rclpy.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -18,37 +20,64 @@ from rosbags.interfaces import Connection
 
 from .bag_io import BagError, connections_of, messages, open_bag
 
-_SENSOR_TOPICS = ("pressure", "muscle_state")
-_FLUSH_TIMEOUT = 2.0   # [s] to wait for reliable subscribers' acks at the end
+_SENSOR_TOPICS = ('pressure', 'muscle_state')
+_FLUSH_TIMEOUT = 2.0  # [s] to wait for reliable subscribers' acks at the end
 _LINGER = 1.0  # [s] the player stays after its last message (best effort has no acknowledgement)
 
 
 def _message_class(msgtype: str) -> type:
-    package, _, name = msgtype.split("/")
+    package, _, name = msgtype.split('/')
     try:
-        return getattr(importlib.import_module(f"{package}.msg"), name)
+        return getattr(importlib.import_module(f'{package}.msg'), name)
     except (ImportError, AttributeError):
-        raise BagError(f"message type {msgtype} is not installed (ROS package {package})") from None
+        raise BagError(
+            f'message type {msgtype} is not installed (ROS package {package})'
+        ) from None
 
 
 def _qos(connection: Connection):
     """The rclpy QoS profile to publish ``connection`` with (module docstring)."""
-    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
+    from rclpy.qos import (
+        DurabilityPolicy,
+        HistoryPolicy,
+        qos_profile_sensor_data,
+        QoSProfile,
+        ReliabilityPolicy,
+    )
+
     offered = connection.ext.offered_qos_profiles
     if offered:
         q = offered[0]
-        known = {"SYSTEM_DEFAULT", "RELIABLE", "BEST_EFFORT", "VOLATILE", "TRANSIENT_LOCAL", "KEEP_LAST", "KEEP_ALL"}
+        known = {
+            'SYSTEM_DEFAULT',
+            'RELIABLE',
+            'BEST_EFFORT',
+            'VOLATILE',
+            'TRANSIENT_LOCAL',
+            'KEEP_LAST',
+            'KEEP_ALL',
+        }
         if {q.reliability.name, q.durability.name, q.history.name} <= known:
-            return QoSProfile(history=HistoryPolicy[q.history.name], depth=max(q.depth, 1),
-                              reliability=ReliabilityPolicy[q.reliability.name],
-                              durability=DurabilityPolicy[q.durability.name])
-    if connection.topic.rsplit("/", 1)[-1] in _SENSOR_TOPICS:
+            return QoSProfile(
+                history=HistoryPolicy[q.history.name],
+                depth=max(q.depth, 1),
+                reliability=ReliabilityPolicy[q.reliability.name],
+                durability=DurabilityPolicy[q.durability.name],
+            )
+    if connection.topic.rsplit('/', 1)[-1] in _SENSOR_TOPICS:
         return qos_profile_sensor_data
     return QoSProfile(depth=10)
 
 
-def play(bag, rate: float = 1.0, clock: float | None = None, topics: Collection[str] | None = None,
-         remaps: dict[str, str] | None = None, delay: float = 0.0, wait_for_subscribers: float = 0.0) -> int:
+def play(
+    bag,
+    rate: float = 1.0,
+    clock: float | None = None,
+    topics: Collection[str] | None = None,
+    remaps: dict[str, str] | None = None,
+    delay: float = 0.0,
+    wait_for_subscribers: float = 0.0,
+) -> int:
     """Publish the recording ``bag`` (module docstring); the number of messages published.
 
     ``rate``: speed factor; ``clock``: /clock frequency [Hz] between messages (None: no /clock);
@@ -59,15 +88,16 @@ def play(bag, rate: float = 1.0, clock: float | None = None, topics: Collection[
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rosgraph_msgs.msg import Clock
+
     remaps = remaps or {}
     with open_bag(bag) as reader:
         connections = connections_of(reader, topics)
         unknown = sorted(set(remaps) - {c.topic for c in connections})
         if unknown:
-            raise BagError(f"--remap of topics not played: {', '.join(unknown)}")
+            raise BagError(f'--remap of topics not played: {", ".join(unknown)}')
         classes = {c.msgtype: _message_class(c.msgtype) for c in connections}
         rclpy.init()
-        node = rclpy.create_node("pma_model_bag_player")
+        node = rclpy.create_node('pma_model_bag_player')
         try:
             publishers = {}
             for c in connections:
@@ -75,10 +105,20 @@ def play(bag, rate: float = 1.0, clock: float | None = None, topics: Collection[
                 if name not in publishers:
                     publishers[name] = node.create_publisher(classes[c.msgtype], name, _qos(c))
             routes = {c.id: publishers[remaps.get(c.topic, c.topic)] for c in connections}
-            clock_pub = node.create_publisher(Clock, "/clock", 1) if clock else None
+            clock_pub = node.create_publisher(Clock, '/clock', 1) if clock else None
             _wait_for_subscribers(publishers, wait_for_subscribers)
-            count = _publish(messages(reader, connections), routes, clock_pub, clock, rate, delay, reader.start_time)
-            time.sleep(_LINGER)   # best-effort samples still in flight reach their readers before the publishers go
+            count = _publish(
+                messages(reader, connections),
+                routes,
+                clock_pub,
+                clock,
+                rate,
+                delay,
+                reader.start_time,
+            )
+            time.sleep(
+                _LINGER
+            )  # best-effort samples still in flight reach their readers before the publishers go
             return count
         except (KeyboardInterrupt, ExternalShutdownException):
             return 0
@@ -94,16 +134,24 @@ def _wait_for_subscribers(publishers: dict, timeout: float) -> None:
         if not missing:
             return
         if time.monotonic() > deadline:
-            raise BagError(f"no subscriber after {timeout:g} s on {', '.join(sorted(missing))}")
+            raise BagError(f'no subscriber after {timeout:g} s on {", ".join(sorted(missing))}')
         time.sleep(0.01)
 
 
-def _publish(stream, routes: dict, clock_pub, clock_hz: float | None, rate: float, delay: float,
-             start_ns: int) -> int:
+def _publish(
+    stream,
+    routes: dict,
+    clock_pub,
+    clock_hz: float | None,
+    rate: float,
+    delay: float,
+    start_ns: int,
+) -> int:
     """Publish ``stream`` on ``routes`` in recorded time; the count."""
     from builtin_interfaces.msg import Time
     from rclpy.duration import Duration
     from rosgraph_msgs.msg import Clock
+
     last_clock = -1
 
     def tick(bag_ns: int) -> None:
@@ -115,7 +163,7 @@ def _publish(stream, routes: dict, clock_pub, clock_hz: float | None, rate: floa
     period = 1.0 / clock_hz if clock_hz else None
     tick(start_ns)
     wall0 = time.monotonic() + delay
-    while clock_pub is not None and time.monotonic() < wall0:   # the start time, during the delay
+    while clock_pub is not None and time.monotonic() < wall0:  # the start time, during the delay
         time.sleep(min(period, max(wall0 - time.monotonic(), 0.0)))
         clock_pub.publish(Clock(clock=Time(sec=start_ns // 10**9, nanosec=start_ns % 10**9)))
     if clock_pub is None and delay:

@@ -5,6 +5,7 @@ one muscle, :meth:`~pma_model_ros.core.muscle_model.Evaluator.operating_one`).  
 function costs about 1 us of call overhead, more than the arithmetic; these use :mod:`math` there,
 with numpy's results at the edges (NaN for a negative square root, inf for an overflowing exp).
 """
+
 from __future__ import annotations
 
 import math

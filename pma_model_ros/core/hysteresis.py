@@ -1,14 +1,17 @@
-"""Which hysteresis branch a muscle is on: a play operator (backlash) with memory and a deadband (no ROS).
+"""Which hysteresis branch a muscle is on: a play operator (backlash) with memory and a deadband
+(no ROS).
 
 The branch is +1 after the followed signal rose (lengthening, or filling) and -1 after it fell
-(shortening, or venting).  It changes only when the signal reverses by more than ``deadband`` from the
-extreme of its current run, is kept while the signal holds still, and is 0 (unknown) only before the
-signal first moved by more than the deadband.  Velocity noise around zero cannot flip it.
+(shortening, or venting).  It changes only when the signal reverses by more than ``deadband`` from
+the extreme of its current run, is kept while the signal holds still, and is 0 (unknown) only
+before the signal first moved by more than the deadband.  Velocity noise around zero cannot flip
+it.
 
-Sárosi's DMSP-10-100 loop follows the length (force against contraction); test rigs that fill and vent at
-a fixed length follow the pressure.  :func:`play` is the elementwise rule for floats and arrays (many
-muscles, one sample each); :func:`branches` runs it along a time series.
+Sárosi's DMSP-10-100 loop follows the length (force against contraction); test rigs that fill and
+vent at a fixed length follow the pressure.  :func:`play` is the elementwise rule for floats and
+arrays (many muscles, one sample each); :func:`branches` runs it along a time series.
 """
+
 from __future__ import annotations
 
 import math
@@ -17,20 +20,20 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 #: What a hysteresis model's branches follow.
-INPUTS = ("length", "pressure")
+INPUTS = ('length', 'pressure')
 
 
 def play(branch, anchor, value, deadband):
     """One step of the play operator: the new (branch, anchor) after the signal reads ``value``.
 
-    ``anchor`` is the extreme of the current run (NaN before the first sample); ``branch`` +1, -1 or 0.
-    Floats in, floats out (one muscle); arrays in, arrays out (elementwise).  A non-finite ``value``
-    changes nothing.
+    ``anchor`` is the extreme of the current run (NaN before the first sample); ``branch`` +1, -1
+    or 0. Floats in, floats out (one muscle); arrays in, arrays out (elementwise).  A non-finite
+    ``value`` changes nothing.
     """
     if isinstance(value, float):
         if not math.isfinite(value):
             return branch, anchor
-        if anchor != anchor:   # NaN: the first sample
+        if anchor != anchor:  # NaN: the first sample
             return branch, value
         if value - anchor > deadband and branch <= 0 or value > anchor and branch > 0:
             return 1.0, value
@@ -38,13 +41,23 @@ def play(branch, anchor, value, deadband):
             return -1.0, value
         return branch, anchor
     value = np.asarray(value, float)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid='ignore'):
         seen = np.isfinite(value)
         first = seen & np.isnan(anchor)
-        up = seen & ~first & ((value - anchor > deadband) & (branch <= 0) | (value > anchor) & (branch > 0))
-        down = seen & ~first & ((anchor - value > deadband) & (branch >= 0) | (value < anchor) & (branch < 0))
-    return (np.where(up, 1.0, np.where(down, -1.0, branch)),
-            np.where(first | up | down, value, anchor))
+        up = (
+            seen
+            & ~first
+            & ((value - anchor > deadband) & (branch <= 0) | (value > anchor) & (branch > 0))
+        )
+        down = (
+            seen
+            & ~first
+            & ((anchor - value > deadband) & (branch >= 0) | (value < anchor) & (branch < 0))
+        )
+    return (
+        np.where(up, 1.0, np.where(down, -1.0, branch)),
+        np.where(first | up | down, value, anchor),
+    )
 
 
 def branches(values: ArrayLike, deadband: float) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""Antagonistic joints: torque, stiffness and the two pressures of two muscles on one transmission (no ROS).
+"""Antagonistic joints: torque, stiffness and the two pressures of two muscles on one transmission
+(no ROS).
 
 Muscle 0 (the *positive* one) shortens for positive θ (REP-103: counter-clockwise about the joint
 axis), muscle 1 lengthens.  With the lever arm r(θ) [m] and its travel s(θ) = ∫₀^θ r dθ' [m]:
@@ -7,15 +8,17 @@ axis), muscle 1 lengthens.  With the lever arm r(θ) [m] and its travel s(θ) = 
     τ = r (F0 - F1)                                                       [N·m]
     K = -dτ/dθ = -r' (F0 - F1) + r² (dF0/dL + dF1/dL)                     [N·m/rad]
 
-dF/dL is analytic at fixed pressure (:func:`~pma_model_ros.core.models.coefficient_slopes`), and 0 where the
-served force does not change with length: a clipped (slack) muscle, or a length held at the edge of the
-lengths served (LENGTH_OUT_OF_RANGE, :meth:`~pma_model_ros.core.muscle_model.Evaluator.operating`).
+dF/dL is analytic at fixed pressure (:func:`~pma_model_ros.core.models.coefficient_slopes`), and 0
+where the served force does not change with length: a clipped (slack) muscle, or a length held at
+the edge of the lengths served (LENGTH_OUT_OF_RANGE,
+:meth:`~pma_model_ros.core.muscle_model.Evaluator.operating`).
 
-The forward model is vectorised over samples (:meth:`Joint.forward`); :class:`MuscleAt` is the float twin
-of one muscle at one length, used by the inverse and by joint_node per message.  The inverse
-(:meth:`Joint.pressures_one`) needs forces that do not fall with pressure (true of every shipped model
-inside its identified box, with the clip at 0 N).
+The forward model is vectorised over samples (:meth:`Joint.forward`); :class:`MuscleAt` is the
+float twin of one muscle at one length, used by the inverse and by joint_node per message.  The
+inverse (:meth:`Joint.pressures_one`) needs forces that do not fall with pressure (true of every
+shipped model inside its identified box, with the clip at 0 N).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -28,11 +31,12 @@ from scipy.optimize import brentq
 
 from .flags import Flag
 from .models import coefficient_slopes
-from .muscle_model import MuscleModel, force_at
+from .muscle_model import force_at, MuscleModel
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
-COCONTRACTION_MODES = ("min", "sum")
-#: Inverse results off the wanted torque or stiffness by more than this share of the joint's scale are SATURATED.
+COCONTRACTION_MODES = ('min', 'sum')
+#: Inverse results off the wanted torque or stiffness by more than this share of the joint's scale
+#: are SATURATED.
 TOLERANCE = 1e-9
 _SATURATED, _INVALID = int(Flag.SATURATED), int(Flag.INVALID_INPUT)
 
@@ -67,13 +71,15 @@ class Transmission:
 
 @dataclass(frozen=True)
 class Forward:
-    """Torque and stiffness at samples; ``forces``, ``slopes`` and ``flags`` stacked over the two muscles."""
+    """Torque and stiffness at samples; ``forces``, ``slopes`` and ``flags`` stacked over the two
+    muscles.
+    """
 
-    torque: np.ndarray     #: [N·m], positive counter-clockwise
+    torque: np.ndarray  #: [N·m], positive counter-clockwise
     stiffness: np.ndarray  #: K = -dτ/dθ [N·m/rad]
-    forces: np.ndarray     #: (2, ...) tensions [N]
-    slopes: np.ndarray     #: (2, ...) dF/dL [N/m]
-    flags: np.ndarray      #: (2, ...) uint16 Flag words of each muscle
+    forces: np.ndarray  #: (2, ...) tensions [N]
+    slopes: np.ndarray  #: (2, ...) dF/dL [N/m]
+    flags: np.ndarray  #: (2, ...) uint16 Flag words of each muscle
 
 
 @dataclass(frozen=True)
@@ -81,29 +87,41 @@ class Pressures:
     """One inverse solution at one angle; pressures are gauge [Pa] in [0, max_pressure]."""
 
     pressures: tuple[float, float]
-    flags: int                    #: SATURATED if the wanted torque or stiffness was out of reach
-    torque: float                 #: achieved torque [N·m] (the model's)
-    stiffness: float              #: achieved stiffness [N·m/rad]
-    torque_range: tuple[float, float]   #: reachable torque [N·m] at this angle under the co-contraction asked
+    flags: int  #: SATURATED if the wanted torque or stiffness was out of reach
+    torque: float  #: achieved torque [N·m] (the model's)
+    stiffness: float  #: achieved stiffness [N·m/rad]
+    #: reachable torque [N·m] at this angle under the co-contraction asked
+    torque_range: tuple[float, float]
 
 
 class MuscleAt:
-    """One muscle at one length, in plain floats: force, its length slope, and the inverse in pressure."""
+    """One muscle at one length, in plain floats: force, its length slope, and the inverse in
+    pressure.
+    """
 
-    __slots__ = ("flags", "q2", "q1", "q0", "d2", "d1", "d0", "p_top", "p_max")
+    __slots__ = ('flags', 'q2', 'q1', 'q0', 'd2', 'd1', 'd0', 'p_top', 'p_max')
 
-    def __init__(self, model: MuscleModel, theta: tuple[float, ...], length: float, rate: float) -> None:
+    def __init__(
+        self, model: MuscleModel, theta: tuple[float, ...], length: float, rate: float
+    ) -> None:
         self.flags, self.q2, self.q1, self.q0 = model.operating_one(length, rate)
-        self.p_top, self.p_max = model.limits.pressure_top, model.limits.command_top   # served, commanded [Pa]
+        self.p_top, self.p_max = (
+            model.limits.pressure_top,
+            model.limits.command_top,
+        )  # served, commanded [Pa]
         if self.flags & int(Flag.LENGTH_OUT_OF_RANGE):
             self.d2 = self.d1 = self.d0 = 0.0
         else:
             branch = math.copysign(1.0, rate) if rate and math.isfinite(rate) else 0.0
-            d2, d1, d0 = coefficient_slopes(model.model, theta, model.spec, model.domain, length, branch)
+            d2, d1, d0 = coefficient_slopes(
+                model.model, theta, model.spec, model.domain, length, branch
+            )
             self.d2, self.d1, self.d0 = float(d2), float(d1), float(d0)
 
     def force(self, p: float) -> float:
-        """Tension [N] at gauge ``p`` [Pa] held to the pressures served (:class:`~.muscle_model.Limits`)."""
+        """Tension [N] at gauge ``p`` [Pa] held to the pressures served
+        (:class:`~.muscle_model.Limits`).
+        """
         p = min(max(p, 0.0), self.p_top)
         return max((self.q2 * p + self.q1) * p + self.q0, 0.0)
 
@@ -115,8 +133,10 @@ class MuscleAt:
         return (self.d2 * p + self.d1) * p + self.d0
 
     def pressure(self, force: float, low: float = 0.0) -> float:
-        """The lowest gauge pressure [Pa] in [low, p_max] (the highest commanded) whose tension reaches ``force`` [N] (the bound
-        if none does).  Closed form (the rising root of q2 p² + q1 p + q0 = F), brentq where that fails."""
+        """The lowest gauge pressure [Pa] in [low, p_max] (the highest commanded) whose tension
+        reaches ``force`` [N] (the bound if none does).  Closed form (the rising root of q2 p² + q1
+        p + q0 = F), brentq where that fails.
+        """
         if force <= self.force(low):
             return low
         if force >= self.force(self.p_max):
@@ -129,7 +149,13 @@ class MuscleAt:
                 p = 2 * (force - q0) / denom
                 if low <= p <= self.p_max:
                     return p
-        return brentq(lambda p: self.force(p) - force, low, self.p_max, xtol=1e-9, rtol=4 * np.finfo(float).eps)
+        return brentq(
+            lambda p: self.force(p) - force,
+            low,
+            self.p_max,
+            xtol=1e-9,
+            rtol=4 * np.finfo(float).eps,
+        )
 
 
 @dataclass(frozen=True)
@@ -139,50 +165,71 @@ class Joint:
     name: str
     muscles: tuple[MuscleModel, MuscleModel]
     muscle_names: tuple[str, str]
-    length_at_zero: tuple[float, float]   #: each muscle's length at θ = 0 [m]
+    length_at_zero: tuple[float, float]  #: each muscle's length at θ = 0 [m]
     transmission: Transmission
-    limits: tuple[float, float]           #: joint range [rad]
+    limits: tuple[float, float]  #: joint range [rad]
 
     def __post_init__(self) -> None:
         low, high = self.limits
         if not (math.isfinite(low) and math.isfinite(high) and low < high):
-            raise ValueError(f"joint '{self.name}': limits must be finite [min, max] rad with min < max, "
-                             f"got {list(self.limits)}")
+            raise ValueError(
+                f"joint '{self.name}': limits must be finite [min, max] rad with min < max, "
+                f'got {list(self.limits)}'
+            )
         angles = np.linspace(low, high, 1001)
         radius = self.transmission.radius(angles)
         if not np.all(radius > 0):
             bad = float(angles[np.argmin(radius)])
-            raise ValueError(f"joint '{self.name}': lever arm r = {float(np.min(radius)):.4g} m at θ = {bad:.4g} rad; "
-                             "it must be > 0 m over the joint limits")
+            raise ValueError(
+                f"joint '{self.name}': lever arm r = {float(np.min(radius)):.4g} m at θ = "
+                f'{bad:.4g} rad; '
+                'it must be > 0 m over the joint limits'
+            )
         for k, length in enumerate(self.lengths(angles)):
             limit = self.muscles[k].max_length
             outside = ~((length > 0) & (length < limit))
             if outside.any():
                 i = int(np.argmax(outside))
-                raise ValueError(f"joint '{self.name}': muscle '{self.muscle_names[k]}' would be {length[i]:.4g} m "
-                                 f"long at θ = {angles[i]:.4g} rad, outside its geometry (0, {limit:.4g}) m")
-        object.__setattr__(self, "_thetas", tuple(tuple(m.theta.tolist()) for m in self.muscles))
+                raise ValueError(
+                    f"joint '{self.name}': muscle '{self.muscle_names[k]}' would be "
+                    f'{length[i]:.4g} m '
+                    f'long at θ = {angles[i]:.4g} rad, outside its geometry (0, {limit:.4g}) m'
+                )
+        object.__setattr__(self, '_thetas', tuple(tuple(m.theta.tolist()) for m in self.muscles))
 
     def lengths(self, theta: ArrayLike) -> tuple:
         """Each muscle's length [m] at ``theta`` [rad]."""
         s = self.transmission.travel(theta)
         return self.length_at_zero[0] - s, self.length_at_zero[1] + s
 
-    def forward(self, theta: ArrayLike, p0: ArrayLike, p1: ArrayLike, velocity: ArrayLike | None = None) -> Forward:
-        """Torque [N·m] and stiffness [N·m/rad] at angle ``theta`` [rad] and gauge pressures ``p0``, ``p1`` [Pa];
-        ``velocity`` [rad/s] picks the hysteresis branch of each muscle (None: unknown)."""
+    def forward(
+        self, theta: ArrayLike, p0: ArrayLike, p1: ArrayLike, velocity: ArrayLike | None = None
+    ) -> Forward:
+        """Torque [N·m] and stiffness [N·m/rad] at angle ``theta`` [rad] and gauge pressures
+        ``p0``, ``p1`` [Pa]; ``velocity`` [rad/s] picks the hysteresis branch of each muscle (None:
+        unknown).
+        """
         theta, p0, p1 = np.broadcast_arrays(*(np.asarray(x, float) for x in (theta, p0, p1)))
         r, r_slope = self.transmission.radius(theta), self.transmission.radius_slope(theta)
         forces, slopes, flags = [], [], []
         for k, (model, length, p) in enumerate(zip(self.muscles, self.lengths(theta), (p0, p1))):
-            rate = None if velocity is None else np.broadcast_to((r if k else -r) * np.asarray(velocity, float),
-                                                                  theta.shape)
+            rate = (
+                None
+                if velocity is None
+                else np.broadcast_to((r if k else -r) * np.asarray(velocity, float), theta.shape)
+            )
             op = model.operating(length, rate)
             result = force_at(op, p)
             branch = 0.0 if rate is None else np.where(np.isfinite(rate), np.sign(rate), 0.0)
             lim = model.limits
-            d2, d1, d0 = coefficient_slopes(model.model, model.theta, model.spec, model.domain,
-                                            np.clip(length, lim.length_low, lim.length_high), branch)
+            d2, d1, d0 = coefficient_slopes(
+                model.model,
+                model.theta,
+                model.spec,
+                model.domain,
+                np.clip(length, lim.length_low, lim.length_high),
+                branch,
+            )
             p_op = np.clip(p, 0.0, lim.pressure_top)
             pulls = (result.raw > 0) & ((op.flags & int(Flag.LENGTH_OUT_OF_RANGE)) == 0)
             forces.append(result.force)
@@ -190,21 +237,35 @@ class Joint:
             flags.append(result.flags)
         torque = r * (forces[0] - forces[1])
         stiffness = -r_slope * (forces[0] - forces[1]) + r * r * (slopes[0] + slopes[1])
-        return Forward(torque, stiffness, np.array(forces), np.array(slopes), np.array(flags, np.uint16))
+        return Forward(
+            torque, stiffness, np.array(forces), np.array(slopes), np.array(flags, np.uint16)
+        )
 
-    # --- float path: one angle ------------------------------------------------------------------------------
+    # --- float path: one angle
+    # ------------------------------------------------------------------------------
 
-    def at(self, theta: float, velocity: float = math.nan) -> tuple[MuscleAt, MuscleAt, float, float]:
-        """Both muscles at angle ``theta`` [rad] (velocity [rad/s] picks hysteresis branches), r [m], r' [m/rad]."""
+    def at(
+        self, theta: float, velocity: float = math.nan
+    ) -> tuple[MuscleAt, MuscleAt, float, float]:
+        """Both muscles at angle ``theta`` [rad] (velocity [rad/s] picks hysteresis branches), r
+        [m], r' [m/rad].
+        """
         r, r_slope = self.transmission.radius(theta), self.transmission.radius_slope(theta)
         l0, l1 = self.lengths(theta)
-        return (MuscleAt(self.muscles[0], self._thetas[0], l0, -r * velocity),
-                MuscleAt(self.muscles[1], self._thetas[1], l1, r * velocity), r, r_slope)
+        return (
+            MuscleAt(self.muscles[0], self._thetas[0], l0, -r * velocity),
+            MuscleAt(self.muscles[1], self._thetas[1], l1, r * velocity),
+            r,
+            r_slope,
+        )
 
     @staticmethod
-    def torque_stiffness(m0: MuscleAt, m1: MuscleAt, r: float, r_slope: float,
-                         p0: float, p1: float) -> tuple[float, float]:
-        """Torque [N·m] and stiffness [N·m/rad] of muscles at one angle (:meth:`at`) at gauge pressures [Pa]."""
+    def torque_stiffness(
+        m0: MuscleAt, m1: MuscleAt, r: float, r_slope: float, p0: float, p1: float
+    ) -> tuple[float, float]:
+        """Torque [N·m] and stiffness [N·m/rad] of muscles at one angle (:meth:`at`) at gauge
+        pressures [Pa].
+        """
         difference = m0.force(p0) - m1.force(p1)
         return r * difference, -r_slope * difference + r * r * (m0.slope(p0) + m1.slope(p1))
 
@@ -213,20 +274,30 @@ class Joint:
         m0, m1, r, _ = self.at(theta)
         return r * (m0.force(0.0) - m1.force(m1.p_max)), r * (m0.force(m0.p_max) - m1.force(0.0))
 
-    def pressures_one(self, theta: float, torque: float, cocontraction: float = 0.0, mode: str = "min",
-                      stiffness: float | None = None) -> Pressures:
-        """Gauge pressures [Pa] for the wanted ``torque`` [N·m] at ``theta`` [rad], with either a co-contraction
-        level [Pa] (``mode`` 'min': the lower pressure, closed form; 'sum': the pressure sum, brentq) or a wanted
-        ``stiffness`` [N·m/rad] (brentq along the pairs giving the torque).  Out of reach: the nearest reachable
-        level, torque, then stiffness, flagged SATURATED."""
+    def pressures_one(
+        self,
+        theta: float,
+        torque: float,
+        cocontraction: float = 0.0,
+        mode: str = 'min',
+        stiffness: float | None = None,
+    ) -> Pressures:
+        """Gauge pressures [Pa] for the wanted ``torque`` [N·m] at ``theta`` [rad], with either a
+        co-contraction level [Pa] (``mode`` 'min': the lower pressure, closed form; 'sum': the
+        pressure sum, brentq) or a wanted ``stiffness`` [N·m/rad] (brentq along the pairs giving
+        the torque).  Out of reach: the nearest reachable level, torque, then stiffness, flagged
+        SATURATED.
+        """
         if mode not in COCONTRACTION_MODES:
-            raise ValueError(f"co-contraction mode must be one of {COCONTRACTION_MODES}, got {mode!r}")
+            raise ValueError(
+                f'co-contraction mode must be one of {COCONTRACTION_MODES}, got {mode!r}'
+            )
         m0, m1, r, r_slope = self.at(theta)
-        want = torque / r   # wanted F0 - F1 [N]
+        want = torque / r  # wanted F0 - F1 [N]
         if stiffness is not None:
             p0, p1, span = _for_stiffness(m0, m1, r, r_slope, want, stiffness)
             level_ok = math.isfinite(stiffness)
-        elif mode == "min":
+        elif mode == 'min':
             p0, p1, span = _for_lower(m0, m1, want, cocontraction)
             level_ok = 0.0 <= cocontraction <= min(m0.p_max, m1.p_max)
         else:
@@ -236,31 +307,51 @@ class Joint:
         scale = r * (m0.force(m0.p_max) + m1.force(m1.p_max))
         flags = int(m0.flags | m1.flags)
         missed = abs(got - torque) > TOLERANCE * scale or (
-            stiffness is not None and abs(k - stiffness) > TOLERANCE * max(abs(stiffness), 1.0))
+            stiffness is not None and abs(k - stiffness) > TOLERANCE * max(abs(stiffness), 1.0)
+        )
         if missed or not (math.isfinite(torque) and level_ok):
             flags |= _SATURATED
         return Pressures((p0, p1), flags, got, k, (r * span[0], r * span[1]))
 
-    def pressures(self, theta: ArrayLike, torque: ArrayLike, cocontraction: ArrayLike = 0.0,
-                  mode: str = "min", stiffness: ArrayLike | None = None) -> list[Pressures]:
+    def pressures(
+        self,
+        theta: ArrayLike,
+        torque: ArrayLike,
+        cocontraction: ArrayLike = 0.0,
+        mode: str = 'min',
+        stiffness: ArrayLike | None = None,
+    ) -> list[Pressures]:
         """:meth:`pressures_one` of each sample of the broadcast inputs (flattened)."""
         level = stiffness if stiffness is not None else cocontraction
         arrays = np.broadcast_arrays(*(np.asarray(x, float) for x in (theta, torque, level)))
-        return [self.pressures_one(t, tau, None if stiffness is not None else c, mode,
-                                   c if stiffness is not None else None)
-                for t, tau, c in zip(*(a.ravel().tolist() for a in arrays))]
+        return [
+            self.pressures_one(
+                t,
+                tau,
+                None if stiffness is not None else c,
+                mode,
+                c if stiffness is not None else None,
+            )
+            for t, tau, c in zip(*(a.ravel().tolist() for a in arrays))
+        ]
 
 
-def _for_lower(m0: MuscleAt, m1: MuscleAt, want: float, level: float) -> tuple[float, float, tuple[float, float]]:
-    """The pair whose lower pressure is ``level`` [Pa] and whose F0 - F1 is ``want`` [N] (closed form)."""
+def _for_lower(
+    m0: MuscleAt, m1: MuscleAt, want: float, level: float
+) -> tuple[float, float, tuple[float, float]]:
+    """The pair whose lower pressure is ``level`` [Pa] and whose F0 - F1 is ``want`` [N] (closed
+    form).
+    """
     level = min(max(level, 0.0), m0.p_max, m1.p_max) if math.isfinite(level) else 0.0
     span = (m0.force(level) - m1.force(m1.p_max), m0.force(m0.p_max) - m1.force(level))
-    if want >= m0.force(level) - m1.force(level):   # muscle 0 pulls more: muscle 1 at the level
+    if want >= m0.force(level) - m1.force(level):  # muscle 0 pulls more: muscle 1 at the level
         return m0.pressure(m1.force(level) + want, level), level, span
     return level, m1.pressure(m0.force(level) - want, level), span
 
 
-def _for_sum(m0: MuscleAt, m1: MuscleAt, want: float, total: float) -> tuple[float, float, tuple[float, float]]:
+def _for_sum(
+    m0: MuscleAt, m1: MuscleAt, want: float, total: float
+) -> tuple[float, float, tuple[float, float]]:
     """The pair with p0 + p1 = ``total`` [Pa] and F0 - F1 = ``want`` [N] (brentq on p0)."""
     total = min(max(total, 0.0), m0.p_max + m1.p_max) if math.isfinite(total) else 0.0
     low, high = max(0.0, total - m1.p_max), min(total, m0.p_max)
@@ -279,19 +370,27 @@ def _for_sum(m0: MuscleAt, m1: MuscleAt, want: float, total: float) -> tuple[flo
     return p0, total - p0, span
 
 
-def _for_stiffness(m0: MuscleAt, m1: MuscleAt, r: float, r_slope: float, want: float,
-                   stiffness: float) -> tuple[float, float, tuple[float, float]]:
-    """The pair with F0 - F1 = ``want`` [N] whose stiffness is nearest ``stiffness`` [N·m/rad] (brentq along
-    the follower's pressure s; the leader, the muscle pulling more, takes the pressure giving the torque)."""
+def _for_stiffness(
+    m0: MuscleAt, m1: MuscleAt, r: float, r_slope: float, want: float, stiffness: float
+) -> tuple[float, float, tuple[float, float]]:
+    """The pair with F0 - F1 = ``want`` [N] whose stiffness is nearest ``stiffness`` [N·m/rad]
+    (brentq along the follower's pressure s; the leader, the muscle pulling more, takes the
+    pressure giving the torque).
+    """
     span = (m0.force(0.0) - m1.force(m1.p_max), m0.force(m0.p_max) - m1.force(0.0))
     leader, follower = (m0, m1) if want >= 0 else (m1, m0)
     need = abs(want)
-    if want > span[1] or want < span[0] or not math.isfinite(want):   # torque out of reach: the nearest bound
+    if (
+        want > span[1] or want < span[0] or not math.isfinite(want)
+    ):  # torque out of reach: the nearest bound
         ends = (leader.p_max, 0.0) if math.isfinite(want) else (0.0, 0.0)
         return (ends if want >= 0 else ends[::-1]) + (span,)
     s_low = follower.pressure(leader.force(0.0) - need)
-    s_high = follower.pressure(leader.force(leader.p_max) - need) if \
-        follower.force(follower.p_max) + need > leader.force(leader.p_max) else follower.p_max
+    s_high = (
+        follower.pressure(leader.force(leader.p_max) - need)
+        if follower.force(follower.p_max) + need > leader.force(leader.p_max)
+        else follower.p_max
+    )
 
     def pair(s: float) -> tuple[float, float]:
         lead = leader.pressure(follower.force(s) + need)
@@ -308,18 +407,30 @@ def _for_stiffness(m0: MuscleAt, m1: MuscleAt, r: float, r_slope: float, want: f
     return pair(s) + (span,)
 
 
-def envelope(joint: Joint, angles: Sequence[float], levels: Sequence[float] = ()) -> dict[str, np.ndarray]:
-    """Over ``angles`` [rad]: the reachable torque range [N·m] (``torque_min``/``torque_max``), the stiffness
-    [N·m/rad] with both muscles unpressurised and both at max_pressure, and the torque range at each lower-pressure
-    co-contraction level [Pa] of ``levels`` (``level_min``/``level_max``, shape (levels, angles))."""
-    out = {key: np.empty(len(angles)) for key in ("torque_min", "torque_max", "stiffness_low", "stiffness_high")}
-    out["level_min"], out["level_max"] = np.empty((len(levels), len(angles))), np.empty((len(levels), len(angles)))
+def envelope(
+    joint: Joint, angles: Sequence[float], levels: Sequence[float] = ()
+) -> dict[str, np.ndarray]:
+    """Over ``angles`` [rad]: the reachable torque range [N·m] (``torque_min``/``torque_max``), the
+    stiffness [N·m/rad] with both muscles unpressurised and both at max_pressure, and the torque
+    range at each lower-pressure co-contraction level [Pa] of ``levels``
+    (``level_min``/``level_max``, shape (levels, angles)).
+    """
+    out = {
+        key: np.empty(len(angles))
+        for key in ('torque_min', 'torque_max', 'stiffness_low', 'stiffness_high')
+    }
+    out['level_min'], out['level_max'] = (
+        np.empty((len(levels), len(angles))),
+        np.empty((len(levels), len(angles))),
+    )
     for i, theta in enumerate(angles):
         m0, m1, r, r_slope = joint.at(float(theta))
-        out["torque_min"][i], out["torque_max"][i] = joint.torque_range(float(theta))
-        out["stiffness_low"][i] = joint.torque_stiffness(m0, m1, r, r_slope, 0.0, 0.0)[1]
-        out["stiffness_high"][i] = joint.torque_stiffness(m0, m1, r, r_slope, m0.p_max, m1.p_max)[1]
+        out['torque_min'][i], out['torque_max'][i] = joint.torque_range(float(theta))
+        out['stiffness_low'][i] = joint.torque_stiffness(m0, m1, r, r_slope, 0.0, 0.0)[1]
+        out['stiffness_high'][i] = joint.torque_stiffness(m0, m1, r, r_slope, m0.p_max, m1.p_max)[
+            1
+        ]
         for j, level in enumerate(levels):
             low, high = _for_lower(m0, m1, 0.0, level)[2]
-            out["level_min"][j, i], out["level_max"][j, i] = r * low, r * high
+            out['level_min'][j, i], out['level_max'][j, i] = r * low, r * high
     return out

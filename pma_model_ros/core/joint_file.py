@@ -1,4 +1,5 @@
-"""Joint specs from ``ros__parameters`` (a YAML file or joint_node's ROS parameters); joint_node's parameter table.
+"""Joint specs from ``ros__parameters`` (a YAML file or joint_node's ROS parameters); joint_node's
+parameter table.
 
 Layout (SI units; ``config/example_joint.yaml``)::
 
@@ -9,9 +10,9 @@ Layout (SI units; ``config/example_joint.yaml``)::
           radius: [0.02]               # lever arm r(θ) = Σ radius[k] θ^k [m]; one entry: a pulley
           limits: [-1.0, 1.0]          # joint range [rad]
           muscles: [flexor, extensor]  # topic namespaces of the two muscles
-          positive: flexor             # the muscle that shortens for positive θ (REP-103: counter-clockwise)
-          flexor: {file: dmsp_10_250.yaml, length_at_zero: 0.224}
-          extensor:                    # or inline, as a single-muscle parameter file's keys
+          positive: flexor             # the muscle that shortens for positive θ (REP-103:
+          counter-clockwise) flexor: {file: dmsp_10_250.yaml, length_at_zero: 0.224} extensor:
+          # or inline, as a single-muscle parameter file's keys
             length_at_zero: 0.224
             muscle: {...}
             model: martens
@@ -19,9 +20,10 @@ Layout (SI units; ``config/example_joint.yaml``)::
             models: {...}
 
 A muscle's ``file`` is a single-muscle parameter file (``config/dmsp_10_250.yaml``), relative to
-``base`` (the joint file's directory, or joint_node's ``config_dir``); keys beside ``file`` (e.g. ``model``)
-override the file's.
+``base`` (the joint file's directory, or joint_node's ``config_dir``); keys beside ``file`` (e.g.
+``model``) override the file's.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -30,50 +32,111 @@ from .joint import Joint, Transmission
 from .node_parameters import ParameterSpec, SPECS
 from .param_file import muscle_model, read_parameters
 
-#: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle (``<joint>.<muscle>.``).
+#: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle
+#: (``<joint>.<muscle>.``).
 NODE_PARAMETERS: tuple[ParameterSpec, ...] = (
-    ParameterSpec("joints", "string[]", None, "names of the joints, each with its parameters under `<joint>.`",
-                  read_only=True),
-    ParameterSpec("config_dir", "string", "", "directory of relative muscle `file`s (empty: the working directory)",
-                  read_only=True),
-    SPECS["ambient_pressure"],
-    SPECS["max_input_age"],
+    ParameterSpec(
+        'joints',
+        'string[]',
+        None,
+        'names of the joints, each with its parameters under `<joint>.`',
+        read_only=True,
+    ),
+    ParameterSpec(
+        'config_dir',
+        'string',
+        '',
+        'directory of relative muscle `file`s (empty: the working directory)',
+        read_only=True,
+    ),
+    SPECS['ambient_pressure'],
+    SPECS['max_input_age'],
 )
 JOINT_PARAMETERS: tuple[ParameterSpec, ...] = (
-    ParameterSpec("radius", "double[]", None, "lever arm r(θ) = Σ radius[k] θ^k (one entry: pulley radius)", "m"),
-    ParameterSpec("limits", "double[]", None, "[min, max] joint angle", "rad"),
-    ParameterSpec("muscles", "string[]", None, "the two muscles' names (topic namespaces)", read_only=True),
-    ParameterSpec("positive", "string", None, "the muscle that shortens for positive θ (REP-103: counter-clockwise)"),
-    ParameterSpec("cocontraction", "double", 100e3, "co-contraction level of torque commands until a "
-                  "`cocontraction_command` or `stiffness_command` arrives", "Pa gauge", (0.0, 1e7)),
-    ParameterSpec("cocontraction_mode", "string", "min", "what the level is: `min` (the lower pressure) or `sum` "
-                  "(the pressure sum)", choices=("min", "sum")),
+    ParameterSpec(
+        'radius',
+        'double[]',
+        None,
+        'lever arm r(θ) = Σ radius[k] θ^k (one entry: pulley radius)',
+        'm',
+    ),
+    ParameterSpec('limits', 'double[]', None, '[min, max] joint angle', 'rad'),
+    ParameterSpec(
+        'muscles', 'string[]', None, "the two muscles' names (topic namespaces)", read_only=True
+    ),
+    ParameterSpec(
+        'positive',
+        'string',
+        None,
+        'the muscle that shortens for positive θ (REP-103: counter-clockwise)',
+    ),
+    ParameterSpec(
+        'cocontraction',
+        'double',
+        100e3,
+        'co-contraction level of torque commands until a '
+        '`cocontraction_command` or `stiffness_command` arrives',
+        'Pa gauge',
+        (0.0, 1e7),
+    ),
+    ParameterSpec(
+        'cocontraction_mode',
+        'string',
+        'min',
+        'what the level is: `min` (the lower pressure) or `sum` (the pressure sum)',
+        choices=('min', 'sum'),
+    ),
 )
 MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = (
-    ParameterSpec("file", "string", "", "single-muscle parameter file (empty: the muscle's parameters inline, "
-                  "as in that file, under `<joint>.<muscle>.`)"),
-    ParameterSpec("length_at_zero", "double", None, "the muscle's length at θ = 0", "m", (0.0, 10.0)),
+    ParameterSpec(
+        'file',
+        'string',
+        '',
+        "single-muscle parameter file (empty: the muscle's parameters inline, "
+        'as in that file, under `<joint>.<muscle>.`)',
+    ),
+    ParameterSpec(
+        'length_at_zero', 'double', None, "the muscle's length at θ = 0", 'm', (0.0, 10.0)
+    ),
 )
 
 
 def joint(name: str, parameters: dict, base: Path) -> Joint:
-    """One joint from its ``<name>:`` block (nested mapping); ValueError names the joint and the problem."""
+    """One joint from its ``<name>:`` block (nested mapping); ValueError names the joint and the
+    problem.
+    """
     where = f"joint '{name}'"
     if not isinstance(parameters, dict):
         raise ValueError(f"{where}: no parameters under '{name}:'")
-    radius = parameters.get("radius")
-    radius = [radius] if isinstance(radius, (int, float)) and not isinstance(radius, bool) else radius
-    limits, names, positive = parameters.get("limits"), parameters.get("muscles"), parameters.get("positive")
+    radius = parameters.get('radius')
+    radius = (
+        [radius] if isinstance(radius, (int, float)) and not isinstance(radius, bool) else radius
+    )
+    limits, names, positive = (
+        parameters.get('limits'),
+        parameters.get('muscles'),
+        parameters.get('positive'),
+    )
     if not (isinstance(radius, list) and radius and all(_number(v) for v in radius)):
-        raise ValueError(f"{where}: radius must be a list of numbers [m] (polynomial coefficients), got {radius!r}")
+        raise ValueError(
+            f'{where}: radius must be a list of numbers [m] (polynomial coefficients), got '
+            f'{radius!r}'
+        )
     if not (isinstance(limits, list) and len(limits) == 2 and all(_number(v) for v in limits)):
-        raise ValueError(f"{where}: limits must be [min, max] in rad, got {limits!r}")
-    if not (isinstance(names, list) and len(names) == 2 and all(isinstance(n, str) and n for n in names)
-            and names[0] != names[1]):
-        raise ValueError(f"{where}: muscles must be two different names, got {names!r}")
+        raise ValueError(f'{where}: limits must be [min, max] in rad, got {limits!r}')
+    if not (
+        isinstance(names, list)
+        and len(names) == 2
+        and all(isinstance(n, str) and n for n in names)
+        and names[0] != names[1]
+    ):
+        raise ValueError(f'{where}: muscles must be two different names, got {names!r}')
     if positive not in names:
-        raise ValueError(f"{where}: positive must name the muscle that shortens for positive θ, one of {names}, "
-                         f"got {positive!r}")
+        raise ValueError(
+            f'{where}: positive must name the muscle that shortens for positive θ, one of '
+            f'{names}, '
+            f'got {positive!r}'
+        )
     ordered = names if positive == names[0] else names[::-1]
     models, zero = [], []
     for muscle in ordered:
@@ -84,17 +147,29 @@ def joint(name: str, parameters: dict, base: Path) -> Joint:
             models.append(_muscle(block, base))
         except (ValueError, OSError) as err:
             raise ValueError(f"{where}, muscle '{muscle}': {err}") from None
-        length = block.get("length_at_zero")
+        length = block.get('length_at_zero')
         if not (_number(length) and 0 < length <= 10):
-            raise ValueError(f"{where}, muscle '{muscle}': length_at_zero must be a length in m, got {length!r}")
+            raise ValueError(
+                f"{where}, muscle '{muscle}': length_at_zero must be a length in m, got {length!r}"
+            )
         zero.append(float(length))
-    return Joint(name, tuple(models), tuple(ordered), tuple(zero), Transmission(tuple(float(v) for v in radius)),
-                 (float(limits[0]), float(limits[1])))
+    return Joint(
+        name,
+        tuple(models),
+        tuple(ordered),
+        tuple(zero),
+        Transmission(tuple(float(v) for v in radius)),
+        (float(limits[0]), float(limits[1])),
+    )
 
 
 def _muscle(block: dict, base: Path):
-    file = block.get("file") or ""
-    own = {k: v for k, v in block.items() if k not in ("file", "length_at_zero") and v not in (None, "")}
+    file = block.get('file') or ''
+    own = {
+        k: v
+        for k, v in block.items()
+        if k not in ('file', 'length_at_zero') and v not in (None, '')
+    }
     if not file:
         return muscle_model(own)
     path = Path(file) if Path(file).is_absolute() else base / file
@@ -106,16 +181,18 @@ def _number(value: object) -> bool:
 
 
 def joints(parameters: dict, base: Path) -> list[Joint]:
-    """Every joint of ``parameters`` (nested ``ros__parameters``), names from its ``joints`` list."""
-    names = parameters.get("joints")
+    """Every joint of ``parameters`` (nested ``ros__parameters``), names from its ``joints``
+    list.
+    """
+    names = parameters.get('joints')
     if not (isinstance(names, list) and names and all(isinstance(n, str) and n for n in names)):
-        raise ValueError(f"joints must be a non-empty list of joint names, got {names!r}")
+        raise ValueError(f'joints must be a non-empty list of joint names, got {names!r}')
     if len(set(names)) != len(names):
-        raise ValueError(f"joints: duplicate names in {names}")
+        raise ValueError(f'joints: duplicate names in {names}')
     result = [joint(name, parameters.get(name), base) for name in names]
     muscles = [m for j in result for m in j.muscle_names]
     if len(set(muscles)) != len(muscles):
-        raise ValueError(f"two joints share a muscle name: {muscles}")
+        raise ValueError(f'two joints share a muscle name: {muscles}')
     return result
 
 

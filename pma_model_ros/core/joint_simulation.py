@@ -1,77 +1,105 @@
 """A simulated antagonistic joint whose muscle forces are their measured force maps (no ROS).
 
-Two muscles on a lever arm r(θ) (:class:`~pma_model_ros.core.joint.Transmission`), muscle 0 shortening for
-positive θ; each muscle's tension is the ground truth of its shipped map (:class:`~.ground_truth.GroundTruth`,
-a pchip of the measurement, pressures held to the measured 5..650 kPa for DMSP-10-250) and its gauge
-pressure follows the command with a first-order lag.  The angle is either held (a test bench: it moves
-only when told, :meth:`SimulatedJoint.hold`) or driven by a link, I θ'' = τ - c θ', stopped at the limits.
-None of the identified models is used: what joint_node estimates is judged against data.
+Two muscles on a lever arm r(θ) (:class:`~pma_model_ros.core.joint.Transmission`), muscle 0
+shortening for positive θ; each muscle's tension is the ground truth of its shipped map
+(:class:`~.simulation.GroundTruth`, a pchip of the measurement, pressures held to the measured
+5..650 kPa for DMSP-10-250) and its gauge pressure follows the command with a first-order lag.  The
+angle is either held (a test bench: it moves only when told, :meth:`SimulatedJoint.hold`) or driven
+by a link, I θ'' = τ - c θ', stopped at the limits. None of the identified models is used: what
+joint_node estimates is judged against data.
 """
+
 from __future__ import annotations
 
 import math
 
-from .force_map import MAPPED_MUSCLES, shipped_force_map
-from .ground_truth import GroundTruth
 from .joint import Transmission
 from .node_parameters import SPECS, STANDARD_ATMOSPHERE
+from .shipped_data import MAPPED_MUSCLES, shipped_force_map
+from .simulation import GroundTruth
 
-MODES = ("held", "link")
-#: name: (default, description, (min, max) or None); joint_simulator_node declares each as a parameter.
+MODES = ('held', 'link')
+#: name: (default, description, (min, max) or None); joint_simulator_node declares each as a
+#: parameter.
 PARAMETERS = {
-    "joint_name": ("elbow", "JointState entry of the joint", None),
-    "muscles": (["flexor", "extensor"], "the two muscles' topic namespaces; the first shortens for positive θ",
-                None),
-    "maps": (["DMSP-10-250", "DMSP-10-250"], f"each muscle's measured map, the truth: {', '.join(MAPPED_MUSCLES)}",
-             None),
-    "radius": ([0.015], "lever arm r(θ) = Σ radius[k] θ^k [m]", None),
-    "length_at_zero": ([0.234, 0.234], "each muscle's length at θ = 0 [m]", None),
-    "limits": ([-1.0, 1.0], "joint range [rad]: the link stops there", None),
-    "mode": ("held", f"angle: {' or '.join(MODES)} (held: set by angle_command; link: I θ'' = τ - c θ')", None),
-    "angle": (0.0, "initial angle [rad]", (-10.0, 10.0)),
-    "inertia": (0.01, "link inertia about the joint axis [kg m^2]", (1e-6, 1e3)),
-    "damping": (0.1, "link viscous damping [N·m·s/rad]", (0.0, 1e3)),
-    "rate": (200.0, "publishing and integration rate [Hz] (each step evaluates two pchip maps, about 0.9 ms)",
-             (1.0, 1000.0)),
-    "ambient_pressure": (STANDARD_ATMOSPHERE, "ambient pressure [Pa absolute]", SPECS["ambient_pressure"].limits),
-    "pressure_time_constant": (0.05, "first-order time constant toward the commanded pressure [s]", (0.0, 60.0)),
+    'joint_name': ('elbow', 'JointState entry of the joint', None),
+    'muscles': (
+        ['flexor', 'extensor'],
+        "the two muscles' topic namespaces; the first shortens for positive θ",
+        None,
+    ),
+    'maps': (
+        ['DMSP-10-250', 'DMSP-10-250'],
+        f"each muscle's measured map, the truth: {', '.join(MAPPED_MUSCLES)}",
+        None,
+    ),
+    'radius': ([0.015], 'lever arm r(θ) = Σ radius[k] θ^k [m]', None),
+    'length_at_zero': ([0.234, 0.234], "each muscle's length at θ = 0 [m]", None),
+    'limits': ([-1.0, 1.0], 'joint range [rad]: the link stops there', None),
+    'mode': (
+        'held',
+        f"angle: {' or '.join(MODES)} (held: set by angle_command; link: I θ'' = τ - c θ')",
+        None,
+    ),
+    'angle': (0.0, 'initial angle [rad]', (-10.0, 10.0)),
+    'inertia': (0.01, 'link inertia about the joint axis [kg m^2]', (1e-6, 1e3)),
+    'damping': (0.1, 'link viscous damping [N·m·s/rad]', (0.0, 1e3)),
+    'rate': (
+        200.0,
+        'publishing and integration rate [Hz] (each step evaluates two pchip maps, about 0.9 ms)',
+        (1.0, 1000.0),
+    ),
+    'ambient_pressure': (
+        STANDARD_ATMOSPHERE,
+        'ambient pressure [Pa absolute]',
+        SPECS['ambient_pressure'].limits,
+    ),
+    'pressure_time_constant': (
+        0.05,
+        'first-order time constant toward the commanded pressure [s]',
+        (0.0, 60.0),
+    ),
 }
 
 
 class SimulatedJoint:
-    """The simulated joint; ``params`` as :data:`PARAMETERS`, times in s, pressures gauge [Pa] inside."""
+    """The simulated joint; ``params`` as :data:`PARAMETERS`, times in s, pressures gauge [Pa]
+    inside.
+    """
 
     def __init__(self, params: dict[str, object], start: float) -> None:
-        if params["mode"] not in MODES:
+        if params['mode'] not in MODES:
             raise ValueError(f"parameter 'mode' must be one of {MODES}, got {params['mode']!r}")
-        for name in ("muscles", "maps", "length_at_zero", "limits"):
+        for name in ('muscles', 'maps', 'length_at_zero', 'limits'):
             if len(params[name]) != 2:
                 raise ValueError(f"parameter '{name}' needs two entries, got {list(params[name])}")
-        if not params["radius"]:
+        if not params['radius']:
             raise ValueError("parameter 'radius' needs at least one coefficient [m]")
-        self.truths = tuple(GroundTruth(shipped_force_map(str(m))) for m in params["maps"])
-        self.transmission = Transmission(tuple(float(c) for c in params["radius"]))
+        self.truths = tuple(GroundTruth(shipped_force_map(str(m))) for m in params['maps'])
+        self.transmission = Transmission(tuple(float(c) for c in params['radius']))
         self.params = params
-        self.angle, self.velocity = float(params["angle"]), 0.0
-        self.pressures = [0.0, 0.0]           # gauge [Pa]
+        self.angle, self.velocity = float(params['angle']), 0.0
+        self.pressures = [0.0, 0.0]  # gauge [Pa]
         self._targets = [0.0, 0.0]
         self._last = start
 
     def command(self, k: int, absolute: float) -> None:
         """Muscle ``k``'s pressure command [Pa absolute]; non-finite values are ignored."""
         if math.isfinite(absolute):
-            self._targets[k] = absolute - float(self.params["ambient_pressure"])
+            self._targets[k] = absolute - float(self.params['ambient_pressure'])
 
     def hold(self, angle: float) -> None:
-        """Move the held joint to ``angle`` [rad] (kept within the limits; ignored by a link or if non-finite)."""
-        if self.params["mode"] == "held" and math.isfinite(angle):
-            low, high = self.params["limits"]
+        """Move the held joint to ``angle`` [rad] (kept within the limits; ignored by a link or if
+        non-finite).
+        """
+        if self.params['mode'] == 'held' and math.isfinite(angle):
+            low, high = self.params['limits']
             self.angle = min(max(angle, low), high)
 
     def forces(self) -> tuple[float, float]:
         """Each muscle's measured-map tension [N] at the present angle and pressures."""
         s = self.transmission.travel(self.angle)
-        lengths = (self.params["length_at_zero"][0] - s, self.params["length_at_zero"][1] + s)
+        lengths = (self.params['length_at_zero'][0] - s, self.params['length_at_zero'][1] + s)
         return tuple(float(t.force(p, L)) for t, p, L in zip(self.truths, self.pressures, lengths))
 
     def torque(self) -> float:
@@ -82,15 +110,17 @@ class SimulatedJoint:
     def step(self, now: float) -> float:
         """Advance to ``now`` [s]; the torque [N·m] there."""
         dt, self._last = max(now - self._last, 0.0), now
-        tau = self.params["pressure_time_constant"]
+        tau = self.params['pressure_time_constant']
         share = 1.0 - math.exp(-dt / tau) if tau > 0 else 1.0
         for k in (0, 1):
             self.pressures[k] += (self._targets[k] - self.pressures[k]) * share
         torque = self.torque()
-        if self.params["mode"] == "link" and dt > 0:   # semi-implicit Euler
-            self.velocity += (torque - self.params["damping"] * self.velocity) / self.params["inertia"] * dt
+        if self.params['mode'] == 'link' and dt > 0:  # semi-implicit Euler
+            self.velocity += (
+                (torque - self.params['damping'] * self.velocity) / self.params['inertia'] * dt
+            )
             self.angle += self.velocity * dt
-            low, high = self.params["limits"]
+            low, high = self.params['limits']
             if not low <= self.angle <= high:
                 self.angle, self.velocity = min(max(self.angle, low), high), 0.0
             torque = self.torque()

@@ -11,6 +11,7 @@ Equation numbers refer to Martens & Boblan, Actuators 2017 ("eq. N") and to
 Sárosi, "Modelling hysteresis in the force characteristic of the fluidic
 muscles" ("Sárosi eq. N").  Start points are the paper's Table 1.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,8 +21,8 @@ from typing import Callable
 import numpy as np
 
 from . import elementwise as ew
-from . import muscle as geo
-from .muscle import MuscleSpec
+from . import geometry as geo
+from .geometry import MuscleSpec
 
 Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -30,27 +31,34 @@ Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
 class Domain:
     """What a model was identified on, and how it is served outside that.
 
-    Inside [length_min, length_max] x [0, pressure_max] the model is served as identified.  Outside, if
-    ``extrapolates`` (its held-out error on the map's edge lengths is at most ``EDGE_CV_LIMIT``), the
-    model's own value is served in the physical envelope (the braid's shortest length to L0, 0 to the
-    rated pressure), flagged EXTRAPOLATED; otherwise the value at the nearest identified point, flagged
-    LENGTH_OUT_OF_RANGE or PRESSURE_OUT_OF_RANGE (:meth:`~.muscle_model.Evaluator.operating`).
+    Inside [length_min, length_max] x [0, pressure_max] the model is served as identified.
+    Outside, if ``extrapolates`` (its held-out error on the map's edge lengths is at most
+    ``EDGE_CV_LIMIT``), the model's own value is served in the physical envelope (the braid's
+    shortest length to L0, 0 to the rated pressure), flagged EXTRAPOLATED; otherwise the value at
+    the nearest identified point, flagged LENGTH_OUT_OF_RANGE or PRESSURE_OUT_OF_RANGE
+    (:meth:`~.muscle_model.Evaluator.operating`).
     """
 
-    length_min: float                  #: [m]
-    length_max: float                  #: [m]
-    pressure_max: float = math.inf     #: highest identified gauge pressure [Pa]; inf: unknown (the rated one)
-    extrapolates: bool = False         #: the model is credible outside the identified box
+    length_min: float  #: [m]
+    length_max: float  #: [m]
+    #: highest identified gauge pressure [Pa]; inf: unknown (the rated one)
+    pressure_max: float = math.inf
+    extrapolates: bool = False  #: the model is credible outside the identified box
 
     def __post_init__(self) -> None:
         if not (0 < self.length_min < self.length_max):
-            raise ValueError(f"length range must satisfy 0 < min < max, got [{self.length_min}, {self.length_max}]")
+            raise ValueError(
+                f'length range must satisfy 0 < min < max, got [{self.length_min}, '
+                f'{self.length_max}]'
+            )
         if not self.pressure_max > 0:
-            raise ValueError(f"identified pressure range must reach above 0 Pa, got {self.pressure_max}")
+            raise ValueError(
+                f'identified pressure range must reach above 0 Pa, got {self.pressure_max}'
+            )
 
 
-#: [%] Worst held-out error (eq. 23) on the map's shortest and longest lengths up to which a model is trusted
-#: outside its identified data (:class:`Domain`).
+#: [%] Worst held-out error (eq. 23) on the map's shortest and longest lengths up to which a model
+#: is trusted outside its identified data (:class:`Domain`).
 EDGE_CV_LIMIT = 10.0
 
 
@@ -84,18 +92,21 @@ class Model:
         """Return ``theta`` as a float array, or raise ValueError naming the model."""
         try:
             values = np.asarray(theta, dtype=float) if _is_number_list(theta) else None
-        except OverflowError:   # an int beyond float range, as YAML reads 400 digits
+        except OverflowError:  # an int beyond float range, as YAML reads 400 digits
             values = None
         if values is None or values.shape != (self.n_params,) or not np.all(np.isfinite(values)):
-            raise ValueError(f"model {self.name!r} needs {self.n_params} finite parameters "
-                             f"{list(self.param_names)}, got {theta!r}")
+            raise ValueError(
+                f'model {self.name!r} needs {self.n_params} finite parameters '
+                f'{list(self.param_names)}, got {theta!r}'
+            )
         return values
 
 
 def _is_number_list(theta: object) -> bool:
     items = theta.tolist() if isinstance(theta, np.ndarray) else theta
     return isinstance(items, (list, tuple)) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in items)
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in items
+    )
 
 
 def _zeros(length: np.ndarray) -> np.ndarray:
@@ -119,7 +130,9 @@ def _andrikopoulos(theta, spec, domain, length, branch) -> Coefficients:
     """
     c0, c1 = theta
     th0 = spec.fiber_angle
-    shape = 3 / ew.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / ew.sin(th0) ** 2
+    shape = (
+        3 / ew.tan(th0) ** 2 * (1 - c1 * _contraction(spec, length)) ** 2 - 1 / ew.sin(th0) ** 2
+    )
     return _zeros(length), c0 * math.pi * spec.inner_diameter**2 / 4 * shape, _zeros(length)
 
 
@@ -180,31 +193,95 @@ def _martens(theta, spec, domain, length, branch) -> Coefficients:
     angle = spec.fiber_angle + d0
     modulus = ((c3 * length + c2) * length + c1) * length + c0
     dia, dia_slope, volume_slope = geo.braid(spec, length, angle)
-    f_pe = modulus * (dia - spec.inner_diameter) / spec.inner_diameter * spec.membrane_thickness * length * math.pi
-    f_l = modulus * (length - spec.nominal_length) / spec.nominal_length * spec.membrane_thickness * math.pi * dia
+    f_pe = (
+        modulus
+        * (dia - spec.inner_diameter)
+        / spec.inner_diameter
+        * spec.membrane_thickness
+        * length
+        * math.pi
+    )
+    f_l = (
+        modulus
+        * (length - spec.nominal_length)
+        / spec.nominal_length
+        * spec.membrane_thickness
+        * math.pi
+        * dia
+    )
     return _zeros(length), -volume_slope, f_pe * dia_slope - f_l
 
 
 _BIG = 1e12
-MODELS: dict[str, Model] = {m.name: m for m in (
-    Model("mckibben", "eq. 17", (), (), (), (), _mckibben),
-    Model("andrikopoulos", "eq. 18", ("c0", "c1"), (1e-5, 1e-5), (0.0, 0.0), (10.0, 10.0), _andrikopoulos),
-    Model("wickramatunge", "eq. 21", ("c0", "c1", "c2", "c3"), (1.0, 1.0, 1e-5, 1e-10),
-          (-_BIG,) * 4, (_BIG,) * 4, _wickramatunge),
-    Model("hildebrandt", "eq. 20", ("c0", "c1", "c2", "d0", "d1", "d2", "d3", "d4"),
-          (1e-5, 1e-5, 1e-5, 1.0, 1.0, 1.0, 1.0, 1.0), (-_BIG,) * 8, (_BIG,) * 8, _hildebrandt),
-    Model("sarosi", "eq. 19", ("c0", "c1", "c2", "d0", "d1", "d2"), (1e-5, 1.0, 1.0, 1e-5, 1e-5, 1.0),
-          (-_BIG, -_BIG, -100.0, -_BIG, -_BIG, -_BIG), (_BIG, _BIG, 100.0, _BIG, _BIG, _BIG), _sarosi),
-    Model("martens", "eqs. 14-16", ("c0", "c1", "c2", "c3", "d0"), (1e6, 1e6, 1e6, 1e6, 0.0),
-          (-_BIG,) * 4 + (-0.35,), (_BIG,) * 4 + (0.35,), _martens),
-    Model("sarosi_hysteresis", "Sárosi eq. 3, upper and lower branch",
-          tuple(f"{b}_{n}" for b in ("upper", "lower") for n in ("c0", "c1", "c2", "d0", "d1", "d2")),
-          (), (), (), _sarosi_hysteresis, hysteresis=True),
-)}
+MODELS: dict[str, Model] = {
+    m.name: m
+    for m in (
+        Model('mckibben', 'eq. 17', (), (), (), (), _mckibben),
+        Model(
+            'andrikopoulos',
+            'eq. 18',
+            ('c0', 'c1'),
+            (1e-5, 1e-5),
+            (0.0, 0.0),
+            (10.0, 10.0),
+            _andrikopoulos,
+        ),
+        Model(
+            'wickramatunge',
+            'eq. 21',
+            ('c0', 'c1', 'c2', 'c3'),
+            (1.0, 1.0, 1e-5, 1e-10),
+            (-_BIG,) * 4,
+            (_BIG,) * 4,
+            _wickramatunge,
+        ),
+        Model(
+            'hildebrandt',
+            'eq. 20',
+            ('c0', 'c1', 'c2', 'd0', 'd1', 'd2', 'd3', 'd4'),
+            (1e-5, 1e-5, 1e-5, 1.0, 1.0, 1.0, 1.0, 1.0),
+            (-_BIG,) * 8,
+            (_BIG,) * 8,
+            _hildebrandt,
+        ),
+        Model(
+            'sarosi',
+            'eq. 19',
+            ('c0', 'c1', 'c2', 'd0', 'd1', 'd2'),
+            (1e-5, 1.0, 1.0, 1e-5, 1e-5, 1.0),
+            (-_BIG, -_BIG, -100.0, -_BIG, -_BIG, -_BIG),
+            (_BIG, _BIG, 100.0, _BIG, _BIG, _BIG),
+            _sarosi,
+        ),
+        Model(
+            'martens',
+            'eqs. 14-16',
+            ('c0', 'c1', 'c2', 'c3', 'd0'),
+            (1e6, 1e6, 1e6, 1e6, 0.0),
+            (-_BIG,) * 4 + (-0.35,),
+            (_BIG,) * 4 + (0.35,),
+            _martens,
+        ),
+        Model(
+            'sarosi_hysteresis',
+            'Sárosi eq. 3, upper and lower branch',
+            tuple(
+                f'{b}_{n}'
+                for b in ('upper', 'lower')
+                for n in ('c0', 'c1', 'c2', 'd0', 'd1', 'd2')
+            ),
+            (),
+            (),
+            (),
+            _sarosi_hysteresis,
+            hysteresis=True,
+        ),
+    )
+}
 # Tondu-Lopez (Sárosi eq. 2) is the same function as eq. 18: one implementation, two names.
-ALIASES = {"tondu_lopez": "andrikopoulos"}
+ALIASES = {'tondu_lopez': 'andrikopoulos'}
 # The models of the paper's Table 3, in its column order.
-TABLE3_MODELS = ("mckibben", "andrikopoulos", "wickramatunge", "hildebrandt", "sarosi", "martens")
+TABLE3_MODELS = ('mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 
 
 def get_model(name: object) -> Model:
@@ -213,22 +290,30 @@ def get_model(name: object) -> Model:
     key = ALIASES.get(key, key)
     if key not in MODELS:
         known = sorted(MODELS) + sorted(ALIASES)
-        raise ValueError(f"unknown model {name!r}; known models: {', '.join(known)}")
+        raise ValueError(f'unknown model {name!r}; known models: {", ".join(known)}')
     return MODELS[key]
 
 
-def force_raw(model: Model, theta: np.ndarray, spec: MuscleSpec, domain: Domain,
-              pressure: np.ndarray, length: np.ndarray, branch: np.ndarray | float = 0.0) -> np.ndarray:
+def force_raw(
+    model: Model,
+    theta: np.ndarray,
+    spec: MuscleSpec,
+    domain: Domain,
+    pressure: np.ndarray,
+    length: np.ndarray,
+    branch: np.ndarray | float = 0.0,
+) -> np.ndarray:
     """Unclipped model force F_raw(p, L) [N]; negative where the muscle would push."""
     pressure, length = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
     q2, q1, q0 = model.coefficients(theta, spec, domain, length, branch)
     return (q2 * pressure + q1) * pressure + q0
 
 
-# --- Length derivatives of the coefficients (joint stiffness, pma_model_ros.core.joint) -----------------------
-# Each returns (dq2/dL, dq1/dL, dq0/dL) with the arguments of ``Model.coefficients``: analytic, so that
-# dF/dL = dq2/dL p^2 + dq1/dL p + dq0/dL at fixed pressure.  Checked against finite differences in
-# test/test_core_models.py.
+# --- Length derivatives of the coefficients (joint stiffness, pma_model_ros.core.joint)
+# ----------------------- Each returns (dq2/dL, dq1/dL, dq0/dL) with the arguments of
+# ``Model.coefficients``: analytic, so that dF/dL = dq2/dL p^2 + dq1/dL p + dq0/dL at fixed
+# pressure.  Checked against finite differences in test/test_core_models.py.
+
 
 def _mckibben_slopes(theta, spec, domain, length, branch) -> Coefficients:
     """q1 = -dV/dL = -(L_F^2 - 3 L^2) / (4 pi n^2): dq1/dL = 6 L / (4 pi n^2)."""
@@ -239,8 +324,17 @@ def _mckibben_slopes(theta, spec, domain, length, branch) -> Coefficients:
 def _andrikopoulos_slopes(theta, spec, domain, length, branch) -> Coefficients:
     c0, c1 = theta
     th0 = spec.fiber_angle
-    factor = 1 - c1 * _contraction(spec, length)   # d kappa / dL = -1 / L0
-    slope = c0 * math.pi * spec.inner_diameter**2 / 4 * 6 * c1 * factor / (ew.tan(th0) ** 2 * spec.nominal_length)
+    factor = 1 - c1 * _contraction(spec, length)  # d kappa / dL = -1 / L0
+    slope = (
+        c0
+        * math.pi
+        * spec.inner_diameter**2
+        / 4
+        * 6
+        * c1
+        * factor
+        / (ew.tan(th0) ** 2 * spec.nominal_length)
+    )
     return _zeros(length), slope, _zeros(length)
 
 
@@ -275,7 +369,9 @@ def _wickramatunge_slopes(theta, spec, domain, length, branch) -> Coefficients:
 
 
 def _martens_slopes(theta, spec, domain, length, branch) -> Coefficients:
-    """Product rule on q0 = F_PE dD/dL - F_L, with d2D/dL2 = -L_F^2 / (n pi root^3), root = sqrt(L_F^2 - L^2)."""
+    """Product rule on q0 = F_PE dD/dL - F_L, with d2D/dL2 = -L_F^2 / (n pi root^3), root =
+    sqrt(L_F^2 - L^2).
+    """
     c0, c1, c2, c3, d0 = theta
     angle = spec.fiber_angle + d0
     lf, n = geo.fiber_length(spec, angle), geo.turns(spec, angle)
@@ -283,24 +379,50 @@ def _martens_slopes(theta, spec, domain, length, branch) -> Coefficients:
     modulus_slope = (3 * c3 * length + 2 * c2) * length + c1
     dia, dia_slope, _ = geo.braid(spec, length, angle)
     root = ew.sqrt(lf**2 - length**2)
-    dia_curve = -lf**2 / (n * math.pi * root**3)
+    dia_curve = -(lf**2) / (n * math.pi * root**3)
     d0_, h0, l0 = spec.inner_diameter, spec.membrane_thickness, spec.nominal_length
     f_pe = modulus * (dia - d0_) / d0_ * h0 * length * math.pi
-    f_pe_slope = math.pi * h0 / d0_ * (modulus_slope * (dia - d0_) * length + modulus * dia_slope * length
-                                       + modulus * (dia - d0_))
-    f_l_slope = math.pi * h0 / l0 * (modulus_slope * (length - l0) * dia + modulus * dia
-                                     + modulus * (length - l0) * dia_slope)
-    return _zeros(length), 6 * length / (4 * math.pi * n**2), f_pe_slope * dia_slope + f_pe * dia_curve - f_l_slope
+    f_pe_slope = (
+        math.pi
+        * h0
+        / d0_
+        * (
+            modulus_slope * (dia - d0_) * length
+            + modulus * dia_slope * length
+            + modulus * (dia - d0_)
+        )
+    )
+    f_l_slope = (
+        math.pi
+        * h0
+        / l0
+        * (
+            modulus_slope * (length - l0) * dia
+            + modulus * dia
+            + modulus * (length - l0) * dia_slope
+        )
+    )
+    return (
+        _zeros(length),
+        6 * length / (4 * math.pi * n**2),
+        f_pe_slope * dia_slope + f_pe * dia_curve - f_l_slope,
+    )
 
 
 #: model name -> analytic (dq2/dL, dq1/dL, dq0/dL), same arguments as ``Model.coefficients``.
 SLOPES: dict[str, Callable[..., Coefficients]] = {
-    "mckibben": _mckibben_slopes, "andrikopoulos": _andrikopoulos_slopes, "wickramatunge": _wickramatunge_slopes,
-    "hildebrandt": _hildebrandt_slopes, "sarosi": _sarosi_slopes, "martens": _martens_slopes,
-    "sarosi_hysteresis": _sarosi_hysteresis_slopes,
+    'mckibben': _mckibben_slopes,
+    'andrikopoulos': _andrikopoulos_slopes,
+    'wickramatunge': _wickramatunge_slopes,
+    'hildebrandt': _hildebrandt_slopes,
+    'sarosi': _sarosi_slopes,
+    'martens': _martens_slopes,
+    'sarosi_hysteresis': _sarosi_hysteresis_slopes,
 }
 
 
-def coefficient_slopes(model: Model, theta, spec: MuscleSpec, domain: Domain, length, branch=0.0) -> Coefficients:
+def coefficient_slopes(
+    model: Model, theta, spec: MuscleSpec, domain: Domain, length, branch=0.0
+) -> Coefficients:
     """(dq2/dL, dq1/dL, dq0/dL) of ``model`` at ``length`` [m]: [N/(Pa^2 m)], [N/(Pa m)], [N/m]."""
     return SLOPES[model.name](theta, spec, domain, length, branch)

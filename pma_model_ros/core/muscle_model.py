@@ -9,6 +9,7 @@ in two: the length-dependent :class:`Operating` (coefficients and flags, once pe
 new length) and :func:`force_at` (per pressure); :meth:`MuscleModel.operating_one`
 is the float twin of the first for one message of one muscle.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
@@ -18,90 +19,127 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import muscle as geo
+from . import geometry as geo
 from .flags import Flag
+from .geometry import MuscleSpec
 from .models import Domain, Model
-from .muscle import MuscleSpec
 
 
 @dataclass(frozen=True)
 class ForceResult:
-    force: np.ndarray      #: physical tension [N], >= 0; NaN only where INVALID_INPUT
-    raw: np.ndarray        #: model value [N] at the operating point, before clipping at 0 N
-    flags: np.ndarray      #: uint16 Flag words
+    force: np.ndarray  #: physical tension [N], >= 0; NaN only where INVALID_INPUT
+    raw: np.ndarray  #: model value [N] at the operating point, before clipping at 0 N
+    flags: np.ndarray  #: uint16 Flag words
 
 
 @dataclass(frozen=True)
 class PressureResult:
-    pressure: np.ndarray   #: gauge pressure [Pa] in [0, max_pressure]; NaN only where INVALID_INPUT
-    flags: np.ndarray      #: uint16 Flag words
+    pressure: np.ndarray  #: gauge pressure [Pa] in [0, max_pressure]; NaN only where INVALID_INPUT
+    flags: np.ndarray  #: uint16 Flag words
 
 
-_INVALID, _LENGTH_OUT, _PRESSURE_OUT, _CLIPPED, _SATURATED, _BRANCH_UNKNOWN, _EXTRAPOLATED, _BELOW_AMBIENT = (
-    int(f) for f in (Flag.INVALID_INPUT, Flag.LENGTH_OUT_OF_RANGE, Flag.PRESSURE_OUT_OF_RANGE, Flag.CLIPPED,
-                     Flag.SATURATED, Flag.BRANCH_UNKNOWN, Flag.EXTRAPOLATED, Flag.BELOW_AMBIENT))
+(
+    _INVALID,
+    _LENGTH_OUT,
+    _PRESSURE_OUT,
+    _CLIPPED,
+    _SATURATED,
+    _BRANCH_UNKNOWN,
+    _EXTRAPOLATED,
+    _BELOW_AMBIENT,
+) = (
+    int(f)
+    for f in (
+        Flag.INVALID_INPUT,
+        Flag.LENGTH_OUT_OF_RANGE,
+        Flag.PRESSURE_OUT_OF_RANGE,
+        Flag.CLIPPED,
+        Flag.SATURATED,
+        Flag.BRANCH_UNKNOWN,
+        Flag.EXTRAPOLATED,
+        Flag.BELOW_AMBIENT,
+    )
+)
 
 
-#: [Pa] Gauge pressures this far below 0 are a vented muscle or sensor noise: served as 0 Pa, unflagged.
+#: [Pa] Gauge pressures this far below 0 are a vented muscle or sensor noise: served as 0 Pa,
+#: unflagged.
 VENTED_BAND = 10e3
 
 
 @dataclass(frozen=True)
 class Limits:
-    """Where a muscle is served (:class:`~.models.Domain`): floats for one muscle, arrays of n for a group."""
+    """Where a muscle is served (:class:`~.models.Domain`): floats for one muscle, arrays of n for
+    a group.
+    """
 
-    length_low: np.ndarray | float      #: shortest length served [m]: the braid's shortest if it extrapolates
-    length_high: np.ndarray | float     #: longest length served [m] (at most L0)
-    pressure_known: np.ndarray | float  #: highest identified gauge pressure [Pa]; EXTRAPOLATED above
-    pressure_top: np.ndarray | float    #: highest gauge pressure served [Pa]
-    command_top: np.ndarray | float     #: highest gauge pressure the inverse commands [Pa]: never above the rated
+    #: shortest length served [m]: the braid's shortest if it extrapolates
+    length_low: np.ndarray | float
+    length_high: np.ndarray | float  #: longest length served [m] (at most L0)
+    #: highest identified gauge pressure [Pa]; EXTRAPOLATED above
+    pressure_known: np.ndarray | float
+    pressure_top: np.ndarray | float  #: highest gauge pressure served [Pa]
+    #: highest gauge pressure the inverse commands [Pa]: never above the rated
+    command_top: np.ndarray | float
 
 
 def limits_of(spec, domain, shortest) -> Limits:
-    """:class:`Limits` of a spec and domain (numbers or arrays) whose braid's shortest length is ``shortest``."""
+    """:class:`Limits` of a spec and domain (numbers or arrays) whose braid's shortest length is
+    ``shortest``.
+    """
     wide = np.asarray(domain.extrapolates, bool)
     rated = np.asarray(spec.max_pressure, float)
     known = np.where(np.isfinite(domain.pressure_max), domain.pressure_max, rated)
     top = np.where(wide, np.maximum(rated, known), known)
-    return Limits(np.where(wide, shortest, domain.length_min),
-                  np.where(wide, spec.nominal_length, np.minimum(domain.length_max, spec.nominal_length)),
-                  known, top, np.minimum(rated, top))
+    return Limits(
+        np.where(wide, shortest, domain.length_min),
+        np.where(wide, spec.nominal_length, np.minimum(domain.length_max, spec.nominal_length)),
+        known,
+        top,
+        np.minimum(rated, top),
+    )
 
 
 @dataclass(frozen=True)
 class Operating:
-    """What the force at given lengths needs besides the pressure: F_raw = (q2 p + q1) p + q0 at the operating length.
+    """What the force at given lengths needs besides the pressure: F_raw = (q2 p + q1) p + q0 at
+    the operating length.
 
     ``usable`` is False where the length is no length of the muscle (INVALID_INPUT in ``flags``);
     ``flags`` also holds LENGTH_OUT_OF_RANGE, EXTRAPOLATED (of the length) and BRANCH_UNKNOWN.
     """
 
     usable: np.ndarray
-    flags: np.ndarray        #: uint16 Flag words of the length and branch
-    q2: np.ndarray           #: [N/Pa^2]
-    q1: np.ndarray           #: [N/Pa]
-    q0: np.ndarray           #: [N]
-    limits: Limits           #: pressures served and commanded
+    flags: np.ndarray  #: uint16 Flag words of the length and branch
+    q2: np.ndarray  #: [N/Pa^2]
+    q1: np.ndarray  #: [N/Pa]
+    q0: np.ndarray  #: [N]
+    limits: Limits  #: pressures served and commanded
 
 
 def force_at(op: Operating, pressure: ArrayLike) -> ForceResult:
     """Tension [N] at gauge ``pressure`` [Pa] (broadcast against ``op``).
 
-    The pressure is held to [0, pressure_top] (PRESSURE_OUT_OF_RANGE where that moved it, except within
-    ``VENTED_BAND`` below 0: a vented muscle; BELOW_AMBIENT below that band); EXTRAPOLATED above the
-    identified pressures.
+    The pressure is held to [0, pressure_top] (PRESSURE_OUT_OF_RANGE where that moved it, except
+    within ``VENTED_BAND`` below 0: a vented muscle; BELOW_AMBIENT below that band); EXTRAPOLATED
+    above the identified pressures.
     """
     p = np.asarray(pressure, float)
     lim = op.limits
-    with np.errstate(invalid="ignore", over="ignore"):
+    with np.errstate(invalid='ignore', over='ignore'):
         usable = op.usable & np.isfinite(p)
         p_op = np.clip(p, 0.0, lim.pressure_top)
         raw = np.where(usable, (op.q2 * p_op + op.q1) * p_op + op.q0, np.nan)
         moved = (p_op != p) & ~((p < 0) & (p >= -VENTED_BAND))
-        flags = np.where(usable, op.flags | np.where(moved, _PRESSURE_OUT, 0) | np.where(raw < 0, _CLIPPED, 0)
-                         | np.where(p < -VENTED_BAND, _BELOW_AMBIENT, 0)
-                         | np.where(p_op > lim.pressure_known, _EXTRAPOLATED, 0),
-                         op.flags | _INVALID).astype(np.uint16)
+        flags = np.where(
+            usable,
+            op.flags
+            | np.where(moved, _PRESSURE_OUT, 0)
+            | np.where(raw < 0, _CLIPPED, 0)
+            | np.where(p < -VENTED_BAND, _BELOW_AMBIENT, 0)
+            | np.where(p_op > lim.pressure_known, _EXTRAPOLATED, 0),
+            op.flags | _INVALID,
+        ).astype(np.uint16)
         return ForceResult(np.maximum(raw, 0.0), raw, flags)
 
 
@@ -124,23 +162,28 @@ class Evaluator:
         return limits_of(self.spec, self.domain, geo.shortest_length(self.spec))
 
     def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
-        """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see :class:`Operating`).
+        """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see
+        :class:`Operating`).
 
-        The geometry needs 0 < L < max_length (else INVALID_INPUT).  The model is evaluated at the length
-        held inside the lengths served (LENGTH_OUT_OF_RANGE where that moved it): the identified range, or,
-        if the model extrapolates credibly, the physical envelope (EXTRAPOLATED outside the identified range;
-        :class:`~.models.Domain`).  ``length_rate`` [m/s] picks the hysteresis branch (+1 lengthening,
-        -1 shortening, 0 unknown: BRANCH_UNKNOWN).  Computed once per new length and reused for every
-        pressure at it (:func:`force_at`).
+        The geometry needs 0 < L < max_length (else INVALID_INPUT).  The model is evaluated at the
+        length held inside the lengths served (LENGTH_OUT_OF_RANGE where that moved it): the
+        identified range, or, if the model extrapolates credibly, the physical envelope
+        (EXTRAPOLATED outside the identified range;
+        :class:`~.models.Domain`).  ``length_rate`` [m/s] picks the hysteresis branch (+1
+        lengthening, -1 shortening, 0 unknown: BRANCH_UNKNOWN).  Computed once per new length and
+        reused for every pressure at it (:func:`force_at`).
         """
         L = np.asarray(length, float)
         lim = self.limits
-        with np.errstate(invalid="ignore", over="ignore"):
-            usable = (L > 0) & (L < self.max_length)   # False for NaN
+        with np.errstate(invalid='ignore', over='ignore'):
+            usable = (L > 0) & (L < self.max_length)  # False for NaN
             at = np.where(usable, np.clip(L, lim.length_low, lim.length_high), lim.length_high)
             outside = (at < self.domain.length_min) | (at > self.domain.length_max)
-            flags = np.where(usable, np.where(at != L, _LENGTH_OUT, 0) | np.where(outside, _EXTRAPOLATED, 0),
-                             _INVALID)
+            flags = np.where(
+                usable,
+                np.where(at != L, _LENGTH_OUT, 0) | np.where(outside, _EXTRAPOLATED, 0),
+                _INVALID,
+            )
             branch = 0.0
             if self.model.hysteresis:
                 if length_rate is not None:
@@ -152,43 +195,61 @@ class Evaluator:
             q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
         return Operating(usable, flags.astype(np.uint16), q2, q1, q0, lim)
 
-    def force(self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> ForceResult:
-        """Tension [N] at gauge pressure [Pa] and length [m]; ``length_rate`` [m/s] picks the hysteresis branch.
+    def force(
+        self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None
+    ) -> ForceResult:
+        """Tension [N] at gauge pressure [Pa] and length [m]; ``length_rate`` [m/s] picks the
+        hysteresis branch.
 
-        Outside the identified data the model's own value where it extrapolates credibly (EXTRAPOLATED),
-        else the value at the nearest point served (LENGTH_OUT_OF_RANGE, PRESSURE_OUT_OF_RANGE):
+        Outside the identified data the model's own value where it extrapolates credibly
+        (EXTRAPOLATED), else the value at the nearest point served (LENGTH_OUT_OF_RANGE,
+        PRESSURE_OUT_OF_RANGE):
         :meth:`operating` and :func:`force_at`.
         """
         p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
-        return force_at(self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)), p)
+        return force_at(
+            self.operating(
+                L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)
+            ),
+            p,
+        )
 
-    def pressure(self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None) -> PressureResult:
-        """Gauge pressure [Pa] that gives tension ``force`` [N] at ``length`` [m] (:func:`pressure_for`)."""
+    def pressure(
+        self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None
+    ) -> PressureResult:
+        """Gauge pressure [Pa] that gives tension ``force`` [N] at ``length`` [m]
+        (:func:`pressure_for`).
+        """
         F, L = np.broadcast_arrays(np.asarray(force, float), np.asarray(length, float))
-        op = self.operating(L, None if length_rate is None else np.broadcast_to(length_rate, L.shape))
+        op = self.operating(
+            L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)
+        )
         return pressure_for(op, F)
 
 
 def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
-    """The inverse of :func:`force_at`: gauge pressure [Pa] in [0, p_max] giving tension ``force`` [N].
+    """The inverse of :func:`force_at`: gauge pressure [Pa] in [0, p_max] giving tension ``force``
+    [N].
 
-    p_max is the rated pressure (or the highest identified one, for a model that does not extrapolate;
+    p_max is the rated pressure (or the highest identified one, for a model that does not
+    extrapolate;
     :class:`Limits`); above the identified pressures the answer is flagged EXTRAPOLATED.  At fixed
     length every model is f(p) = q2 p^2 + q1 p + q0, of either sign of q2 and q1.  The
     answer is the smallest root of f(p) = max(force, 0) in [0, p_max] (so a force <= 0 gives
     the pressure at which the muscle starts to pull).  Where no root lies there, it is the pressure
-    of the nearest reachable force, flagged SATURATED: a bound or the vertex -q1 / (2 q2) (the peak of
-    a concave model, the trough of a convex one), whichever has the model force nearest the target
-    (the smaller pressure on a tie).
+    of the nearest reachable force, flagged SATURATED: a bound or the vertex -q1 / (2 q2) (the peak
+    of a concave model, the trough of a convex one), whichever has the model force nearest the
+    target (the smaller pressure on a tie).
     """
     F = np.asarray(force, float)
     p_max = op.limits.command_top
     usable = op.usable & np.isfinite(F)
     target = np.where(usable, np.maximum(F, 0.0), 0.0)
     q2, q1, c = op.q2, op.q1, op.q0 - target
-    slack = 1e-9 * p_max   # round-off at the bounds is not out of reach
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        # Both roots without cancellation (Numerical Recipes 5.6): Q = -(q1 + sgn(q1) sqrt(disc)) / 2.
+    slack = 1e-9 * p_max  # round-off at the bounds is not out of reach
+    with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+        # Both roots without cancellation (Numerical Recipes 5.6): Q = -(q1 + sgn(q1) sqrt(disc)) /
+        # 2.
         disc = q1 * q1 - 4 * q2 * c
         big = -0.5 * (q1 + np.copysign(np.sqrt(disc), q1))
         roots = np.stack(np.broadcast_arrays(big / q2, c / big))
@@ -203,8 +264,11 @@ def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
         served = np.maximum((q2 * p + q1) * p + op.q0, 0.0)
         short = ~reached & (np.abs(served - target) > 1e-9 * np.maximum(target, 1.0))
         beyond = p > op.limits.pressure_known
-    flags = np.where(usable, op.flags | np.where(short, _SATURATED, 0) | np.where(beyond, _EXTRAPOLATED, 0),
-                     op.flags | _INVALID).astype(np.uint16)
+    flags = np.where(
+        usable,
+        op.flags | np.where(short, _SATURATED, 0) | np.where(beyond, _EXTRAPOLATED, 0),
+        op.flags | _INVALID,
+    ).astype(np.uint16)
     return PressureResult(np.where(usable, p, np.nan), flags)
 
 
@@ -218,7 +282,7 @@ class MuscleModel(Evaluator):
     domain: Domain
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "theta", self.model.check_params(self.theta))
+        object.__setattr__(self, 'theta', self.model.check_params(self.theta))
 
     @cached_property
     def max_length(self) -> float:
@@ -237,7 +301,8 @@ class MuscleModel(Evaluator):
         return tuple(self.theta.tolist())
 
     def operating_one(self, length: float, length_rate: float) -> tuple[int, float, float, float]:
-        """:meth:`operating` of one valid length [m] (0 < L < max_length) in plain floats: (flags, q2, q1, q0).
+        """:meth:`operating` of one valid length [m] (0 < L < max_length) in plain floats: (flags,
+        q2, q1, q0).
 
         The float twin of the vector rule, for one message at a time, where numpy's per-call
         overhead would cost more than the arithmetic; ``length_rate`` NaN: unknown.
@@ -247,8 +312,12 @@ class MuscleModel(Evaluator):
         flags = _LENGTH_OUT if operating != length else 0
         if operating < domain.length_min or operating > domain.length_max:
             flags |= _EXTRAPOLATED
-        branch = math.copysign(1.0, length_rate) if length_rate and math.isfinite(length_rate) else 0.0
+        branch = (
+            math.copysign(1.0, length_rate) if length_rate and math.isfinite(length_rate) else 0.0
+        )
         if branch == 0.0 and self.model.hysteresis:
             flags |= _BRANCH_UNKNOWN
-        q2, q1, q0 = self.model.coefficients(self._theta, self.spec, self.domain, operating, branch)
+        q2, q1, q0 = self.model.coefficients(
+            self._theta, self.spec, self.domain, operating, branch
+        )
         return flags, float(q2), float(q1), float(q0)

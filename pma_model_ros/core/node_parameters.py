@@ -3,9 +3,10 @@
 Each row gives a parameter's name, type, default, unit, range and description.  The node declares
 its ROS parameters (descriptors with ranges, read-only flags) from it
 (:mod:`pma_model_ros.nodes.model_params`), the core checks values against the same ranges
-(:meth:`ParameterSpec.check`, used by :class:`~pma_model_ros.core.engine.Config` and the engine), and
-the README's parameter table is :func:`markdown_table` (a test compares them).
+(:meth:`ParameterSpec.check`, used by :class:`~pma_model_ros.core.engine.Config` and the engine),
+and the README's parameter table is :func:`markdown_table` (a test compares them).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -17,13 +18,14 @@ from .models import MODELS
 #: Standard atmosphere [Pa absolute]: the default ambient pressure.
 STANDARD_ATMOSPHERE = 101325.0
 #: Pairing rules of the engine (see :mod:`pma_model_ros.core.engine`).
-PAIRINGS = ("every_input", "approximate_time")
+PAIRINGS = ('every_input', 'approximate_time')
 #: Input modes of a node serving several muscles.
-INPUT_MODES = ("per_muscle", "combined")
+INPUT_MODES = ('per_muscle', 'combined')
 #: Executors a node can spin on (see :mod:`pma_model_ros.nodes.startup`).
-EXECUTORS = ("single", "events")
-#: What a FluidPressure's ``fluid_pressure`` holds: absolute (the message's definition) or gauge pressure.
-PRESSURE_REFERENCES = ("absolute", "gauge")
+EXECUTORS = ('single', 'events')
+#: What a FluidPressure's ``fluid_pressure`` holds: absolute (the message's definition) or gauge
+#: pressure.
+PRESSURE_REFERENCES = ('absolute', 'gauge')
 
 
 @dataclass(frozen=True)
@@ -31,106 +33,296 @@ class ParameterSpec:
     """One parameter: ``default`` None means required (from the parameter file)."""
 
     name: str
-    kind: str                 #: ``double``, ``string``, ``bool``, ``double[]`` or ``string[]``
+    kind: str  #: ``double``, ``string``, ``bool``, ``double[]`` or ``string[]``
     default: object
     description: str
-    unit: str = ""
-    limits: tuple[float, float] | None = None    #: inclusive [min, max]
+    unit: str = ''
+    limits: tuple[float, float] | None = None  #: inclusive [min, max]
     choices: tuple[str, ...] = ()
     per_muscle: bool = False  #: with ``muscles:``, under ``<name>.``; else node-wide
-    read_only: bool = False   #: fixed at start-up
+    read_only: bool = False  #: fixed at start-up
 
     def check(self, value: object) -> object:
-        """``value`` if it is one of this parameter's; else ValueError naming the parameter, its range and unit."""
-        if self.kind == "double":
+        """``value`` if it is one of this parameter's; else ValueError naming the parameter, its
+        range and unit.
+        """
+        if self.kind == 'double':
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"parameter '{self.name}' must be a number [{self.unit}], got {value!r}")
+                raise ValueError(
+                    f"parameter '{self.name}' must be a number [{self.unit}], got {value!r}"
+                )
             low, high = self.limits or (-math.inf, math.inf)
-            if not low <= value <= high:   # NaN too
-                raise ValueError(f"parameter '{self.name}' must be in [{low:g}, {high:g}] {self.unit}, got {value!r}")
+            if not low <= value <= high:  # NaN too
+                raise ValueError(
+                    f"parameter '{self.name}' must be in [{low:g}, {high:g}] {self.unit}, got "
+                    f'{value!r}'
+                )
             return float(value)
         if self.choices and value not in self.choices:
-            noun = self.name.rsplit("_", 1)[-1]
-            raise ValueError(f"parameter '{self.name}': unknown {noun} {value!r}; one of {', '.join(self.choices)}")
+            noun = self.name.rsplit('_', 1)[-1]
+            raise ValueError(
+                f"parameter '{self.name}': unknown {noun} {value!r}; one of "
+                f'{", ".join(self.choices)}'
+            )
         return value
 
 
-_MODEL_NAMES = ", ".join(MODELS)
+_MODEL_NAMES = ', '.join(MODELS)
 #: Every parameter of model_node, in the README's order.
 PARAMETERS: tuple[ParameterSpec, ...] = (
-    ParameterSpec("muscles", "string[]", [], "names of the muscles this node serves, each with the per-muscle "
-                  "parameters under `<name>.` (empty: one muscle, parameters at the top level)", read_only=True),
-    ParameterSpec("input_mode", "string", "per_muscle", "with `muscles`: `per_muscle` (topics under `<name>/`) or "
-                  "`combined` (one JointState of every muscle per topic)", choices=INPUT_MODES, read_only=True),
-    ParameterSpec("muscle.name", "string", None, "catalogue name of the muscle, e.g. DMSP-10-250", per_muscle=True),
-    ParameterSpec("muscle.nominal_length", "double", None, "initial (unpressurised) length L0", "m", (0.0, 10.0),
-                  per_muscle=True),
-    ParameterSpec("muscle.inner_diameter", "double", None, "initial inner diameter D0", "m", (0.0, 1.0),
-                  per_muscle=True),
-    ParameterSpec("muscle.membrane_thickness", "double", None, "initial membrane thickness H0", "m", (0.0, 1.0),
-                  per_muscle=True),
-    ParameterSpec("muscle.fiber_angle", "double", None, "initial braid angle Θ0 to the muscle axis", "rad",
-                  (0.0, math.pi / 2), per_muscle=True),
-    ParameterSpec("muscle.max_pressure", "double", None, "rated gauge pressure; the inverse never commands more",
-                  "Pa gauge", (0.0, 5e6), per_muscle=True),
-    ParameterSpec("model", "string", None, f"force model in use, a key of `models`: {_MODEL_NAMES}",
-                  per_muscle=True),
-    ParameterSpec("length_range", "double[]", None, "[min, max] length the models were identified on (validity "
-                  "domain)", "m", per_muscle=True),
-    ParameterSpec("pressure_range", "double[]", [], "[0, max] gauge pressure the models were identified on (empty: "
-                  "up to `muscle.max_pressure`)", "Pa gauge", per_muscle=True),
-    ParameterSpec("models.<model>.params", "double[]", None, "identified parameters of each model (SI units)",
-                  per_muscle=True),
-    ParameterSpec("models.<model>.extrapolates", "bool", False, "serve the model's own value outside the identified "
-                  "ranges, flagged EXTRAPOLATED (else the nearest identified point, flagged out of range); set by "
-                  "`make-config` where the held-out error on the map's edge lengths is ≤ 10 %", per_muscle=True),
-    ParameterSpec("models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err}", "string, double", None,
-                  "identification results: objective, max error on the map (eq. 23) [% of max force], RMSE [N], "
-                  "R², worst leave-one-length-out error, the same on the shortest and longest length "
-                  "[% of max force]", per_muscle=True, read_only=True),
-    ParameterSpec("models.<model>.{nominal_length, pressure_offset}", "double", None,
-                  "geometry calibration of a fit by `pma-model fit`: effective rest length L0 [m] (replaces "
-                  "`muscle.nominal_length` for this model) and pressure-sensor offset [Pa] (the model sees gauge "
-                  "pressure − offset); absent: `muscle.nominal_length` and 0", "m, Pa", per_muscle=True),
-    ParameterSpec("hysteresis.input", "string", "length", "what a hysteresis model's branch follows: `length` "
-                  "(lengthening +1 / shortening −1, Sárosi's loop) or `pressure` (filling +1 / venting −1)",
-                  choices=HYSTERESIS_INPUTS, per_muscle=True),
-    ParameterSpec("hysteresis.length_deadband", "double", 0.0005, "the branch changes when the length reverses by "
-                  "more than this from the extreme of its run (play operator)", "m", (0.0, 0.1), per_muscle=True),
-    ParameterSpec("hysteresis.pressure_deadband", "double", 5000.0, "the same, for `hysteresis.input: pressure`",
-                  "Pa", (0.0, 1e6), per_muscle=True),
-    ParameterSpec("joint_name", "string", "", "JointState entry of this muscle (empty: `muscle.name`; with "
-                  "`muscles`: the muscle's name)", per_muscle=True),
-    ParameterSpec("frame_id", "string", "", "header.frame_id of `force_estimate` (empty: `joint_name`)",
-                  per_muscle=True),
-    ParameterSpec("ambient_pressure", "double", STANDARD_ATMOSPHERE, "ambient pressure; gauge = `fluid_pressure` "
-                  "− `ambient_pressure`", "Pa absolute", (0.0, 2e5)),
-    ParameterSpec("pressure_reference", "string", "absolute", "what `fluid_pressure` of `pressure` and "
-                  "`pressure_command` holds: `absolute` (the message's definition) or `gauge` (sensors that "
-                  "publish gauge)", choices=PRESSURE_REFERENCES),
-    ParameterSpec("max_input_age", "double", 0.1, "inputs whose stamp differs from the node clock by more than "
-                  "this are stale", "s", (1e-3, 3600.0)),
-    ParameterSpec("pairing", "string", "every_input", "when to estimate: `every_input` (each valid input, with "
-                  "the newest other one) or `approximate_time` (once per new pressure and new length whose "
-                  "stamps lie within `pairing_slop`)", choices=PAIRINGS, read_only=True),
-    ParameterSpec("pairing_slop", "double", 0.0005, "`approximate_time`: largest stamp difference of a pressure "
-                  "and a length paired", "s", (0.0, 1.0), read_only=True),
-    ParameterSpec("executor", "string", "events", "rclpy executor spinning the node: `single` "
-                  "(SingleThreadedExecutor) or `events` (EventsExecutor)", choices=EXECUTORS, read_only=True),
+    ParameterSpec(
+        'muscles',
+        'string[]',
+        [],
+        'names of the muscles this node serves, each with the per-muscle '
+        'parameters under `<name>.` (empty: one muscle, parameters at the top level)',
+        read_only=True,
+    ),
+    ParameterSpec(
+        'input_mode',
+        'string',
+        'per_muscle',
+        'with `muscles`: `per_muscle` (topics under `<name>/`) or '
+        '`combined` (one JointState of every muscle per topic)',
+        choices=INPUT_MODES,
+        read_only=True,
+    ),
+    ParameterSpec(
+        'muscle.name',
+        'string',
+        None,
+        'catalogue name of the muscle, e.g. DMSP-10-250',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'muscle.nominal_length',
+        'double',
+        None,
+        'initial (unpressurised) length L0',
+        'm',
+        (0.0, 10.0),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'muscle.inner_diameter',
+        'double',
+        None,
+        'initial inner diameter D0',
+        'm',
+        (0.0, 1.0),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'muscle.membrane_thickness',
+        'double',
+        None,
+        'initial membrane thickness H0',
+        'm',
+        (0.0, 1.0),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'muscle.fiber_angle',
+        'double',
+        None,
+        'initial braid angle Θ0 to the muscle axis',
+        'rad',
+        (0.0, math.pi / 2),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'muscle.max_pressure',
+        'double',
+        None,
+        'rated gauge pressure; the inverse never commands more',
+        'Pa gauge',
+        (0.0, 5e6),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'model',
+        'string',
+        None,
+        f'force model in use, a key of `models`: {_MODEL_NAMES}',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'length_range',
+        'double[]',
+        None,
+        '[min, max] length the models were identified on (validity domain)',
+        'm',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'pressure_range',
+        'double[]',
+        [],
+        '[0, max] gauge pressure the models were identified on (empty: '
+        'up to `muscle.max_pressure`)',
+        'Pa gauge',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'models.<model>.params',
+        'double[]',
+        None,
+        'identified parameters of each model (SI units)',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'models.<model>.extrapolates',
+        'bool',
+        False,
+        "serve the model's own value outside the identified "
+        'ranges, flagged EXTRAPOLATED (else the nearest identified point, flagged out of range); '
+        'set by '
+        "`make-config` where the held-out error on the map's edge lengths is ≤ 10 %",
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err}',
+        'string, double',
+        None,
+        'identification results: objective, max error on the map (eq. 23) [% of max force], RMSE '
+        '[N], '
+        'R², worst leave-one-length-out error, the same on the shortest and longest length '
+        '[% of max force]',
+        per_muscle=True,
+        read_only=True,
+    ),
+    ParameterSpec(
+        'models.<model>.{nominal_length, pressure_offset}',
+        'double',
+        None,
+        'geometry calibration of a fit by `pma-model fit`: effective rest length L0 [m] (replaces '
+        '`muscle.nominal_length` for this model) and pressure-sensor offset [Pa] (the model sees '
+        'gauge '
+        'pressure − offset); absent: `muscle.nominal_length` and 0',
+        'm, Pa',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'hysteresis.input',
+        'string',
+        'length',
+        "what a hysteresis model's branch follows: `length` "
+        "(lengthening +1 / shortening −1, Sárosi's loop) or `pressure` (filling +1 / venting −1)",
+        choices=HYSTERESIS_INPUTS,
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'hysteresis.length_deadband',
+        'double',
+        0.0005,
+        'the branch changes when the length reverses by '
+        'more than this from the extreme of its run (play operator)',
+        'm',
+        (0.0, 0.1),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'hysteresis.pressure_deadband',
+        'double',
+        5000.0,
+        'the same, for `hysteresis.input: pressure`',
+        'Pa',
+        (0.0, 1e6),
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'joint_name',
+        'string',
+        '',
+        'JointState entry of this muscle (empty: `muscle.name`; with '
+        "`muscles`: the muscle's name)",
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'frame_id',
+        'string',
+        '',
+        'header.frame_id of `force_estimate` (empty: `joint_name`)',
+        per_muscle=True,
+    ),
+    ParameterSpec(
+        'ambient_pressure',
+        'double',
+        STANDARD_ATMOSPHERE,
+        'ambient pressure; gauge = `fluid_pressure` − `ambient_pressure`',
+        'Pa absolute',
+        (0.0, 2e5),
+    ),
+    ParameterSpec(
+        'pressure_reference',
+        'string',
+        'absolute',
+        'what `fluid_pressure` of `pressure` and '
+        "`pressure_command` holds: `absolute` (the message's definition) or `gauge` (sensors that "
+        'publish gauge)',
+        choices=PRESSURE_REFERENCES,
+    ),
+    ParameterSpec(
+        'max_input_age',
+        'double',
+        0.1,
+        'inputs whose stamp differs from the node clock by more than this are stale',
+        's',
+        (1e-3, 3600.0),
+    ),
+    ParameterSpec(
+        'pairing',
+        'string',
+        'every_input',
+        'when to estimate: `every_input` (each valid input, with '
+        'the newest other one) or `approximate_time` (once per new pressure and new length whose '
+        'stamps lie within `pairing_slop`)',
+        choices=PAIRINGS,
+        read_only=True,
+    ),
+    ParameterSpec(
+        'pairing_slop',
+        'double',
+        0.0005,
+        '`approximate_time`: largest stamp difference of a pressure and a length paired',
+        's',
+        (0.0, 1.0),
+        read_only=True,
+    ),
+    ParameterSpec(
+        'executor',
+        'string',
+        'events',
+        'rclpy executor spinning the node: `single` '
+        '(SingleThreadedExecutor) or `events` (EventsExecutor)',
+        choices=EXECUTORS,
+        read_only=True,
+    ),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
 
 
 def markdown_table() -> str:
     """The README's table of :data:`PARAMETERS`."""
-    rows = ["| parameter | type | unit | default | range | per muscle | meaning |", "|---|---|---|---|---|---|---|"]
+    rows = [
+        '| parameter | type | unit | default | range | per muscle | meaning |',
+        '|---|---|---|---|---|---|---|',
+    ]
     for p in PARAMETERS:
-        default = "from file" if p.default is None else f"`{p.default!r}`".replace("'", "") if p.default != "" \
+        default = (
+            'from file'
+            if p.default is None
+            else f'`{p.default!r}`'.replace("'", '')
+            if p.default != ''
             else '`""`'
-        limits = f"[{p.limits[0]:g}, {p.limits[1]:g}]" if p.limits else ""
-        if p.name == "muscle.fiber_angle":
-            limits = "[0, π/2]"
-        kind = p.kind + (", read-only" if p.read_only else "")
-        rows.append(f"| `{p.name}` | {kind} | {p.unit} | {default} | {limits} | {'yes' if p.per_muscle else ''} "
-                    f"| {p.description} |")
-    return "\n".join(rows)
+        )
+        limits = f'[{p.limits[0]:g}, {p.limits[1]:g}]' if p.limits else ''
+        if p.name == 'muscle.fiber_angle':
+            limits = '[0, π/2]'
+        kind = p.kind + (', read-only' if p.read_only else '')
+        rows.append(
+            f'| `{p.name}` | {kind} | {p.unit} | {default} | {limits} | '
+            f'{"yes" if p.per_muscle else ""} '
+            f'| {p.description} |'
+        )
+    return '\n'.join(rows)

@@ -3,64 +3,111 @@
 What ``simulator_node`` publishes and what the bag tools record without DDS: at each
 step, the pressure follows its target (a commanded pressure, or a triangle sweep over
 the map's pressures) with a first-order lag, the length follows a trajectory, and the
-tension is the ground truth (:class:`~.ground_truth.GroundTruth`, a pchip of the map)
+tension is the ground truth (:class:`GroundTruth`, a pchip of the map)
 plus an optional hysteresis half-gap whose sign is the branch of the length's play operator
 (:mod:`~.hysteresis`, the rule model_node follows); Gaussian noise is added to what is "measured".
+
+The ground truth is not one of the models: the simulator's truth is the measurement itself, so a
+model is judged against data it was identified on (and, between the measured points, against a
+shape-preserving interpolation of them).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.interpolate import RegularGridInterpolator
 
-from .force_map import MAPPED_MUSCLES, shipped_force_map
-from .ground_truth import GroundTruth
+from .force_map import ForceMap
 from .hysteresis import play
 from .node_parameters import SPECS, STANDARD_ATMOSPHERE
+from .shipped_data import MAPPED_MUSCLES, shipped_force_map
 
-TRAJECTORIES = ("constant", "sine", "sweep", "steps")
+TRAJECTORIES = ('constant', 'sine', 'sweep', 'steps')
 #: Share of each 'steps' period spent moving to the next length (the rest holds it).
 STEP_MOVE = 0.25
 #: name: (default, description, (min, max) or None); simulator_node declares each as a parameter.
 PARAMETERS = {
-    "muscle": ("DMSP-10-250", f"shipped muscle whose measured map is the truth: {', '.join(MAPPED_MUSCLES)}", None),
-    "rate": (100.0, "publishing rate [Hz]", (1.0, 1000.0)),
-    "ambient_pressure": (STANDARD_ATMOSPHERE, "ambient pressure [Pa absolute]", SPECS["ambient_pressure"].limits),
-    "joint_name": ("", "JointState entry name (empty: the muscle name)", None),
-    "noise.pressure_std": (0.0, "standard deviation of the published pressure [Pa]", (0.0, 1e5)),
-    "noise.length_std": (0.0, "standard deviation of the published length [m]", (0.0, 0.01)),
-    "noise.force_std": (0.0, "standard deviation of the published force [N]", (0.0, 1e3)),
-    "seed": (0, "seed of the noise generator", None),
-    "hysteresis_gap": (0.0, "half-gap of a hysteresis [N]: + on the lengthening branch, - on the shortening one "
-                            "(model_node's play operator: core/hysteresis.py), faded out below this force "
-                            "(Sárosi's DMSP-10-100 branches differ by about 10 % of force)", (0.0, 1e4)),
-    "hysteresis_deadband": (SPECS["hysteresis.length_deadband"].default,
-                            "the branch changes when the length reverses by more than this [m]",
-                            SPECS["hysteresis.length_deadband"].limits),
-    "pressure_time_constant": (0.05, "first-order time constant toward the commanded pressure [s]", (0.0, 60.0)),
-    "initial_pressure": (0.0, "gauge pressure [Pa] before any pressure_command ('constant' and 'sine')",
-                         (0.0, 5e6)),
-    "trajectory": ("sweep", f"length trajectory: {', '.join(TRAJECTORIES)}; 'sweep' and 'steps' also sweep the "
-                            "pressure until a pressure_command arrives", None),
-    "length": (0.23, "length for the 'constant' trajectory [m]", (0.0, 10.0)),
-    "length_min": (0.2, "lower length of the 'sine' trajectory [m]", (0.0, 10.0)),
-    "length_max": (0.25, "upper length of the 'sine' trajectory [m]", (0.0, 10.0)),
-    "period": (4.0, "period of the 'sine' and of the 'sweep' length triangle; time per held length of 'steps' [s]",
-               (0.01, 1e4)),
-    "steps": (6, "number of lengths 'steps' holds, evenly over the map's lengths, visited up and down; it moves "
-                 f"to the next in the first {STEP_MOVE:.0%} of each period (a calibration run)", None),
-    "sweep_period": (20.0, "period of the 'sweep' pressure triangle over the map's pressures [s]", (0.01, 1e4)),
+    'muscle': (
+        'DMSP-10-250',
+        f'shipped muscle whose measured map is the truth: {", ".join(MAPPED_MUSCLES)}',
+        None,
+    ),
+    'rate': (100.0, 'publishing rate [Hz]', (1.0, 1000.0)),
+    'ambient_pressure': (
+        STANDARD_ATMOSPHERE,
+        'ambient pressure [Pa absolute]',
+        SPECS['ambient_pressure'].limits,
+    ),
+    'joint_name': ('', 'JointState entry name (empty: the muscle name)', None),
+    'noise.pressure_std': (0.0, 'standard deviation of the published pressure [Pa]', (0.0, 1e5)),
+    'noise.length_std': (0.0, 'standard deviation of the published length [m]', (0.0, 0.01)),
+    'noise.force_std': (0.0, 'standard deviation of the published force [N]', (0.0, 1e3)),
+    'seed': (0, 'seed of the noise generator', None),
+    'hysteresis_gap': (
+        0.0,
+        'half-gap of a hysteresis [N]: + on the lengthening branch, - on the shortening one '
+        "(model_node's play operator: core/hysteresis.py), faded out below this force "
+        "(Sárosi's DMSP-10-100 branches differ by about 10 % of force)",
+        (0.0, 1e4),
+    ),
+    'hysteresis_deadband': (
+        SPECS['hysteresis.length_deadband'].default,
+        'the branch changes when the length reverses by more than this [m]',
+        SPECS['hysteresis.length_deadband'].limits,
+    ),
+    'pressure_time_constant': (
+        0.05,
+        'first-order time constant toward the commanded pressure [s]',
+        (0.0, 60.0),
+    ),
+    'initial_pressure': (
+        0.0,
+        "gauge pressure [Pa] before any pressure_command ('constant' and 'sine')",
+        (0.0, 5e6),
+    ),
+    'trajectory': (
+        'sweep',
+        f"length trajectory: {', '.join(TRAJECTORIES)}; 'sweep' and 'steps' also sweep the "
+        'pressure until a pressure_command arrives',
+        None,
+    ),
+    'length': (0.23, "length for the 'constant' trajectory [m]", (0.0, 10.0)),
+    'length_min': (0.2, "lower length of the 'sine' trajectory [m]", (0.0, 10.0)),
+    'length_max': (0.25, "upper length of the 'sine' trajectory [m]", (0.0, 10.0)),
+    'period': (
+        4.0,
+        "period of the 'sine' and of the 'sweep' length triangle; time per held length of 'steps' "
+        '[s]',
+        (0.01, 1e4),
+    ),
+    'steps': (
+        6,
+        "number of lengths 'steps' holds, evenly over the map's lengths, visited up and down; it "
+        'moves '
+        f'to the next in the first {STEP_MOVE:.0%} of each period (a calibration run)',
+        None,
+    ),
+    'sweep_period': (
+        20.0,
+        "period of the 'sweep' pressure triangle over the map's pressures [s]",
+        (0.01, 1e4),
+    ),
 }
 
 
 def defaults(**overrides: object) -> dict[str, object]:
-    """Every parameter at its default, with ``overrides`` (use '__' for '.': ``noise__force_std=1.0``)."""
+    """Every parameter at its default, with ``overrides`` (use '__' for '.':
+    ``noise__force_std=1.0``).
+    """
     values = {name: default for name, (default, _, _) in PARAMETERS.items()}
     for key, value in overrides.items():
-        name = key.replace("__", ".")
+        name = key.replace('__', '.')
         if name not in values:
-            raise ValueError(f"unknown simulator parameter {name!r}")
+            raise ValueError(f'unknown simulator parameter {name!r}')
         values[name] = value
     return values
 
@@ -71,61 +118,110 @@ def triangle(t: float, period: float) -> tuple[float, float]:
     return (2 * phase, 2 / period) if phase < 0.5 else (2 - 2 * phase, -2 / period)
 
 
+class GroundTruth:
+    """Force [N] over gauge pressure [Pa] and length [m] from a full-grid force map.
+
+    Piecewise cubic Hermite (``pchip``, monotone between measured points) on the
+    (pressure, length) grid; inputs are clamped to the grid and the result to
+    >= 0 N, so the force is 0 where the map's muscle is slack.
+    """
+
+    def __init__(self, force_map: ForceMap) -> None:
+        self.pressures = np.unique(force_map.pressure)
+        self.lengths = np.unique(force_map.length)
+        grid = np.full((self.pressures.size, self.lengths.size), np.nan)
+        grid[
+            np.searchsorted(self.pressures, force_map.pressure),
+            np.searchsorted(self.lengths, force_map.length),
+        ] = force_map.force
+        if np.isnan(grid).any() or grid.size != force_map.force.size:
+            raise ValueError(
+                'ground truth needs a full grid: every pressure measured at every length, once'
+            )
+        self.max_force = force_map.max_force
+        self._interp = RegularGridInterpolator(
+            (self.pressures, self.lengths), grid, method='pchip'
+        )
+
+    def force(self, pressure: ArrayLike, length: ArrayLike) -> np.ndarray:
+        """Tension [N] >= 0 at gauge ``pressure`` [Pa] and ``length`` [m] (clamped to the grid)."""
+        p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
+        points = np.column_stack(
+            [
+                np.clip(p.ravel(), self.pressures[0], self.pressures[-1]),
+                np.clip(L.ravel(), self.lengths[0], self.lengths[-1]),
+            ]
+        )
+        return np.maximum(self._interp(points), 0.0).reshape(p.shape)
+
+
 @dataclass(frozen=True)
 class Readings:
     """What the muscle's sensors report at each of a run of instants (noise included); arrays."""
 
     pressure: np.ndarray  #: absolute pressure [Pa]
-    length: np.ndarray    #: [m]
-    rate: np.ndarray      #: length rate [m/s] (noise-free)
-    force: np.ndarray     #: measured tension [N]
+    length: np.ndarray  #: [m]
+    rate: np.ndarray  #: length rate [m/s] (noise-free)
+    force: np.ndarray  #: measured tension [N]
 
 
 class SimulatedMuscle:
-    """The simulated muscle; ``params`` as :data:`PARAMETERS` (e.g. from :func:`defaults`), times in s."""
+    """The simulated muscle; ``params`` as :data:`PARAMETERS` (e.g. from :func:`defaults`), times
+    in s.
+    """
 
     def __init__(self, params: dict[str, object], start: float) -> None:
-        if params["trajectory"] not in TRAJECTORIES:
-            raise ValueError(f"parameter 'trajectory' must be one of {TRAJECTORIES}, got {params['trajectory']!r}")
-        if params["trajectory"] == "sine" and not params["length_min"] < params["length_max"]:
+        if params['trajectory'] not in TRAJECTORIES:
+            raise ValueError(
+                f"parameter 'trajectory' must be one of {TRAJECTORIES}, got "
+                f'{params["trajectory"]!r}'
+            )
+        if params['trajectory'] == 'sine' and not params['length_min'] < params['length_max']:
             raise ValueError("parameters 'length_min' < 'length_max' needed for 'sine'")
-        if params["trajectory"] == "steps" and not int(params["steps"]) >= 2:
+        if params['trajectory'] == 'steps' and not int(params['steps']) >= 2:
             raise ValueError(f"parameter 'steps' must be >= 2 for 'steps', got {params['steps']}")
-        self.truth = GroundTruth(shipped_force_map(str(params["muscle"])))
+        self.truth = GroundTruth(shipped_force_map(str(params['muscle'])))
         self.params = params
-        self.joint = str(params["joint_name"] or params["muscle"])
-        self._rng = np.random.default_rng(int(params["seed"]))
-        self._pressure = float(params["initial_pressure"])  # gauge [Pa]
-        self._command: float | None = None                  # commanded gauge pressure [Pa]
+        self.joint = str(params['joint_name'] or params['muscle'])
+        self._rng = np.random.default_rng(int(params['seed']))
+        self._pressure = float(params['initial_pressure'])  # gauge [Pa]
+        self._command: float | None = None  # commanded gauge pressure [Pa]
         self._start = self._last = start
-        self._branch, self._anchor = 0.0, math.nan   # hysteresis play operator on the length
+        self._branch, self._anchor = 0.0, math.nan  # hysteresis play operator on the length
 
     def command(self, absolute: float) -> None:
         """A pressure command [Pa absolute]; non-finite values are ignored."""
         if math.isfinite(absolute):
-            self._command = absolute - float(self.params["ambient_pressure"])
+            self._command = absolute - float(self.params['ambient_pressure'])
 
     def _length(self, t: float) -> tuple[float, float]:
         """Length [m] and its rate [m/s] at time ``t`` [s] after start."""
         p = self.params
-        if p["trajectory"] == "constant":
-            return p["length"], 0.0
-        if p["trajectory"] == "sine":
-            mid, amp, w = (p["length_max"] + p["length_min"]) / 2, (p["length_max"] - p["length_min"]) / 2, \
-                2 * math.pi / p["period"]
+        if p['trajectory'] == 'constant':
+            return p['length'], 0.0
+        if p['trajectory'] == 'sine':
+            mid, amp, w = (
+                (p['length_max'] + p['length_min']) / 2,
+                (p['length_max'] - p['length_min']) / 2,
+                2 * math.pi / p['period'],
+            )
             return mid + amp * math.sin(w * t), amp * w * math.cos(w * t)
         low, high = self.truth.lengths[0], self.truth.lengths[-1]
-        if p["trajectory"] == "steps":
+        if p['trajectory'] == 'steps':
             return self._step_length(t, low, high)
-        value, slope = triangle(t, p["period"])
+        value, slope = triangle(t, p['period'])
         return low + (high - low) * value, (high - low) * slope
 
     def _step_length(self, t: float, low: float, high: float) -> tuple[float, float]:
-        """'steps': the k-th period moves (linearly, in its first STEP_MOVE) from level k-1 to level k, then holds."""
-        n, period = int(self.params["steps"]), self.params["period"]
+        """'steps': the k-th period moves (linearly, in its first STEP_MOVE) from level k-1 to
+        level k, then holds.
+        """
+        n, period = int(self.params['steps']), self.params['period']
         cycle = 2 * (n - 1)
 
-        def level(k: int) -> float:   # offset from ``low`` [m] of the k-th held length: 0, 1, .., n-1, .., 1, 0, ..
+        def level(
+            k: int,
+        ) -> float:  # offset from ``low`` [m] of the k-th held length: 0, 1, .., n-1, .., 1, 0, ..
             k %= cycle
             return (k if k < n else cycle - k) * (high - low) / (n - 1)
 
@@ -133,31 +229,48 @@ class SimulatedMuscle:
         start, end = level(int(k) - 1) if k > 0 else level(0), level(int(k))
         if phase >= STEP_MOVE:
             return low + end, 0.0
-        return low + start + (end - start) * phase / STEP_MOVE, (end - start) / (STEP_MOVE * period)
+        return low + start + (end - start) * phase / STEP_MOVE, (end - start) / (
+            STEP_MOVE * period
+        )
 
     def _target(self, t: float) -> float:
         """Gauge pressure [Pa] the muscle is driven toward at time ``t`` [s]."""
         if self._command is not None:
             return self._command
-        if self.params["trajectory"] in ("sweep", "steps"):
+        if self.params['trajectory'] in ('sweep', 'steps'):
             low, high = self.truth.pressures[0], self.truth.pressures[-1]
-            return low + (high - low) * triangle(t, self.params["sweep_period"])[0]
-        return self.params["initial_pressure"]
+            return low + (high - low) * triangle(t, self.params['sweep_period'])[0]
+        return self.params['initial_pressure']
 
     def run(self, times: np.ndarray) -> Readings:
-        """Advance through the increasing ``times`` [s] and read the sensors at each (force evaluated at once)."""
+        """Advance through the increasing ``times`` [s] and read the sensors at each (force
+        evaluated at once).
+        """
         p, n = self.params, len(times)
-        tau = p["pressure_time_constant"]
-        state = np.empty((n, 4))   # gauge pressure, length, rate, hysteresis branch
+        tau = p['pressure_time_constant']
+        state = np.empty((n, 4))  # gauge pressure, length, rate, hysteresis branch
         for i, now in enumerate(times):
             dt, self._last = max(now - self._last, 0.0), now
             t = now - self._start
-            self._pressure += (self._target(t) - self._pressure) * (1.0 - math.exp(-dt / tau) if tau > 0 else 1.0)
+            self._pressure += (self._target(t) - self._pressure) * (
+                1.0 - math.exp(-dt / tau) if tau > 0 else 1.0
+            )
             length, rate = self._length(t)
-            self._branch, self._anchor = play(self._branch, self._anchor, float(length), p["hysteresis_deadband"])
+            self._branch, self._anchor = play(
+                self._branch, self._anchor, float(length), p['hysteresis_deadband']
+            )
             state[i] = (self._pressure, length, rate, self._branch)
         gauge, length, rate, branch = state.T
         force = self.truth.force(gauge, length)
-        force += branch * np.minimum(p["hysteresis_gap"], force)
-        noise = self._rng.normal(size=(n, 3)) * [p["noise.pressure_std"], p["noise.length_std"], p["noise.force_std"]]
-        return Readings(gauge + p["ambient_pressure"] + noise[:, 0], length + noise[:, 1], rate, force + noise[:, 2])
+        force += branch * np.minimum(p['hysteresis_gap'], force)
+        noise = self._rng.normal(size=(n, 3)) * [
+            p['noise.pressure_std'],
+            p['noise.length_std'],
+            p['noise.force_std'],
+        ]
+        return Readings(
+            gauge + p['ambient_pressure'] + noise[:, 0],
+            length + noise[:, 1],
+            rate,
+            force + noise[:, 2],
+        )

@@ -1,19 +1,23 @@
 """joint_node: torque and stiffness estimates and pressure commands of antagonistic joints.
 
-Parameters: a joint file (``config/example_joint.yaml``, layout in :mod:`pma_model_ros.core.joint_file`),
-read at start-up (later changes are refused).  Topics (relative, so a namespace applies):
+Parameters: a joint file (``config/example_joint.yaml``, layout in
+:mod:`pma_model_ros.core.joint_file`), read at start-up (later changes are refused).  Topics
+(relative, so a namespace applies):
 
-* in ``joint_states`` (sensor_msgs/JointState: position θ [rad], velocity [rad/s]; entries by joint name) and
-  each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa);
+* in ``joint_states`` (sensor_msgs/JointState: position θ [rad], velocity [rad/s]; entries by joint
+  name) and each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa);
 * out, once per joint_states message, for its joints whose pressures are fresh: ``torque_estimate``
-  (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate`` (JointState:
-  effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics`` (one status per joint, 1 Hz);
+  (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate``
+  (JointState: effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics``
+  (one status per joint, 1 Hz);
 * commands: ``torque_command`` (JointState: effort = wanted torque [N·m]) → each muscle's
   ``<muscle>/pressure_command`` (FluidPressure, absolute Pa), at the newest angle, with the joint's
-  co-contraction level, or with its wanted stiffness once a ``stiffness_command`` (JointState: effort = K
-  [N·m/rad]) arrived; a ``cocontraction_command`` (JointState: effort = level [Pa gauge]) returns to
-  co-contraction.  Every decision is the :class:`~pma_model_ros.core.joint_engine.JointEngine`'s.
+  co-contraction level, or with its wanted stiffness once a ``stiffness_command`` (JointState:
+  effort = K [N·m/rad]) arrived; a ``cocontraction_command`` (JointState: effort = level [Pa
+  gauge]) returns to co-contraction.  Every decision is the
+  :class:`~pma_model_ros.core.joint_engine.JointEngine`'s.
 """
+
 from __future__ import annotations
 
 from functools import partial
@@ -22,88 +26,124 @@ from pathlib import Path
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
-from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.cdr import StampedTemplate, sentinels
+from ..core.cdr import sentinels, StampedTemplate
 from ..core.engine import seconds
 from ..core.joint_engine import JointEngine, Settings
-from ..core.joint_file import JOINT_PARAMETERS, MUSCLE_PARAMETERS, NODE_PARAMETERS, joints
+from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
 from . import model_params
 from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 
-def _declare(node: Node, spec: ParameterSpec, prefix: str = ""):
+def _declare(node: Node, spec: ParameterSpec, prefix: str = ''):
     value = spec.default if spec.default not in (None, []) else model_params.TYPES[spec.kind]
     return node.declare_parameter(prefix + spec.name, value, model_params.descriptor(spec))
 
 
 def declare(node: Node) -> None:
     """Declare every joint_node parameter: node-wide, per joint, per muscle (by file or inline)."""
-    names = {spec.name: _declare(node, spec).value for spec in NODE_PARAMETERS}["joints"] or []
+    names = {spec.name: _declare(node, spec).value for spec in NODE_PARAMETERS}['joints'] or []
     for joint in names:
-        muscles = {spec.name: _declare(node, spec, f"{joint}.").value for spec in JOINT_PARAMETERS}["muscles"]
+        muscles = {
+            spec.name: _declare(node, spec, f'{joint}.').value for spec in JOINT_PARAMETERS
+        }['muscles']
         for muscle in muscles or []:
             for spec in MUSCLE_PARAMETERS:
-                _declare(node, spec, f"{joint}.{muscle}.")
-            model_params._declare_muscle(node, f"{joint}.{muscle}.")
+                _declare(node, spec, f'{joint}.{muscle}.')
+            model_params._declare_muscle(node, f'{joint}.{muscle}.')
 
 
 class JointNode(Node):
     """Thin ROS shell around one :class:`JointEngine` for all its joints."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__("joint_node", **kwargs)
+        super().__init__('joint_node', **kwargs)
         try:
             declare(self)
             flat = model_params.values(self)
             nested = model_params._nest(flat)
-            found = joints(nested, Path(str(flat.get("config_dir") or ".")))
-            settings = [Settings(float(nested[j.name]["cocontraction"]), str(nested[j.name]["cocontraction_mode"]))
-                        for j in found]
-            self.engine = JointEngine(found, settings, float(flat["ambient_pressure"]), float(flat["max_input_age"]),
-                                      hold=DIAGNOSTIC_PERIOD)
+            found = joints(nested, Path(str(flat.get('config_dir') or '.')))
+            settings = [
+                Settings(
+                    float(nested[j.name]['cocontraction']),
+                    str(nested[j.name]['cocontraction_mode']),
+                )
+                for j in found
+            ]
+            self.engine = JointEngine(
+                found,
+                settings,
+                float(flat['ambient_pressure']),
+                float(flat['max_input_age']),
+                hold=DIAGNOSTIC_PERIOD,
+            )
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
         self.add_on_set_parameters_callback(self._refuse_changes)
         self._ros_clock = self.get_clock().handle
-        self._torque_pub = self.create_publisher(JointState, "torque_estimate", 10)
-        self._stiffness_pub = self.create_publisher(JointState, "stiffness_estimate", 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
+        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._command_pubs = []
         for k, joint in enumerate(found):
             pubs = []
             for m, muscle in enumerate(joint.muscle_names):
-                self.create_subscription(FluidPressure, f"{muscle}/pressure", partial(self._on_pressure, k, m),
-                                         INPUT_QOS)
-                pubs.append(self.create_publisher(FluidPressure, f"{muscle}/pressure_command", 10))
+                self.create_subscription(
+                    FluidPressure,
+                    f'{muscle}/pressure',
+                    partial(self._on_pressure, k, m),
+                    INPUT_QOS,
+                )
+                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
             self._command_pubs.append(pubs)
-        self.create_subscription(JointState, "joint_states", self._on_states, INPUT_QOS)
-        self.create_subscription(JointState, "torque_command", self._on_torque, 10)
-        self.create_subscription(JointState, "stiffness_command", partial(self._on_level, self.engine.stiffness), 10)
-        self.create_subscription(JointState, "cocontraction_command",
-                                 partial(self._on_level, self.engine.cocontraction), 10)
-        names = [j.name for j in found]   # prebuilt messages of every joint (the usual joint_states)
-        self._all = [StampedTemplate(serialize_message(JointState(name=names, effort=sentinels(len(names)).tolist())),
-                                     len(names)) for _ in range(2)]
+        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS)
+        self.create_subscription(JointState, 'torque_command', self._on_torque, 10)
+        self.create_subscription(
+            JointState, 'stiffness_command', partial(self._on_level, self.engine.stiffness), 10
+        )
+        self.create_subscription(
+            JointState,
+            'cocontraction_command',
+            partial(self._on_level, self.engine.cocontraction),
+            10,
+        )
+        names = [
+            j.name for j in found
+        ]  # prebuilt messages of every joint (the usual joint_states)
+        self._all = [
+            StampedTemplate(
+                serialize_message(JointState(name=names, effort=sentinels(len(names)).tolist())),
+                len(names),
+            )
+            for _ in range(2)
+        ]
         self._names = names
         self.create_timer(DIAGNOSTIC_PERIOD, self.publish_status)
-        self.get_logger().info("; ".join(f"joint '{j.name}': {j.muscle_names[0]} ({j.muscles[0].model.name}) "
-                                         f"shortens for positive angle, {j.muscle_names[1]} ({j.muscles[1].model.name})"
-                                         for j in found))
+        self.get_logger().info(
+            '; '.join(
+                f"joint '{j.name}': {j.muscle_names[0]} ({j.muscles[0].model.name}) "
+                f'shortens for positive angle, {j.muscle_names[1]} ({j.muscles[1].model.name})'
+                for j in found
+            )
+        )
 
     def _refuse_changes(self, changes: list[Parameter]) -> SetParametersResult:
-        """Parameters are read at start-up: a change of a declared one is refused (a declaration, e.g. the
-        ``executor`` by :func:`~.startup.run`, is not a change)."""
+        """Parameters are read at start-up: a change of a declared one is refused (a declaration,
+        e.g. the ``executor`` by :func:`~.startup.run`, is not a change).
+        """
         if any(self.has_parameter(p.name) for p in changes):
-            return SetParametersResult(successful=False,
-                                       reason="joint_node reads its parameters at start-up: restart it to change them")
+            return SetParametersResult(
+                successful=False,
+                reason='joint_node reads its parameters at start-up: restart it to change them',
+            )
         return SetParametersResult(successful=True)
 
     def now(self) -> float:
@@ -121,20 +161,25 @@ class JointNode(Node):
         done, torques, stiffnesses = [], [], []
         if len(positions) != len(names):
             for k in {self.engine.index[n] for n in names if n in self.engine.index}:
-                self.engine.reject(k, f"joint_states: {len(names)} names, {len(positions)} positions", now)
+                self.engine.reject(
+                    k, f'joint_states: {len(names)} names, {len(positions)} positions', now
+                )
             return
         for i, name in enumerate(names):
             k = self.engine.index.get(name)
             if k is None:
                 continue
-            result = self.engine.angle(k, positions[i], velocities[i] if has_velocity else math.nan, t, now)
+            result = self.engine.angle(
+                k, positions[i], velocities[i] if has_velocity else math.nan, t, now
+            )
             if result is not None:
                 done.append(name)
                 torques.append(result[0])
                 stiffnesses.append(result[1])
         if done == self._names:
-            for pub, template, values in zip((self._torque_pub, self._stiffness_pub), self._all,
-                                             (torques, stiffnesses)):
+            for pub, template, values in zip(
+                (self._torque_pub, self._stiffness_pub), self._all, (torques, stiffnesses)
+            ):
                 template.values[:] = values
                 pub.publish(template(stamp.sec, stamp.nanosec))
         elif done:
@@ -150,7 +195,9 @@ class JointNode(Node):
             absolute = self.engine.command(k, torque, now)
             if absolute is not None:
                 stamp = self.get_clock().now().to_msg()
-                for pub, value, muscle in zip(self._command_pubs[k], absolute, self.engine.joints[k].muscle_names):
+                for pub, value, muscle in zip(
+                    self._command_pubs[k], absolute, self.engine.joints[k].muscle_names
+                ):
                     out = FluidPressure(fluid_pressure=value)
                     out.header.stamp, out.header.frame_id = stamp, muscle
                     pub.publish(out)
@@ -161,12 +208,17 @@ class JointNode(Node):
             apply(self.engine.index[name], value, now)
 
     def _entries(self, msg: JointState, now: float) -> list[tuple[str, float]]:
-        """(joint, effort) of a command's entries of this node's joints; mismatched arrays are rejected."""
+        """(joint, effort) of a command's entries of this node's joints; mismatched arrays are
+        rejected.
+        """
         ours = [n for n in msg.name if n in self.engine.index]
         if len(msg.effort) != len(msg.name):
             for name in ours:
-                self.engine.reject(self.engine.index[name], f"command: {len(msg.name)} names, "
-                                                            f"{len(msg.effort)} efforts", now)
+                self.engine.reject(
+                    self.engine.index[name],
+                    f'command: {len(msg.name)} names, {len(msg.effort)} efforts',
+                    now,
+                )
             return []
         return [(n, e) for n, e in zip(msg.name, msg.effort) if n in self.engine.index]
 
@@ -176,17 +228,23 @@ class JointNode(Node):
         statuses = []
         for k, joint in enumerate(self.engine.joints):
             level, message, values = self.engine.status(k, now)
-            statuses.append(DiagnosticStatus(level=bytes([level]), name=f"{node}: {joint.name}", message=message,
-                                             hardware_id=" / ".join(m.spec.name for m in joint.muscles),
-                                             values=[KeyValue(key=key, value=v) for key, v in values.items()]))
+            statuses.append(
+                DiagnosticStatus(
+                    level=bytes([level]),
+                    name=f'{node}: {joint.name}',
+                    message=message,
+                    hardware_id=' / '.join(m.spec.name for m in joint.muscles),
+                    values=[KeyValue(key=key, value=v) for key, v in values.items()],
+                )
+            )
         msg = DiagnosticArray(status=statuses)
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
 
 
 def main(args: list[str] | None = None) -> int:
-    return run("joint_node", JointNode, args)
+    return run('joint_node', JointNode, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

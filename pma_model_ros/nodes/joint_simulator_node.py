@@ -1,13 +1,16 @@
-"""joint_simulator_node: an antagonistic joint of two muscles whose forces are their measured force maps.
+"""joint_simulator_node: an antagonistic joint of two muscles whose forces are their measured force
+maps.
 
-Publishes, at ``rate``, ``joint_states`` (sensor_msgs/JointState: position θ [rad], velocity [rad/s],
-effort = the measured-map torque [N·m]) and each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure,
-absolute Pa), all with the same stamp.  Each muscle's pressure follows ``<muscle>/pressure_command``
-(FluidPressure, absolute Pa) with first-order dynamics.  ``mode: held``: the angle moves only to the
-position of an ``angle_command`` (JointState, the joint's entry), as on a test bench; ``mode: link``: a
-link with inertia and damping.  Parameters are read at start-up; the physics is
+Publishes, at ``rate``, ``joint_states`` (sensor_msgs/JointState: position θ [rad], velocity
+[rad/s], effort = the measured-map torque [N·m]) and each muscle's ``<muscle>/pressure``
+(sensor_msgs/FluidPressure, absolute Pa), all with the same stamp.  Each muscle's pressure follows
+``<muscle>/pressure_command`` (FluidPressure, absolute Pa) with first-order dynamics.  ``mode:
+held``: the angle moves only to the position of an ``angle_command`` (JointState, the joint's
+entry), as on a test bench; ``mode: link``: a link with inertia and damping.  Parameters are read
+at start-up; the physics is
 :mod:`pma_model_ros.core.joint_simulation`.
 """
+
 from __future__ import annotations
 
 from functools import partial
@@ -21,34 +24,49 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 from .ros_time import now_seconds
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 
 class JointSimulatorNode(Node):
     """Publishes a simulated antagonistic joint at a fixed rate."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__("joint_simulator_node", **kwargs)
+        super().__init__('joint_simulator_node', **kwargs)
         try:
             for name, (default, text, limits) in PARAMETERS.items():
-                ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
-                self.declare_parameter(name, default, ParameterDescriptor(description=text,
-                                                                          floating_point_range=ranges))
+                ranges = (
+                    [FloatingPointRange(from_value=limits[0], to_value=limits[1])]
+                    if limits
+                    else []
+                )
+                self.declare_parameter(
+                    name,
+                    default,
+                    ParameterDescriptor(description=text, floating_point_range=ranges),
+                )
             p = {name: self.get_parameter(name).value for name in PARAMETERS}
             p = {k: list(v) if not isinstance(v, (str, float, int)) else v for k, v in p.items()}
             self.joint = SimulatedJoint(p, now_seconds(self))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
-        self._name = str(p["joint_name"])
-        self._state_pub = self.create_publisher(JointState, "joint_states", qos_profile_sensor_data)
-        self._pressure_pubs = [self.create_publisher(FluidPressure, f"{m}/pressure", qos_profile_sensor_data)
-                               for m in p["muscles"]]
-        for k, muscle in enumerate(p["muscles"]):
-            self.create_subscription(FluidPressure, f"{muscle}/pressure_command", partial(self._on_command, k), 10)
-        self.create_subscription(JointState, "angle_command", self._on_angle, 10)
-        self.create_timer(1.0 / p["rate"], self._tick)
-        self.get_logger().info(f"simulating joint '{self._name}' ({p['mode']}) of {p['maps'][0]} and "
-                               f"{p['maps'][1]} at {p['rate']:g} Hz")
+        self._name = str(p['joint_name'])
+        self._state_pub = self.create_publisher(
+            JointState, 'joint_states', qos_profile_sensor_data
+        )
+        self._pressure_pubs = [
+            self.create_publisher(FluidPressure, f'{m}/pressure', qos_profile_sensor_data)
+            for m in p['muscles']
+        ]
+        for k, muscle in enumerate(p['muscles']):
+            self.create_subscription(
+                FluidPressure, f'{muscle}/pressure_command', partial(self._on_command, k), 10
+            )
+        self.create_subscription(JointState, 'angle_command', self._on_angle, 10)
+        self.create_timer(1.0 / p['rate'], self._tick)
+        self.get_logger().info(
+            f"simulating joint '{self._name}' ({p['mode']}) of {p['maps'][0]} and "
+            f'{p["maps"][1]} at {p["rate"]:g} Hz'
+        )
 
     def _on_command(self, k: int, msg: FluidPressure) -> None:
         self.joint.command(k, msg.fluid_pressure)
@@ -61,11 +79,15 @@ class JointSimulatorNode(Node):
         now = self.get_clock().now()
         torque = self.joint.step(now.nanoseconds * 1e-9)
         stamp = now.to_msg()
-        state = JointState(name=[self._name], position=[self.joint.angle], velocity=[self.joint.velocity],
-                           effort=[torque])
+        state = JointState(
+            name=[self._name],
+            position=[self.joint.angle],
+            velocity=[self.joint.velocity],
+            effort=[torque],
+        )
         state.header.stamp = stamp
         self._state_pub.publish(state)
-        ambient = float(self.joint.params["ambient_pressure"])
+        ambient = float(self.joint.params['ambient_pressure'])
         for pub, gauge in zip(self._pressure_pubs, self.joint.pressures):
             msg = FluidPressure(fluid_pressure=gauge + ambient)
             msg.header.stamp = stamp
@@ -73,8 +95,8 @@ class JointSimulatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run("joint_simulator_node", JointSimulatorNode, args)
+    return run('joint_simulator_node', JointSimulatorNode, args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,5 @@
 """Conversions between ROS time messages and seconds."""
+
 from __future__ import annotations
 
 from rclpy.node import Node

@@ -11,6 +11,7 @@ Parameters are read at start-up; the physics is :mod:`pma_model_ros.core.simulat
 what it publishes to a new rosbag2 bag OUT (log time = the stamp; storage from
 ``--storage``, else OUT's suffix ``.mcap``/``.db3``, else mcap), finished on Ctrl-C.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,43 +28,63 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.simulation import PARAMETERS, SimulatedMuscle
 from .ros_time import now_seconds
-from .startup import StartupError, run
+from .startup import run, StartupError
 
 
 class SimulatorNode(Node):
     """Publishes a simulated muscle at a fixed rate."""
 
     def __init__(self, record: str | None = None, storage: str | None = None) -> None:
-        super().__init__("simulator_node")
+        super().__init__('simulator_node')
         try:
             for name, (default, text, limits) in PARAMETERS.items():
-                ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
-                self.declare_parameter(name, default, ParameterDescriptor(description=text,
-                                                                          floating_point_range=ranges))
+                ranges = (
+                    [FloatingPointRange(from_value=limits[0], to_value=limits[1])]
+                    if limits
+                    else []
+                )
+                self.declare_parameter(
+                    name,
+                    default,
+                    ParameterDescriptor(description=text, floating_point_range=ranges),
+                )
             p = {name: self.get_parameter(name).value for name in PARAMETERS}
             self._muscle = SimulatedMuscle(p, now_seconds(self))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None
-        self._pressure_pub = self.create_publisher(FluidPressure, "pressure", qos_profile_sensor_data)
-        self._state_pub = self.create_publisher(JointState, "muscle_state", qos_profile_sensor_data)
-        self._force_pub = self.create_publisher(WrenchStamped, "force", qos_profile_sensor_data)
+        self._pressure_pub = self.create_publisher(
+            FluidPressure, 'pressure', qos_profile_sensor_data
+        )
+        self._state_pub = self.create_publisher(
+            JointState, 'muscle_state', qos_profile_sensor_data
+        )
+        self._force_pub = self.create_publisher(WrenchStamped, 'force', qos_profile_sensor_data)
         self._ticks = 0
         self._recorder = self._open_record(record, storage) if record else None
-        self.create_subscription(FluidPressure, "pressure_command", self._on_command, 10)
-        self.create_timer(1.0 / p["rate"], self._tick)
-        self.get_logger().info(f"simulating {p['muscle']} ({p['trajectory']}) at {p['rate']:g} Hz"
-                               + (f", recording to {record}" if record else ""))
+        self.create_subscription(FluidPressure, 'pressure_command', self._on_command, 10)
+        self.create_timer(1.0 / p['rate'], self._tick)
+        self.get_logger().info(
+            f'simulating {p["muscle"]} ({p["trajectory"]}) at {p["rate"]:g} Hz'
+            + (f', recording to {record}' if record else '')
+        )
 
     def _open_record(self, out: str, storage: str | None):
         """A bag writer with this node's three topics (rosbags is needed only when recording)."""
-        from ..bags.bag_io import SENSOR_DATA, BagWriter
+        from ..bags.bag_io import BagWriter, SENSOR_DATA
+
         try:
             writer = BagWriter(out, storage)
         except ValueError as err:
-            raise StartupError(f"--record: {err}") from None
-        types = {self._pressure_pub: "sensor_msgs/msg/FluidPressure", self._state_pub: "sensor_msgs/msg/JointState",
-                 self._force_pub: "geometry_msgs/msg/WrenchStamped"}
-        return writer, {pub: writer.topic(pub.topic_name, msgtype, [SENSOR_DATA]) for pub, msgtype in types.items()}
+            raise StartupError(f'--record: {err}') from None
+        types = {
+            self._pressure_pub: 'sensor_msgs/msg/FluidPressure',
+            self._state_pub: 'sensor_msgs/msg/JointState',
+            self._force_pub: 'geometry_msgs/msg/WrenchStamped',
+        }
+        return writer, {
+            pub: writer.topic(pub.topic_name, msgtype, [SENSOR_DATA])
+            for pub, msgtype in types.items()
+        }
 
     def _on_command(self, msg: FluidPressure) -> None:
         self._muscle.command(msg.fluid_pressure)
@@ -75,11 +96,20 @@ class SimulatorNode(Node):
         measured = float(r.force[0])
         joint = self._muscle.joint
         pressure = FluidPressure(fluid_pressure=float(r.pressure[0]))
-        state = JointState(name=[joint], position=[float(r.length[0])], velocity=[float(r.rate[0])], effort=[measured])
+        state = JointState(
+            name=[joint],
+            position=[float(r.length[0])],
+            velocity=[float(r.rate[0])],
+            effort=[measured],
+        )
         wrench = WrenchStamped()
         wrench.wrench.force.x = measured
         stamp = now.to_msg()
-        for pub, msg in ((self._pressure_pub, pressure), (self._state_pub, state), (self._force_pub, wrench)):
+        for pub, msg in (
+            (self._pressure_pub, pressure),
+            (self._state_pub, state),
+            (self._force_pub, wrench),
+        ):
             msg.header.stamp = stamp
             msg.header.frame_id = joint
             pub.publish(msg)
@@ -98,11 +128,19 @@ class SimulatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="simulator_node", description="simulated pneumatic muscle (ROS 2 node)",
-                                     epilog="ROS arguments follow --ros-args, e.g. -p rate:=1000.0")
-    parser.add_argument("--record", metavar="OUT", help="also write what is published to a new bag OUT")
-    parser.add_argument("--storage", choices=("mcap", "sqlite3"), help="storage of the bag (default: OUT's suffix, "
-                                                                        "else mcap)")
+    parser = argparse.ArgumentParser(
+        prog='simulator_node',
+        description='simulated pneumatic muscle (ROS 2 node)',
+        epilog='ROS arguments follow --ros-args, e.g. -p rate:=1000.0',
+    )
+    parser.add_argument(
+        '--record', metavar='OUT', help='also write what is published to a new bag OUT'
+    )
+    parser.add_argument(
+        '--storage',
+        choices=('mcap', 'sqlite3'),
+        help="storage of the bag (default: OUT's suffix, else mcap)",
+    )
     argv = sys.argv if args is None else args
     options = parser.parse_args(remove_ros_args(argv)[1:])
     nodes: list[SimulatorNode] = []
@@ -111,11 +149,13 @@ def main(args: list[str] | None = None) -> int:
         nodes.append(SimulatorNode(options.record, options.storage))
         return nodes[-1]
 
-    code = run("simulator_node", make, argv)
-    for node in nodes:   # after rclpy has shut down (closing the sqlite3 bag beside rclpy's shutdown crashed)
+    code = run('simulator_node', make, argv)
+    for node in (
+        nodes
+    ):  # after rclpy has shut down (closing the sqlite3 bag beside rclpy's shutdown crashed)
         node.finish_recording()
     return code
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

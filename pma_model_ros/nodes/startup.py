@@ -4,6 +4,7 @@ Every node spins on the executor named by its read-only ROS parameter ``executor
 ``single`` (rclpy's SingleThreadedExecutor, the default) or ``events``
 (``rclpy.experimental.EventsExecutor``); docs/performance-nodes.md compares them.
 """
+
 from __future__ import annotations
 
 import re
@@ -11,24 +12,28 @@ import signal
 import threading
 from typing import Callable
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
-from rclpy.signals import SignalHandlerOptions
+from rclpy.logging import get_logger_level, LoggingSeverity, set_logger_level
 from rclpy.node import Node
-from rclpy._rclpy_pybind11 import RCLError
-from rclpy.logging import LoggingSeverity, get_logger_level, set_logger_level
+from rclpy.signals import SignalHandlerOptions
 
 from ..core.node_parameters import SPECS
 
-
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
-#: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and SIGTERM).
+#: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and
+#: SIGTERM).
 SPIN_TIMEOUT = 0.5
-#: The executors of the ``executor`` parameter (:data:`~pma_model_ros.core.node_parameters.EXECUTORS`).
-EXECUTORS: dict[str, Callable[..., Executor]] = {"single": SingleThreadedExecutor, "events": EventsExecutor}
+#: The executors of the ``executor`` parameter
+#: (:data:`~pma_model_ros.core.node_parameters.EXECUTORS`).
+EXECUTORS: dict[str, Callable[..., Executor]] = {
+    'single': SingleThreadedExecutor,
+    'events': EventsExecutor,
+}
 
 
 class StartupError(Exception):
@@ -41,29 +46,32 @@ def init(args: list[str] | None) -> None:
     rcl's own "Failed to parse global arguments" line is muted during init so the
     caller's single line is the only one.
     """
-    level = get_logger_level("rcl")
-    set_logger_level("rcl", LoggingSeverity.FATAL)
+    level = get_logger_level('rcl')
+    set_logger_level('rcl', LoggingSeverity.FATAL)
     try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)   # run() handles the signals
+        rclpy.init(
+            args=args, signal_handler_options=SignalHandlerOptions.NO
+        )  # run() handles the signals
     except RCLError as err:
-        text = re.sub(r", at \S+:\d+", "", str(err)).removeprefix("failed to initialize rcl: ")
+        text = re.sub(r', at \S+:\d+', '', str(err)).removeprefix('failed to initialize rcl: ')
         raise StartupError(text) from None
-    if get_logger_level("rcl") == LoggingSeverity.FATAL:   # not set by --log-level: restore
-        set_logger_level("rcl", level)
+    if get_logger_level('rcl') == LoggingSeverity.FATAL:  # not set by --log-level: restore
+        set_logger_level('rcl', level)
 
 
 def fail(node_name: str, err: Exception) -> int:
     """Log ``err`` as one FATAL line of ``node_name``; the exit code for main()."""
-    rclpy.logging.get_logger(node_name).fatal(f"invalid parameters: {err}")
+    rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {err}')
     rclpy.try_shutdown()
     return 1
 
 
 def executor(node: Node) -> Executor:
     """The executor named by ``node``'s parameter ``executor`` (declared here, read-only)."""
-    spec = SPECS["executor"]
-    name = node.declare_parameter(spec.name, spec.default, ParameterDescriptor(
-        description=spec.description, read_only=True)).value
+    spec = SPECS['executor']
+    name = node.declare_parameter(
+        spec.name, spec.default, ParameterDescriptor(description=spec.description, read_only=True)
+    ).value
     try:
         spec.check(name)
     except ValueError as err:
@@ -74,9 +82,10 @@ def executor(node: Node) -> Executor:
 def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -> int:
     """Init, build the node, spin until SIGINT, SIGTERM or shutdown; the exit code.
 
-    The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the node are
-    shut down before the context.  With rclpy's own signal handler the context went first, and the
-    EventsExecutor could still run a callback whose ``publish`` then failed (docs/performance-nodes.md).
+    The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the node
+    are shut down before the context.  With rclpy's own signal handler the context went first, and
+    the EventsExecutor could still run a callback whose ``publish`` then failed
+    (docs/performance-nodes.md).
     """
     node = None
     stop = threading.Event()
@@ -86,7 +95,10 @@ def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -
         init(args)
         node = make_node()
         spinner = executor(node)
-    except (StartupError, ParameterException) as err:   # also rclpy's own use_sim_time, declared by Node()
+    except (
+        StartupError,
+        ParameterException,
+    ) as err:  # also rclpy's own use_sim_time, declared by Node()
         if node is not None:
             node.destroy_node()
         return fail(node_name, err)
@@ -96,7 +108,7 @@ def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -
             spinner.spin_once(timeout_sec=SPIN_TIMEOUT)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RCLError:   # a signal shut the context down while the executor built its wait set
+    except RCLError:  # a signal shut the context down while the executor built its wait set
         if node.context.ok():
             raise
     finally:

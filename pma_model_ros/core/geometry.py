@@ -5,6 +5,7 @@ The geometry functions take a :class:`MuscleSpec` or any object with its numeric
 fields as arrays (one entry per muscle, see :mod:`pma_model_ros.core.muscle_bank`), and
 lengths as arrays or one float (:mod:`pma_model_ros.core.elementwise`).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -35,6 +36,7 @@ class MuscleSpec:
         Initial braid angle Theta0 between fibre and muscle axis [rad].
     max_pressure : float
         Highest rated gauge pressure [Pa].
+
     """
 
     name: str
@@ -45,27 +47,36 @@ class MuscleSpec:
     max_pressure: float
 
     def __post_init__(self) -> None:
-        for field in ("nominal_length", "inner_diameter", "membrane_thickness", "max_pressure"):
+        for field in ('nominal_length', 'inner_diameter', 'membrane_thickness', 'max_pressure'):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and 0 < value < _FLOAT_MAX):
-                raise ValueError(f"muscle.{field} must be a positive finite number, got {value!r}")
+                raise ValueError(f'muscle.{field} must be a positive finite number, got {value!r}')
         if not (isinstance(self.fiber_angle, (int, float)) and 0 < self.fiber_angle < math.pi / 2):
-            raise ValueError(f"muscle.fiber_angle must be in (0, pi/2) rad, got {self.fiber_angle!r}")
+            raise ValueError(
+                f'muscle.fiber_angle must be in (0, pi/2) rad, got {self.fiber_angle!r}'
+            )
         if self.nominal_length > 10 or self.inner_diameter > 1:
-            raise ValueError("muscle dimensions must be in metres (nominal_length <= 10 m, inner_diameter <= 1 m)")
+            raise ValueError(
+                'muscle dimensions must be in metres (nominal_length <= 10 m, inner_diameter <= 1 '
+                'm)'
+            )
         if not isinstance(self.name, str) or not self.name:
-            raise ValueError("muscle.name must be a non-empty string")
+            raise ValueError('muscle.name must be a non-empty string')
 
     @classmethod
-    def from_mapping(cls, data: object) -> "MuscleSpec":
+    def from_mapping(cls, data: object) -> 'MuscleSpec':
         """Build a spec from a mapping with exactly the dataclass's keys."""
         if not isinstance(data, dict):
-            raise ValueError(f"muscle spec (key 'muscle') must be a mapping, got {type(data).__name__}")
+            raise ValueError(
+                f"muscle spec (key 'muscle') must be a mapping, got {type(data).__name__}"
+            )
         expected = set(cls.__dataclass_fields__)
         missing, unknown = expected - set(data), set(data) - expected
         if missing or unknown:
-            raise ValueError(f"muscle spec: missing keys {sorted(missing)}, unknown keys {sorted(unknown)}")
-        values = {k: data[k] if k == "name" else _as_float(k, data[k]) for k in expected}
+            raise ValueError(
+                f'muscle spec: missing keys {sorted(missing)}, unknown keys {sorted(unknown)}'
+            )
+        values = {k: data[k] if k == 'name' else _as_float(k, data[k]) for k in expected}
         return cls(**values)
 
     def to_mapping(self) -> dict:
@@ -77,11 +88,11 @@ _FLOAT_MAX = sys.float_info.max  # an int above it (YAML reads 400 digits as int
 
 def _as_float(key: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"muscle.{key} must be a number, got {value!r}")
+        raise ValueError(f'muscle.{key} must be a number, got {value!r}')
     try:
         return float(value)
     except OverflowError:
-        raise ValueError(f"muscle.{key} is too large for a float") from None
+        raise ValueError(f'muscle.{key} is too large for a float') from None
 
 
 def fiber_length(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
@@ -97,12 +108,18 @@ def turns(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
 
 
 def braid(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> tuple:
-    """Inner diameter D(L) = sqrt(L_Fiber^2 - L^2) / (n pi) [m] (eq. 2), its slope dD/dL [-], and the
-    volume slope dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2] (derivative of eq. 4), sharing one root."""
+    """Inner diameter D(L) = sqrt(L_Fiber^2 - L^2) / (n pi) [m] (eq. 2), its slope dD/dL [-], and
+    the volume slope dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2] (derivative of eq. 4), sharing
+    one root.
+    """
     lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
     length = ew.asarray(length)
     root = ew.sqrt(lf**2 - length**2)
-    return root / (n * math.pi), -length / (n * math.pi * root), (lf**2 - 3 * length**2) / (4 * math.pi * n**2)
+    return (
+        root / (n * math.pi),
+        -length / (n * math.pi * root),
+        (lf**2 - 3 * length**2) / (4 * math.pi * n**2),
+    )
 
 
 def diameter(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
@@ -117,17 +134,22 @@ def volume(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None
     return (length * lf**2 - length**3) / (4 * math.pi * n**2)
 
 
-def volume_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
+def volume_slope(
+    spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None
+) -> np.ndarray:
     """dV/dL [m^2], derivative of eq. 4; see :func:`braid`."""
     return braid(spec, length, fiber_angle)[2]
 
 
-def diameter_slope(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:
+def diameter_slope(
+    spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None
+) -> np.ndarray:
     """dD/dL [-], derivative of eq. 2; see :func:`braid`."""
     return braid(spec, length, fiber_angle)[1]
 
 
 def shortest_length(spec: MuscleSpec) -> float:
-    """Shortest length of the ideal braid, L_Fiber / sqrt(3) [m]: there dV/dL = 0 (eq. 4), Theta = 54.7 deg,
-    and the muscle pulls no more at any pressure (its full contraction)."""
+    """Shortest length of the ideal braid, L_Fiber / sqrt(3) [m]: there dV/dL = 0 (eq. 4), Theta =
+    54.7 deg, and the muscle pulls no more at any pressure (its full contraction).
+    """
     return fiber_length(spec) / math.sqrt(3)

@@ -1,0 +1,77 @@
+"""Writing ROS 2 parameter files of identified muscles (layout: :mod:`.param_file`)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import yaml
+
+from .geometry import MuscleSpec
+from .identification import Fit, ModelReport
+from .models import Domain, EDGE_CV_LIMIT
+from .param_file import NODE_DEFAULTS
+
+_ROUND = 12  # significant digits written; far below any fit's resolution
+
+
+def _num(value: float) -> float:
+    return float(f'{value:.{_ROUND}g}')
+
+
+def fit_entry(fit: Fit) -> dict:
+    """The ``models.<name>`` mapping of one fit: params (if any), the calibrated nominal_length [m]
+    and pressure_offset [Pa] (if calibrated), objective, err, rmse, r2.
+    """
+    entry = {'params': [_num(v) for v in fit.theta]} if fit.theta.size else {}
+    if fit.calibration.length:
+        entry['nominal_length'] = _num(fit.spec.nominal_length)
+    if fit.calibration.pressure:
+        entry['pressure_offset'] = _num(fit.pressure_offset)
+    entry.update(objective=fit.objective, err=_num(fit.err), rmse=_num(fit.rmse), r2=_num(fit.r2))
+    return entry
+
+
+def model_entry(report: ModelReport) -> dict:
+    """:func:`fit_entry` of the shipped fit plus its worst held-out errors, overall (``cv_err``)
+    and on the map's edge lengths (``edge_cv_err``), and whether that lets it extrapolate
+    (:class:`~.models.Domain`).
+    """
+    return fit_entry(report.shipped) | {
+        'cv_err': _num(report.cv_err),
+        'edge_cv_err': _num(report.edge_cv_err),
+        'extrapolates': report.edge_cv_err <= EDGE_CV_LIMIT,
+    }
+
+
+def build_parameters(
+    spec: MuscleSpec, default: str, domain: Domain, models: dict[str, dict]
+) -> dict:
+    """The full parameter-file mapping for one muscle."""
+    return {
+        '/**': {
+            'ros__parameters': {
+                'muscle': {
+                    k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()
+                },
+                'model': default,
+                'length_range': [_num(domain.length_min), _num(domain.length_max)],
+                **(
+                    {'pressure_range': [0.0, _num(domain.pressure_max)]}
+                    if math.isfinite(domain.pressure_max)
+                    else {}
+                ),
+                'models': models,
+                **NODE_DEFAULTS,
+                'joint_name': spec.name,
+                'frame_id': spec.name.lower().replace('-', '_'),
+            }
+        }
+    }
+
+
+def write_parameters(path: str | Path, parameters: dict, header: str) -> None:
+    text = yaml.safe_dump(parameters, sort_keys=False, default_flow_style=None, width=120)
+    Path(path).write_text(
+        ''.join(f'# {line}\n' for line in header.splitlines()) + text, encoding='utf-8'
+    )

@@ -1,0 +1,58 @@
+"""Force maps and their CSV files (core/force_map.py)."""
+
+import numpy as np
+import pytest
+
+from pma_model_ros.core.force_map import ForceMap, parse_force_map_csv, read_force_map_csv
+
+CSV = """# two lengths, two pressures
+pressure_pa,length_m,force_n
+0,0.2,0
+300000,0.2,120.5
+0,0.25,0
+300000,0.25,410
+"""
+
+
+def test_reads_the_points_and_skips_comments(tmp_path):
+    path = tmp_path / 'map.csv'
+    path.write_text(CSV, encoding='utf-8')
+    fmap = read_force_map_csv(path)
+    np.testing.assert_array_equal(fmap.pressure, [0, 3e5, 0, 3e5])
+    np.testing.assert_array_equal(fmap.length, [0.2, 0.2, 0.25, 0.25])
+    np.testing.assert_array_equal(fmap.force, [0, 120.5, 0, 410])
+    np.testing.assert_array_equal(fmap.lengths, [0.25, 0.2])  # descending
+    assert fmap.max_force == 410
+
+
+def test_the_direction_column_is_each_points_branch():
+    text = 'pressure_pa,length_m,force_n,direction\n1e5,0.2,10,1\n1e5,0.2,6,-1\n2e5,0.25,30,1\n'
+    fmap = parse_force_map_csv(text, 'branches')
+    np.testing.assert_array_equal(fmap.direction, [1, -1, 1])
+    with pytest.raises(ValueError, match='direction must be'):
+        parse_force_map_csv(text.replace(',-1\n', ',0\n'), 'branches')
+
+
+@pytest.mark.parametrize(
+    ('text', 'message'),
+    [
+        ('pressure,length,force\n0,0.2,0\n', 'header must be'),
+        ('pressure_pa,length_m,force_n\n0,0.2,nan\n', 'NaN or infinite'),
+        ('pressure_pa,length_m,force_n\n0,0.2\n', 'row 2 is not 3 numbers'),
+        ('pressure_pa,length_m,force_n\n', 'no data rows'),
+    ],
+)
+def test_bad_files_name_the_source_and_the_problem(text, message):
+    with pytest.raises(ValueError, match=message) as err:
+        parse_force_map_csv(text, 'user.csv')
+    assert str(err.value).startswith('user.csv: ')
+
+
+def test_millimetres_are_refused():
+    with pytest.raises(ValueError, match='millimetres'):
+        ForceMap([0, 1e5, 2e5], [200, 200, 250], [0, 50, 90])
+
+
+def test_a_subset_keeps_the_chosen_points():
+    fmap = ForceMap([0, 1e5, 2e5, 3e5], [0.2, 0.2, 0.25, 0.25], [0, 50, 90, 120])
+    assert fmap.subset(np.array([False, True, True, True])).force.tolist() == [50, 90, 120]

@@ -1,0 +1,167 @@
+"""Runtime parameter changes of model_node: validated as a whole, applied without restart."""
+
+from geometry_msgs.msg import WrenchStamped
+import pytest
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import FluidPressure, JointState
+
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.nodes.model_params import MODEL_INFO
+
+from conftest import CONFIGS
+from node_messages import AMBIENT, pressure, state
+
+pytestmark = pytest.mark.ros
+
+
+def test_set_parameters_validates_and_swaps_the_model(ros, processes, namespace):
+    node = processes.node(
+        'model_node', namespace, CONFIGS['DMSP-10-250'], joint_name='left_biceps'
+    )
+    estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate')
+    pressure_pub = ros.node.create_publisher(
+        FluidPressure, f'{namespace}/pressure', qos_profile_sensor_data
+    )
+    state_pub = ros.node.create_publisher(
+        JointState, f'{namespace}/muscle_state', qos_profile_sensor_data
+    )
+    params = read_parameters(CONFIGS['DMSP-10-250'])
+
+    def publish():
+        stamp = ros.now().to_msg()
+        pressure_pub.publish(pressure(stamp, AMBIENT + 400e3))
+        state_pub.publish(state(stamp, 0.24, name='left_biceps'))
+
+    def set_parameters(**values):
+        request = SetParameters.Request(
+            parameters=[
+                Parameter(k.replace('__', '.'), value=v).to_parameter_msg()
+                for k, v in values.items()
+            ]
+        )
+        return ros.call(SetParameters, f'{namespace}/model_node/set_parameters', request).results[
+            0
+        ]
+
+    for name in ('martens', 'sarosi'):
+        if name != 'martens':
+            result = set_parameters(model=name)
+            assert result.successful, result.reason
+        expected = float(muscle_model(params, name).force(400e3, 0.24).force)
+        estimates.clear()
+        ros.spin_until(
+            lambda: (
+                estimates and estimates[-1].wrench.force.x == pytest.approx(expected, rel=1e-9)
+            ),
+            20,
+            f'an estimate of model {name}',
+            every=publish,
+            diagnose=lambda: processes.output(node),
+        )
+
+    for values, words in (
+        ({'model': 'foo'}, "unknown model 'foo'"),
+        ({'models__sarosi__params': [1.0]}, "model 'sarosi' needs 6"),
+        ({'muscle__inner_diameter': -1.0}, 'out of range'),
+        ({'length_range': [0.25, 0.2]}, 'length range'),
+    ):
+        result = set_parameters(**values)
+        assert not result.successful and words in result.reason, (values, result.reason)
+    assert node.poll() is None, processes.output(node)
+
+
+def flat(mapping: dict, prefix: str = '') -> dict:
+    """A nested ``ros__parameters`` mapping as {dotted name: value}."""
+    out = {}
+    for key, value in mapping.items():
+        name = f'{prefix}{key}'
+        out.update(flat(value, f'{name}.') if isinstance(value, dict) else {name: value})
+    return out
+
+
+def test_a_new_parameter_file_at_runtime_never_mixes_old_and_new(ros, processes, namespace):
+    """File B (another default model, nominal length and braid angle) replaces file A at runtime,
+    atomically (SetParametersAtomically) and one by one in a single request (SetParameters, as
+    `ros2 param load` sends it): every estimate is all-A or all-B, never B's model with A's
+    geometry or the reverse.
+    """
+    from rcl_interfaces.srv import SetParametersAtomically
+
+    node = processes.node('model_node', namespace, CONFIGS['DMSP-10-250'])
+    estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate')
+    pressure_pub = ros.node.create_publisher(
+        FluidPressure, f'{namespace}/pressure', qos_profile_sensor_data
+    )
+    state_pub = ros.node.create_publisher(
+        JointState, f'{namespace}/muscle_state', qos_profile_sensor_data
+    )
+    a = read_parameters(CONFIGS['DMSP-10-250'])
+    b = {
+        **a,
+        'model': 'sarosi',
+        'muscle': {
+            **a['muscle'],
+            'nominal_length': a['muscle']['nominal_length'] + 0.002,
+            'fiber_angle': a['muscle']['fiber_angle'] + 0.01,
+        },
+    }
+    force = {
+        name: float(muscle_model(p, m).force(400e3, 0.24).force)
+        for name, p, m in (
+            ('A', a, None),
+            ('B', b, None),
+            ('B model, A muscle', a, 'sarosi'),
+            ('A model, B muscle', b, 'martens'),
+        )
+    }
+    assert len({round(f, 6) for f in force.values()}) == 4, force  # the test could see a mix
+
+    def publish():
+        stamp = ros.now().to_msg()
+        pressure_pub.publish(pressure(stamp, AMBIENT + 400e3))
+        state_pub.publish(state(stamp, 0.24, name='DMSP-10-250'))
+
+    def which(msg) -> str:
+        return next(
+            (k for k, f in force.items() if msg.wrench.force.x == pytest.approx(f, rel=1e-9)),
+            'other',
+        )
+
+    def reach(name: str) -> None:
+        ros.spin_until(
+            lambda: estimates and which(estimates[-1]) == name,
+            20,
+            f'estimates of file {name}',
+            every=publish,
+            period=0.002,
+            diagnose=lambda: processes.output(node),
+        )
+
+    def messages(params: dict) -> list:
+        """The file's writable parameters (identification results are read-only information)."""
+        return [
+            Parameter(k, value=v).to_parameter_msg()
+            for k, v in flat(params).items()
+            if k.rsplit('.', 1)[-1] not in MODEL_INFO
+        ]
+
+    reach('A')
+    response = ros.call(
+        SetParametersAtomically,
+        f'{namespace}/model_node/set_parameters_atomically',
+        SetParametersAtomically.Request(parameters=messages(b)),
+    )
+    assert response.result.successful, response.result.reason
+    reach('B')
+    response = ros.call(
+        SetParameters,
+        f'{namespace}/model_node/set_parameters',
+        SetParameters.Request(parameters=messages(a)),
+    )
+    assert all(r.successful for r in response.results), [r.reason for r in response.results]
+    reach('A')
+    seen = {which(msg) for msg in estimates}
+    assert seen <= {'A', 'B'}, seen
+    assert node.poll() is None, processes.output(node)

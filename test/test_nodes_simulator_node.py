@@ -1,0 +1,54 @@
+"""simulator_node: bad parameters end it with one line; --record writes what it publishes, at
+its rate, to a bag.
+"""
+
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Reader
+
+pytestmark = pytest.mark.ros
+NODE = [sys.executable, '-m', 'pma_model_ros.nodes.simulator_node']
+
+
+def test_a_rate_out_of_range_is_one_line_naming_it():
+    run = subprocess.run(
+        [*NODE, '--ros-args', '-p', 'rate:=5000.0'],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=False,
+    )
+    lines = (run.stdout + run.stderr).strip().splitlines()
+    assert run.returncode == 1
+    assert len(lines) == 1 and 'rate' in lines[0], lines
+
+
+def test_record_holds_three_topics_at_the_rate(tmp_path):
+    out = tmp_path / 'sim.mcap'
+    proc = subprocess.Popen(
+        [*NODE, '--record', str(out), '--ros-args', '-r', '__ns:=/sim', '-p', 'rate:=50.0'],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        assert 'recording to' in proc.stdout.readline()
+        time.sleep(2.0)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(10) == 0
+    finally:
+        proc.kill()
+        proc.wait()
+    stamps = {}
+    with Reader(out) as bag:
+        for connection, timestamp, _ in bag.messages():
+            stamps.setdefault(connection.topic, []).append(timestamp)
+    assert set(stamps) == {'/sim/pressure', '/sim/muscle_state', '/sim/force'}
+    step = np.median(np.diff(stamps['/sim/force']))
+    assert step == pytest.approx(1e9 / 50, abs=2e6)  # 20 ms apart at 50 Hz, within 2 ms
+    assert len(stamps['/sim/force']) >= 50  # 2 s at 50 Hz, less a start-up margin

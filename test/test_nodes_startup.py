@@ -1,0 +1,55 @@
+"""Start-up of the nodes (nodes/startup.py): one clear line and exit 1 for bad parameters; either
+executor spins until SIGINT and exits 0.
+"""
+
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import REPO
+
+pytestmark = pytest.mark.ros
+CONFIG = REPO / 'config' / 'dmsp_10_250.yaml'
+
+
+def model_node(*ros_args: str) -> list[str]:
+    return [sys.executable, '-m', 'pma_model_ros.nodes.model_node', '--ros-args', *ros_args]
+
+
+def lines_of_failed_start(cmd: list[str]) -> list[str]:
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=30, check=False)
+    assert run.returncode == 1, run.stdout + run.stderr
+    return (run.stdout + run.stderr).strip().splitlines()
+
+
+def test_a_params_file_rcl_cannot_parse_is_one_line(tmp_path):
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('/**:\n  ros__parameters: [\n', encoding='utf-8')
+    lines = lines_of_failed_start(model_node('--params-file', str(broken)))
+    assert len(lines) == 1 and 'invalid parameters' in lines[0], lines
+
+
+def test_an_unknown_executor_is_one_line_naming_it():
+    lines = lines_of_failed_start(
+        model_node('--params-file', str(CONFIG), '-p', 'executor:=threads')
+    )
+    # The node is built (its INFO line) before the executor is chosen: then one FATAL line.
+    errors = [line for line in lines if 'FATAL' in line]
+    assert errors == lines[-1:] and "unknown executor 'threads'" in errors[0], lines
+
+
+@pytest.mark.parametrize('executor', ['single', 'events'])
+def test_each_executor_stops_on_sigint_with_exit_0(executor):
+    cmd = model_node('--params-file', str(CONFIG), '-p', f'executor:={executor}')
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert 'DMSP-10-250 with model martens' in proc.stdout.readline()  # built: spinning next
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(10) == 0
+    finally:
+        proc.kill()
+        proc.wait()
