@@ -152,6 +152,12 @@ def _sarosi(theta, spec, domain, length, branch) -> Coefficients:
     return _zeros(length), q1, q0
 
 
+def _by_branch(branch, upper: tuple, lower: tuple) -> tuple:
+    """``upper`` where ``branch`` is +1, ``lower`` where -1, their mean where 0 (unknown)."""
+    w_up = (1 + ew.clip(ew.asarray(branch), -1.0, 1.0)) / 2
+    return tuple(w_up * u + (1 - w_up) * lo for u, lo in zip(upper, lower))
+
+
 def _sarosi_hysteresis(theta, spec, domain, length, branch) -> Coefficients:
     """Sárosi eq. 3 with an upper (lengthening) and a lower (shortening) branch.
 
@@ -160,8 +166,7 @@ def _sarosi_hysteresis(theta, spec, domain, length, branch) -> Coefficients:
     """
     up1, up0 = _sarosi_terms(theta[:6], spec, length)
     lo1, lo0 = _sarosi_terms(theta[6:], spec, length)
-    w_up = (1 + ew.clip(ew.asarray(branch), -1.0, 1.0)) / 2
-    return _zeros(length), w_up * up1 + (1 - w_up) * lo1, w_up * up0 + (1 - w_up) * lo0
+    return _zeros(length), *_by_branch(branch, (up1, up0), (lo1, lo0))
 
 
 def _hildebrandt(theta, spec, domain, length, branch) -> Coefficients:
@@ -352,8 +357,7 @@ def _sarosi_slopes(theta, spec, domain, length, branch) -> Coefficients:
 def _sarosi_hysteresis_slopes(theta, spec, domain, length, branch) -> Coefficients:
     up1, up0 = _sarosi_term_slopes(theta[:6], spec, length)
     lo1, lo0 = _sarosi_term_slopes(theta[6:], spec, length)
-    w_up = (1 + ew.clip(ew.asarray(branch), -1.0, 1.0)) / 2
-    return _zeros(length), w_up * up1 + (1 - w_up) * lo1, w_up * up0 + (1 - w_up) * lo0
+    return _zeros(length), *_by_branch(branch, (up1, up0), (lo1, lo0))
 
 
 def _hildebrandt_slopes(theta, spec, domain, length, branch) -> Coefficients:

@@ -25,7 +25,7 @@ import math
 from pathlib import Path
 import sys
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -39,6 +39,7 @@ from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
 from . import model_params
+from .diagnostics import diagnostic_array
 from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
 from .startup import run, StartupError
 
@@ -224,22 +225,20 @@ class JointNode(Node):
 
     def publish_status(self) -> None:
         """One DiagnosticStatus per joint in one DiagnosticArray."""
-        now, node = self.now(), self.get_fully_qualified_name()
-        statuses = []
+        now = self.now()
+        entries = []
         for k, joint in enumerate(self.engine.joints):
             level, message, values = self.engine.status(k, now)
-            statuses.append(
-                DiagnosticStatus(
-                    level=bytes([level]),
-                    name=f'{node}: {joint.name}',
-                    message=message,
-                    hardware_id=' / '.join(m.spec.name for m in joint.muscles),
-                    values=[KeyValue(key=key, value=v) for key, v in values.items()],
+            entries.append(
+                (
+                    joint.name,
+                    ' / '.join(m.spec.name for m in joint.muscles),
+                    level,
+                    message,
+                    values,
                 )
             )
-        msg = DiagnosticArray(status=statuses)
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self._diag_pub.publish(msg)
+        self._diag_pub.publish(diagnostic_array(self, entries))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -16,7 +16,6 @@ from __future__ import annotations
 from functools import partial
 import sys
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
@@ -24,7 +23,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 from .ros_time import now_seconds
-from .startup import run, StartupError
+from .startup import declare_table, run, StartupError
 
 
 class JointSimulatorNode(Node):
@@ -33,19 +32,7 @@ class JointSimulatorNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__('joint_simulator_node', **kwargs)
         try:
-            for name, (default, text, limits) in PARAMETERS.items():
-                ranges = (
-                    [FloatingPointRange(from_value=limits[0], to_value=limits[1])]
-                    if limits
-                    else []
-                )
-                self.declare_parameter(
-                    name,
-                    default,
-                    ParameterDescriptor(description=text, floating_point_range=ranges),
-                )
-            p = {name: self.get_parameter(name).value for name in PARAMETERS}
-            p = {k: list(v) if not isinstance(v, (str, float, int)) else v for k, v in p.items()}
+            p = declare_table(self, PARAMETERS)
             self.joint = SimulatedJoint(p, now_seconds(self))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None

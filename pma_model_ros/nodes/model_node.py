@@ -22,7 +22,7 @@ from functools import partial
 import sys
 from typing import Sequence
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -38,6 +38,7 @@ from ..core.cdr import sentinels, StampedTemplate
 from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
 from ..core.param_file import NodeSettings
 from . import model_params
+from .diagnostics import diagnostic_array
 from .startup import run, StartupError
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
@@ -120,24 +121,19 @@ class ModelNode(Node):
 
     def publish_status(self, now: float) -> None:
         """One DiagnosticStatus per muscle in one DiagnosticArray."""
-        node = self.get_fully_qualified_name()
-        statuses = []
+        entries = []
         for k, s in enumerate(self.settings):
             status = self.engine.status(k, now)
-            statuses.append(
-                DiagnosticStatus(
-                    level=bytes([status.level]),
-                    name=f'{node}: {s.joint_name}',
-                    message=status.message,
-                    hardware_id=s.config.model.spec.name,
-                    values=[
-                        KeyValue(key=key, value=value) for key, value in status.values.items()
-                    ],
+            entries.append(
+                (
+                    s.joint_name,
+                    s.config.model.spec.name,
+                    status.level,
+                    status.message,
+                    status.values,
                 )
             )
-        msg = DiagnosticArray(status=statuses)
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self._diag_pub.publish(msg)
+        self._diag_pub.publish(diagnostic_array(self, entries))
 
 
 class MuscleTopics:

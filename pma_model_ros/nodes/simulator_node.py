@@ -18,7 +18,6 @@ import argparse
 import sys
 
 from geometry_msgs.msg import WrenchStamped
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
@@ -28,7 +27,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.simulation import PARAMETERS, SimulatedMuscle
 from .ros_time import now_seconds
-from .startup import run, StartupError
+from .startup import declare_table, run, StartupError
 
 
 class SimulatorNode(Node):
@@ -37,18 +36,7 @@ class SimulatorNode(Node):
     def __init__(self, record: str | None = None, storage: str | None = None) -> None:
         super().__init__('simulator_node')
         try:
-            for name, (default, text, limits) in PARAMETERS.items():
-                ranges = (
-                    [FloatingPointRange(from_value=limits[0], to_value=limits[1])]
-                    if limits
-                    else []
-                )
-                self.declare_parameter(
-                    name,
-                    default,
-                    ParameterDescriptor(description=text, floating_point_range=ranges),
-                )
-            p = {name: self.get_parameter(name).value for name in PARAMETERS}
+            p = declare_table(self, PARAMETERS)
             self._muscle = SimulatedMuscle(p, now_seconds(self))
         except (ParameterException, ValueError) as err:
             raise StartupError(str(err)) from None

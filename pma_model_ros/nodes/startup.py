@@ -1,8 +1,9 @@
 """Start-up of the nodes: a bad parameter file or value ends the process with one clear line.
 
 Every node spins on the executor named by its read-only ROS parameter ``executor``:
-``single`` (rclpy's SingleThreadedExecutor, the default) or ``events``
-(``rclpy.experimental.EventsExecutor``); docs/performance-nodes.md compares them.
+``events`` (``rclpy.experimental.EventsExecutor``, the default) or ``single`` (rclpy's
+SingleThreadedExecutor); docs/performance-nodes.md compares them.  Simulators declare their
+parameter tables here too (:func:`declare_table`).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import signal
 import threading
 from typing import Callable
 
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
@@ -116,3 +117,17 @@ def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def declare_table(node: Node, table: dict[str, tuple]) -> dict[str, object]:
+    """Declare a simulator's parameters on ``node``, each with its descriptor; their values.
+
+    ``table`` is ``{name: (default, description, (min, max) or None)}``; arrays come back as lists.
+    """
+    for name, (default, text, limits) in table.items():
+        ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
+        node.declare_parameter(
+            name, default, ParameterDescriptor(description=text, floating_point_range=ranges)
+        )
+    values = {name: node.get_parameter(name).value for name in table}
+    return {k: v if isinstance(v, (str, float, int)) else list(v) for k, v in values.items()}
