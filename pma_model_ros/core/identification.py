@@ -23,7 +23,11 @@ Two protocols:
 
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from itertools import repeat
+import multiprocessing
+import os
 import warnings
 
 import numpy as np
@@ -42,7 +46,7 @@ _N_RANDOM_STARTS = 4
 _TIE = 1e-6
 _LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
 _MAX_FOLDS = 8  #: most held-out groups of a cross-validation
-_LENGTH_CANDIDATES = 5  #: of these, judged by the worst held-out err of multi-start fits
+_LENGTH_CANDIDATES = 2  #: of these, judged by the worst held-out err of multi-start fits
 
 
 @dataclass(frozen=True)
@@ -317,7 +321,7 @@ def _held_out_length(
             total = 0.0
             for k, (test, train) in enumerate(folds):
                 fold = problem(grid[i], train)
-                cost, x_k = min(_solve(fold, x[k]), _solve(fold, fold.start), key=lambda c: c[0])
+                cost, x_k = _solve(fold, x[k])
                 if not np.isfinite(cost):
                     total = np.inf
                     break
@@ -333,19 +337,18 @@ def _held_out_length(
                 total += float(np.sum((fmap.force[test] - predicted) ** 2))
             squares[i] = total
     near = grid[squares <= squares.min() * 1.1**2]
+    step = grid[1] - grid[0]  # the range of a grid point is its cell
+    low, high = float(near.min() - step / 2), float(near.max() + step / 2)
     candidates = grid[np.argsort(squares)[:_LENGTH_CANDIDATES]]
+    if high - low > cal.LENGTH_BOUND:  # not identifiable (fit_best_all keeps L0): no need to judge
+        return float(candidates[0]), low, high
     worst = [
         cross_validate(model, problem(c, fmap).spec, fmap, ('least_squares',), within)[
             'least_squares'
         ].max()
         for c in candidates
     ]
-    step = grid[1] - grid[0]  # the range of a grid point is its cell
-    return (
-        float(candidates[int(np.argmin(worst))]),
-        float(near.min() - step / 2),
-        float(near.max() + step / 2),
-    )
+    return float(candidates[int(np.argmin(worst))]), low, high
 
 
 def _solve(problem: '_Problem', x0: np.ndarray) -> tuple[float, np.ndarray]:
@@ -634,11 +637,24 @@ def identify_all(
     applies to the ``best`` protocol only (held out: :func:`cross_validate_fit`); the paper
     protocol keeps the given geometry.
     """
-    reports = {}
-    for model in models:
-        best = fit_best_all(model, spec, fmap, calibration=calibration)
-        cv = cross_validate_fit(best['least_squares'], fmap)
-        shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
-        reports[model.name] = ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
+    # The models are independent: one process each, as many at once as there are cores (spawned,
+    # not forked: the caller may hold threads).
+    workers = min(len(models), os.cpu_count() or 1)
+    if workers > 1:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn')) as pool:
+            done = list(pool.map(_report, models, repeat(spec), repeat(fmap), repeat(calibration)))
+    else:
+        done = [_report(model, spec, fmap, calibration) for model in models]
+    reports = {model.name: report for model, report in zip(models, done)}
     default = min(reports, key=lambda name: reports[name].cv_err)
     return reports, default
+
+
+def _report(
+    model: Model, spec: MuscleSpec, fmap: ForceMap, calibration: Calibration
+) -> ModelReport:
+    """One model of :func:`identify_all`: both protocols, cross-validated."""
+    best = fit_best_all(model, spec, fmap, calibration=calibration)
+    cv = cross_validate_fit(best['least_squares'], fmap)
+    shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
+    return ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)
