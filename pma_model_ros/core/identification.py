@@ -297,9 +297,9 @@ def _held_out_length(
     on a grid of
     :data:`_LENGTH_GRID` corrections over the bounds.  Each fold starts from its multi-start fit at
     the given L0 and follows its optimum along the grid (one least-squares run from the
-    neighbouring grid point).  Of the :data:`_LENGTH_CANDIDATES` corrections with the lowest
-    held-out RMSE, the one whose multi-start fits (:func:`cross_validate`, least squares) have the
-    lowest worst held-out err (eq. 23) is chosen.
+    neighbouring grid point).  Of the given L0 and the :data:`_LENGTH_CANDIDATES` corrections
+    with the lowest held-out RMSE, the one whose multi-start fits (:func:`cross_validate`, least
+    squares) have the lowest worst held-out err (eq. 23) is chosen (the given one on a tie).
     """
     within = Calibration(False, calibration.pressure)
     folds = [(test, fmap.subset(~test)) for test in length_folds(fmap)]
@@ -339,9 +339,11 @@ def _held_out_length(
     near = grid[squares <= squares.min() * 1.1**2]
     step = grid[1] - grid[0]  # the range of a grid point is its cell
     low, high = float(near.min() - step / 2), float(near.max() + step / 2)
-    candidates = grid[np.argsort(squares)[:_LENGTH_CANDIDATES]]
     if high - low > cal.LENGTH_BOUND:  # not identifiable (fit_best_all keeps L0): no need to judge
-        return float(candidates[0]), low, high
+        return float(grid[np.argmin(squares)]), low, high
+    # the given L0 is always a candidate, first: calibration never makes the worst held-out worse
+    best = [i for i in np.argsort(squares)[:_LENGTH_CANDIDATES] if i != given]
+    candidates = grid[[given, *best]]
     worst = [
         cross_validate(model, problem(c, fmap).spec, fmap, ('least_squares',), within)[
             'least_squares'
