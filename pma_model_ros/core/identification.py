@@ -46,7 +46,7 @@ _N_RANDOM_STARTS = 4
 _TIE = 1e-6
 _LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
 _MAX_FOLDS = 8  #: most held-out groups of a cross-validation
-_LENGTH_CANDIDATES = 2  #: of these, judged by the worst held-out err of multi-start fits
+_LENGTH_CANDIDATES = 5  #: of these, judged by the worst held-out err of multi-start fits
 
 
 @dataclass(frozen=True)
@@ -297,9 +297,9 @@ def _held_out_length(
     on a grid of
     :data:`_LENGTH_GRID` corrections over the bounds.  Each fold starts from its multi-start fit at
     the given L0 and follows its optimum along the grid (one least-squares run from the
-    neighbouring grid point).  Of the given L0 and the :data:`_LENGTH_CANDIDATES` corrections
-    with the lowest held-out RMSE, the one whose multi-start fits (:func:`cross_validate`, least
-    squares) have the lowest worst held-out err (eq. 23) is chosen (the given one on a tie).
+    neighbouring grid point).  Of the :data:`_LENGTH_CANDIDATES` corrections with the lowest
+    held-out RMSE, the one whose multi-start fits (:func:`cross_validate`, least squares) have the
+    lowest worst held-out err (eq. 23) is chosen.
     """
     within = Calibration(False, calibration.pressure)
     folds = [(test, fmap.subset(~test)) for test in length_folds(fmap)]
@@ -321,7 +321,7 @@ def _held_out_length(
             total = 0.0
             for k, (test, train) in enumerate(folds):
                 fold = problem(grid[i], train)
-                cost, x_k = _solve(fold, x[k])
+                cost, x_k = min(_solve(fold, x[k]), _solve(fold, fold.start), key=lambda c: c[0])
                 if not np.isfinite(cost):
                     total = np.inf
                     break
@@ -341,9 +341,7 @@ def _held_out_length(
     low, high = float(near.min() - step / 2), float(near.max() + step / 2)
     if high - low > cal.LENGTH_BOUND:  # not identifiable (fit_best_all keeps L0): no need to judge
         return float(grid[np.argmin(squares)]), low, high
-    # the given L0 is always a candidate, first: calibration never makes the worst held-out worse
-    best = [i for i in np.argsort(squares)[:_LENGTH_CANDIDATES] if i != given]
-    candidates = grid[[given, *best]]
+    candidates = grid[np.argsort(squares)[:_LENGTH_CANDIDATES]]
     worst = [
         cross_validate(model, problem(c, fmap).spec, fmap, ('least_squares',), within)[
             'least_squares'
