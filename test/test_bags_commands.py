@@ -1,0 +1,62 @@
+"""The pma-model bag subcommands' arguments (bags/commands.py).
+
+What a user mistypes gets one line and exit code 2.
+"""
+
+import pytest
+
+from pma_model_ros.cli import main
+
+from conftest import CONFIGS
+
+
+@pytest.mark.parametrize(
+    'argv, words',
+    [
+        (
+            ['bag', 'estimate', '/no/such/bag', '--out', '/tmp/x'],
+            'the following arguments are required: --config',
+        ),
+        (
+            [
+                'bag',
+                'estimate',
+                '/no/such/bag',
+                '--config',
+                str(CONFIGS['DMSP-10-250']),
+                '--out',
+                '/tmp/x',
+                '--pressure-reference',
+                'psi',
+            ],
+            "invalid choice: 'psi'",
+        ),
+        (['bag', 'play', '/no/such/bag', '--remap', 'a'], 'expected FROM:=TO'),
+        (['bag', 'play', '/no/such/bag', '--rate', '0'], '--rate and --clock must be > 0'),
+    ],
+)
+def test_bad_arguments_one_line_exit_2(capsys, argv, words):
+    try:
+        code = main(argv)
+    except SystemExit as stop:  # argparse's own refusals
+        code = stop.code
+    err = capsys.readouterr().err
+    assert code == 2 and words in err.strip().splitlines()[-1], (
+        err
+    )  # (argparse prints its usage above)
+
+
+def test_missing_bag_is_one_line_exit_2(capsys, tmp_path):
+    code = main(
+        [
+            'bag',
+            'estimate',
+            str(tmp_path / 'none'),
+            '--config',
+            str(CONFIGS['DMSP-10-250']),
+            '--out',
+            str(tmp_path / 'out'),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count('\n') == 1 and not (tmp_path / 'out').exists()
