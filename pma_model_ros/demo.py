@@ -39,6 +39,8 @@ SIMULATOR = {
     'seed': 1,
 }
 SETTLE = 0.3  # [s] a stamp is compared once it is this old (both messages of it have arrived)
+#: [s] Longest wait for the first measured force and estimate before the run's clock starts.
+DISCOVERY_TIMEOUT = 15.0
 #: Sensor-data QoS with a deep queue: spin_once takes one message at a time.
 SENSOR_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
 
@@ -166,8 +168,16 @@ def run(duration: float, config: Path) -> int:
         }
         rclpy.init()
         monitor = Monitor(comparison, float(params.get('ambient_pressure', STANDARD_ATMOSPHERE)))
-        start = time.monotonic()
         try:
+            # the run starts once both nodes are heard from (DDS discovery can take a while)
+            heard = time.monotonic() + DISCOVERY_TIMEOUT
+            while (
+                not all(monitor.received.values())
+                and time.monotonic() < heard
+                and all(p.poll() is None for p in procs.values())
+            ):
+                rclpy.spin_once(monitor, timeout_sec=0.05)
+            start = time.monotonic()
             print(
                 '   t/s    p/kPa    L/mm  estimate/N measured/N  err/%  max err/% (of max force)'
             )
