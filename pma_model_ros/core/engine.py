@@ -328,7 +328,8 @@ class Engine:
         now: float,
         tag: object = None,
     ) -> float | None:
-        """A length [m] of muscle ``k`` with its rate [m/s] (None or NaN: unknown); its force
+        """A length [m] of muscle ``k`` with its rate [m/s] (None or NaN: unknown, kept for
+        :meth:`inputs`; the hysteresis branch follows the play operator, not the rate); its force
         estimate [N], if any.
         """
         self._counts[k, 1] += 1
