@@ -8,6 +8,7 @@ import argparse
 import functools
 import json
 import math
+import os
 from pathlib import Path
 import sys
 from typing import Sequence
@@ -664,6 +665,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
+    except BrokenPipeError:  # the reader stopped early (`| head`): not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the Python docs' idiom
+        return 0
     except (CliError, ValueError, OSError) as err:
         print(f'pma-model: error: {err}', file=sys.stderr)
         return 2
