@@ -29,6 +29,10 @@ def martens_10_250():
 
 
 COLCON = Path(sys.executable).parent / 'colcon'
+#: The environment of node processes that only start and fail: no DDS discovery.  Twenty of them
+#: discovering each other at once made Fast DDS's discovery deadlock (nodes/startup.teardown)
+#: likely enough to fail a CI run.
+NO_DISCOVERY = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}
 
 
 def explain(proc):

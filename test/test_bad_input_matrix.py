@@ -24,7 +24,7 @@ from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import node_settings, read_parameters
 from pma_model_ros.tools import node_process
 
-from conftest import CONFIGS, Processes, REPO, Ros
+from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
 from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 
 CONFIG = CONFIGS['DMSP-10-250']
@@ -520,7 +520,12 @@ def startups(tmp_path_factory) -> dict[str, tuple[int, str, Path]]:
     procs = {
         row: (
             subprocess.Popen(
-                cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=REPO
+                cmd,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+                cwd=REPO,
+                env=NO_DISCOVERY,
             ),
             tmp,
         )

@@ -8,8 +8,9 @@ import sys
 import time
 
 import pytest
+import rclpy
 
-from conftest import REPO
+from conftest import NO_DISCOVERY, REPO
 
 pytestmark = pytest.mark.ros
 CONFIG = REPO / 'config' / 'dmsp_10_250.yaml'
@@ -20,7 +21,9 @@ def model_node(*ros_args: str) -> list[str]:
 
 
 def lines_of_failed_start(cmd: list[str]) -> list[str]:
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=30, check=False)
+    run = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=30, check=False, env=NO_DISCOVERY
+    )
     assert run.returncode == 1, run.stdout + run.stderr
     return (run.stdout + run.stderr).strip().splitlines()
 
@@ -53,3 +56,36 @@ def test_each_executor_stops_on_sigint_with_exit_0(executor):
     finally:
         proc.kill()
         proc.wait()
+
+
+def test_a_refused_parameter_hands_the_half_built_node_to_run(ros):
+    """run() logs the line first, then destroys the node before the context."""
+    from pma_model_ros.nodes.startup import refusing, StartupError
+
+    half_built = rclpy.create_node('half_built', context=ros.node.context)
+    with pytest.raises(StartupError, match='^bad value$') as refused:
+        with refusing(half_built):
+            raise ValueError('bad value')
+    assert refused.value.node is half_built
+    half_built.destroy_node()
+
+
+def test_a_teardown_stuck_in_c_holding_the_gil_still_exits_with_code_1():
+    """A node whose destruction never returns and holds the GIL (as Fast DDS's deadlock does):
+    the process prints the stacks and exits 1 about TEARDOWN_TIMEOUT later.
+    """
+    script = (
+        'import ctypes\n'
+        'from pma_model_ros.nodes import startup\n'
+        'startup.TEARDOWN_TIMEOUT = 1.0\n'
+        'class Stuck:\n'
+        '    def destroy_node(self):\n'
+        '        ctypes.PyDLL(None).sleep(60)  # libc sleep(3) without releasing the GIL\n'
+        'startup.teardown(None, Stuck())\n'
+    )
+    start = time.monotonic()
+    run = subprocess.run(
+        [sys.executable, '-c', script], capture_output=True, text=True, timeout=30, cwd=REPO
+    )
+    assert run.returncode == 1 and 'Timeout (0:00:01)!' in run.stderr, run.stderr
+    assert time.monotonic() - start < 20

@@ -27,7 +27,6 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
@@ -41,7 +40,7 @@ from ..core.node_parameters import ParameterSpec
 from . import model_params
 from .diagnostics import diagnostic_array
 from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
-from .startup import run, StartupError
+from .startup import refusing, run
 
 
 def _declare(node: Node, spec: ParameterSpec, prefix: str = ''):
@@ -67,7 +66,7 @@ class JointNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('joint_node', **kwargs)
-        try:
+        with refusing(self):
             declare(self)
             flat = model_params.values(self)
             nested = model_params._nest(flat)
@@ -86,8 +85,6 @@ class JointNode(Node):
                 float(flat['max_input_age']),
                 hold=DIAGNOSTIC_PERIOD,
             )
-        except (ParameterException, ValueError) as err:
-            raise StartupError(str(err)) from None
         self.add_on_set_parameters_callback(self._refuse_changes)
         self._ros_clock = self.get_clock().handle
         self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)

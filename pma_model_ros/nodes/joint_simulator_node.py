@@ -16,14 +16,13 @@ from __future__ import annotations
 from functools import partial
 import sys
 
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 from .ros_time import now_seconds
-from .startup import declare_table, run, StartupError
+from .startup import declare_table, refusing, run
 
 
 class JointSimulatorNode(Node):
@@ -31,11 +30,9 @@ class JointSimulatorNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('joint_simulator_node', **kwargs)
-        try:
+        with refusing(self):
             p = declare_table(self, PARAMETERS)
             self.joint = SimulatedJoint(p, now_seconds(self))
-        except (ParameterException, ValueError) as err:
-            raise StartupError(str(err)) from None
         self._name = str(p['joint_name'])
         self._state_pub = self.create_publisher(
             JointState, 'joint_states', qos_profile_sensor_data

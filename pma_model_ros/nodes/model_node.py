@@ -26,7 +26,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
@@ -39,7 +38,7 @@ from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, se
 from ..core.param_file import NodeSettings
 from . import model_params
 from .diagnostics import diagnostic_array
-from .startup import run, StartupError
+from .startup import refusing, run
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
 
@@ -61,7 +60,7 @@ class ModelNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('model_node', **kwargs)
-        try:
+        with refusing(self):
             self._names, mode = model_params.declare(self)
             flat = model_params.values(self)
             self.settings = model_params.all_settings(flat, self._names)
@@ -71,8 +70,6 @@ class ModelNode(Node):
                 report_interval=REPORT_INTERVAL_PER_MUSCLE * len(self.settings),
                 **model_params.pairing(flat),
             )
-        except (ParameterException, ValueError) as err:
-            raise StartupError(str(err)) from None
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)

@@ -18,7 +18,6 @@ import argparse
 import sys
 
 from geometry_msgs.msg import WrenchStamped
-from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import serialize_message
@@ -27,7 +26,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from ..core.simulation import PARAMETERS, SimulatedMuscle
 from .ros_time import now_seconds
-from .startup import declare_table, run, StartupError
+from .startup import declare_table, refusing, run
 
 
 class SimulatorNode(Node):
@@ -35,11 +34,9 @@ class SimulatorNode(Node):
 
     def __init__(self, record: str | None = None, storage: str | None = None) -> None:
         super().__init__('simulator_node')
-        try:
+        with refusing(self):
             p = declare_table(self, PARAMETERS)
             self._muscle = SimulatedMuscle(p, now_seconds(self))
-        except (ParameterException, ValueError) as err:
-            raise StartupError(str(err)) from None
         self._pressure_pub = self.create_publisher(
             FluidPressure, 'pressure', qos_profile_sensor_data
         )
@@ -48,7 +45,8 @@ class SimulatorNode(Node):
         )
         self._force_pub = self.create_publisher(WrenchStamped, 'force', qos_profile_sensor_data)
         self._ticks = 0
-        self._recorder = self._open_record(record, storage) if record else None
+        with refusing(self):
+            self._recorder = self._open_record(record, storage) if record else None
         self.create_subscription(FluidPressure, 'pressure_command', self._on_command, 10)
         self.create_timer(1.0 / p['rate'], self._tick)
         self.get_logger().info(
@@ -63,7 +61,7 @@ class SimulatorNode(Node):
         try:
             writer = BagWriter(out, storage)
         except ValueError as err:
-            raise StartupError(f'--record: {err}') from None
+            raise ValueError(f'--record: {err}') from None
         types = {
             self._pressure_pub: 'sensor_msgs/msg/FluidPressure',
             self._state_pub: 'sensor_msgs/msg/JointState',

@@ -8,10 +8,12 @@ parameter tables here too (:func:`declare_table`).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+import faulthandler
 import re
 import signal
 import threading
-from typing import Callable
+from typing import Callable, Iterator
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
@@ -29,6 +31,9 @@ from ..core.node_parameters import SPECS
 #: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and
 #: SIGTERM).
 SPIN_TIMEOUT = 0.5
+#: [s] Longest wait for the node and DDS to shut down (:func:`teardown`); ros2 launch sends
+#: SIGTERM 5 s after SIGINT.
+TEARDOWN_TIMEOUT = 5.0
 #: The executors of the ``executor`` parameter
 #: (:data:`~pma_model_ros.core.node_parameters.EXECUTORS`).
 EXECUTORS: dict[str, Callable[..., Executor]] = {
@@ -38,7 +43,15 @@ EXECUTORS: dict[str, Callable[..., Executor]] = {
 
 
 class StartupError(Exception):
-    """Bad parameters at start-up: logged as one line, then a non-zero exit."""
+    """Bad parameters at start-up: logged as one line, then exit code 1.
+
+    ``node`` is the half-built node (set by :func:`refusing`), which :func:`run` destroys after
+    logging the line.
+    """
+
+    def __init__(self, message: str, node: Node | None = None) -> None:
+        super().__init__(message)
+        self.node = node
 
 
 def init(args: list[str] | None) -> None:
@@ -60,11 +73,16 @@ def init(args: list[str] | None) -> None:
         set_logger_level('rcl', level)
 
 
-def fail(node_name: str, err: Exception) -> int:
-    """Log ``err`` as one FATAL line of ``node_name``; the exit code for main()."""
-    rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {err}')
-    rclpy.try_shutdown()
-    return 1
+@contextmanager
+def refusing(node: Node) -> Iterator[None]:
+    """Wrap the part of ``node.__init__`` that reads its parameters: a bad value raises
+    :class:`StartupError` carrying the half-built ``node``, so that :func:`run` destroys it before
+    the context (left to the garbage collector, it went after the context's shutdown).
+    """
+    try:
+        yield
+    except (ParameterException, ValueError) as err:
+        raise StartupError(str(err), node) from None
 
 
 def executor(node: Node) -> Executor:
@@ -81,29 +99,27 @@ def executor(node: Node) -> Executor:
 
 
 def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -> int:
-    """Init, build the node, spin until SIGINT, SIGTERM or shutdown; the exit code.
+    """Init, build the node, spin until SIGINT, SIGTERM or shutdown; the exit code (1: bad
+    parameters, logged as one FATAL line).
 
     The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the node
     are shut down before the context.  With rclpy's own signal handler the context went first, and
     the EventsExecutor could still run a callback whose ``publish`` then failed
     (docs/performance-nodes.md).
     """
-    node = None
+    node = spinner = None
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
     try:
-        init(args)
-        node = make_node()
-        spinner = executor(node)
-    except (
-        StartupError,
-        ParameterException,
-    ) as err:  # also rclpy's own use_sim_time, declared by Node()
-        if node is not None:
-            node.destroy_node()
-        return fail(node_name, err)
-    try:
+        try:
+            init(args)
+            node = make_node()
+            spinner = executor(node)
+        except (StartupError, ParameterException) as err:  # also use_sim_time, read by Node()
+            rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {err}')
+            node = node or getattr(err, 'node', None)
+            return 1
         spinner.add_node(node)
         while node.context.ok() and not stop.is_set():
             spinner.spin_once(timeout_sec=SPIN_TIMEOUT)
@@ -113,10 +129,30 @@ def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -
         if node.context.ok():
             raise
     finally:
-        spinner.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        teardown(spinner, node)
     return 0
+
+
+def teardown(spinner: Executor | None, node: Node | None) -> None:
+    """Shut down the executor, destroy the node, shut down the context; at most
+    :data:`TEARDOWN_TIMEOUT`.
+
+    Fast DDS 2.14 can deadlock in discovery, and destroying the participant then waits for it
+    forever, holding the GIL: twice in ~3,000 start-ups of 16 nodes at once, the main thread spun
+    in ``DomainParticipant::set_listener`` while an event thread waited for a lock in
+    ``PDP::check_remote_participant_liveliness`` (eProsima/Fast-DDS#6502, #6513).
+    faulthandler's watchdog thread needs no GIL: past the bound it prints every thread's stack and
+    exits with code 1.
+    """
+    faulthandler.dump_traceback_later(TEARDOWN_TIMEOUT, exit=True)
+    try:
+        if spinner is not None:
+            spinner.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 def declare_table(node: Node, table: dict[str, tuple]) -> dict[str, object]:
