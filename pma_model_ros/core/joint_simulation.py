@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .joint import Transmission
 from .node_parameters import SPECS, STANDARD_ATMOSPHERE
 from .shipped_data import MAPPED_MUSCLES, shipped_force_map
@@ -75,8 +77,27 @@ class SimulatedJoint:
                 raise ValueError(f"parameter '{name}' needs two entries, got {list(params[name])}")
         if not params['radius']:
             raise ValueError("parameter 'radius' needs at least one coefficient [m]")
+        low, high = (float(x) for x in params['limits'])
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ValueError(
+                "parameter 'limits' must be finite [min, max] rad with min < max, got "
+                f'{list(params["limits"])}'
+            )
+        if not low <= params['angle'] <= high:
+            raise ValueError(
+                f"parameter 'angle' {params['angle']:g} rad is outside 'limits' "
+                f'[{low:g}, {high:g}]'
+            )
         self.truths = tuple(GroundTruth(shipped_force_map(str(m))) for m in params['maps'])
         self.transmission = Transmission(tuple(float(c) for c in params['radius']))
+        angles = np.linspace(low, high, 1001)
+        radius = self.transmission.radius(angles)
+        if not np.all(radius > 0):
+            i = int(np.argmin(radius))
+            raise ValueError(
+                f"parameter 'radius': lever arm r = {radius[i]:.4g} m at θ = {angles[i]:.4g} rad; "
+                'it must be > 0 m over the limits'
+            )
         self.params = params
         self.angle, self.velocity = float(params['angle']), 0.0
         self.pressures = [0.0, 0.0]  # gauge [Pa]

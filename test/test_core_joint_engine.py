@@ -1,0 +1,324 @@
+"""JointEngine (joint_node's decisions, no ROS): estimates of several joints against
+τ = r (F0 - F1) of the single muscles at lengths computed by hand, flags and how long they hold,
+freshness, the command path's round trips, and inputs it must reject.
+
+The forces come from each muscle's own parameter file (``MuscleModel.force``, the vector path), not
+from the joint file or :class:`~pma_model_ros.core.joint.MuscleAt`; stiffnesses are central
+differences of those hand torques.
+"""
+
+import math
+
+import pytest
+
+from pma_model_ros.core.engine import Level
+from pma_model_ros.core.joint import Joint, Transmission
+from pma_model_ros.core.joint_engine import JointEngine, Settings
+from pma_model_ros.core.joint_file import load_joints
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+
+from conftest import CONFIGS, REPO
+
+AMBIENT = 101325.0  # [Pa]
+AGE = 0.125  # [s] max_input_age (a binary fraction: the freshness edge is exact)
+#: DMSP-10-250 identified over 0.198..0.25 m and 0..650 kPa (Table A2); hildebrandt does not
+#: extrapolate, martens does (up to the rated 800 kPa).
+HILDEBRANDT = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')
+MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
+#: DMSP-20-300, identified over 0.222..0.296 m.
+BIG = muscle_model(read_parameters(CONFIGS['DMSP-20-300']), 'hildebrandt')
+#: DMSP-10-100 with Sárosi's two hysteresis branches, identified over 0.075..0.1 m.
+SAROSI = muscle_model(read_parameters(CONFIGS['DMSP-10-100']), 'sarosi_hysteresis')
+
+#: The example file: a 15 mm pulley, both DMSP-10-250 (hildebrandt) 0.234 m long at 0 rad.
+ELBOW = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
+#: r(θ) = 12 mm + 3 mm·θ, so s(θ) = 0.012 θ + 0.0015 θ²; lengths 0.226 and 0.228 m at 0 rad.
+WRIST = Joint(
+    'wrist',
+    (HILDEBRANDT, HILDEBRANDT),
+    ('wrist_flexor', 'wrist_extensor'),
+    (0.226, 0.228),
+    Transmission((0.012, 0.003)),
+    (-1.0, 1.0),
+)
+#: Two DMSP-20-300 on a 20 mm pulley, 0.26 m long at 0 rad.
+KNEE = Joint(
+    'knee', (BIG, BIG), ('quad', 'hamstring'), (0.26, 0.26), Transmission((0.02,)), (-1, 1)
+)
+
+
+def force(muscle, p, length, rate=None):
+    """Tension [N] of ``muscle`` at gauge ``p`` [Pa] and ``length`` [m] (its own vector path)."""
+    return float(muscle.force(p, length, rate).force)
+
+
+def elbow_torque(theta, p0, p1):
+    # r = 0.015 m, s = 0.015 θ: flexor 0.234 - 0.015 θ, extensor 0.234 + 0.015 θ
+    return 0.015 * (
+        force(HILDEBRANDT, p0, 0.234 - 0.015 * theta)
+        - force(HILDEBRANDT, p1, 0.234 + 0.015 * theta)
+    )
+
+
+def wrist_torque(theta, p0, p1):
+    r, s = 0.012 + 0.003 * theta, 0.012 * theta + 0.0015 * theta**2
+    return r * (force(HILDEBRANDT, p0, 0.226 - s) - force(HILDEBRANDT, p1, 0.228 + s))
+
+
+def knee_torque(theta, p0, p1):
+    return 0.02 * (force(BIG, p0, 0.26 - 0.02 * theta) - force(BIG, p1, 0.26 + 0.02 * theta))
+
+
+def stiffness_of(torque, theta, p0, p1, h=1e-5):
+    """K = -dτ/dθ [N·m/rad] by a central difference of a hand torque."""
+    return -(torque(theta + h, p0, p1) - torque(theta - h, p0, p1)) / (2 * h)
+
+
+def engine(*joints, settings=None, hold=1.0):
+    joints = joints or (ELBOW,)
+    settings = settings or [Settings(300e3, 'min')] * len(joints)
+    return JointEngine(joints, settings, AMBIENT, AGE, hold)
+
+
+def feed(e, k, p0, p1, t=0.0):
+    """Both muscles of joint ``k``: gauge ``p0``, ``p1`` [Pa], stamped and received at ``t``."""
+    e.pressure(k, 0, AMBIENT + p0, t, t)
+    e.pressure(k, 1, AMBIENT + p1, t, t)
+
+
+def test_three_joints_estimate_r_times_the_force_difference():
+    e = engine(
+        ELBOW,
+        WRIST,
+        KNEE,
+        settings=[Settings(300e3, 'min'), Settings(600e3, 'sum'), Settings(0.0, 'min')],
+    )
+    assert e.index == {'elbow': 0, 'wrist': 1, 'knee': 2}
+    cases = [  # joint, θ [rad], gauge pressures [Pa], the hand torque
+        # the README's worked example: r = 0.015 m, flexor 0.2265 m, extensor 0.2415 m
+        (0, 0.5, (400e3, 300e3), elbow_torque),
+        # r = 0.012 + 0.003·0.4 = 0.0132 m; s = 0.0048 + 0.0015·0.16 = 0.00504 m:
+        # flexor 0.226 - 0.00504 = 0.22096 m, extensor 0.228 + 0.00504 = 0.23304 m
+        (1, 0.4, (500e3, 250e3), wrist_torque),
+        # r = 0.02 m, s = -0.006 m: quad 0.266 m, hamstring 0.254 m
+        (2, -0.3, (150e3, 450e3), knee_torque),
+    ]
+    for k, _, pair, _ in cases:
+        feed(e, k, *pair, t=10.0)
+    for k, theta, pair, torque in cases:
+        tau, stiffness = e.angle(k, theta, 0.0, 10.01, 10.02)
+        assert tau == pytest.approx(torque(theta, *pair), rel=1e-9)
+        assert stiffness == pytest.approx(stiffness_of(torque, theta, *pair), rel=1e-6)
+        assert e.status(k, 10.02)[:2] == (Level.OK, 'OK')
+    # the README's rounded numbers of the worked example
+    assert (round(e.state[0].torque, 3), round(e.state[0].stiffness_estimate, 2)) == (-0.693, 3.84)
+    # counts of joint 1 alone: its two pressures, one angle, one estimate
+    values = e.status(1, 10.02)[2]
+    assert (values['pressures'], values['joint_states'], values['estimates']) == ('2', '1', '1')
+    assert values['commands'] == 'co-contraction sum 600000 Pa'
+
+
+def test_the_velocity_picks_each_muscles_hysteresis_branch():
+    """Positive θ' shortens muscle 0 (length rate -r θ') and lengthens muscle 1 (+r θ')."""
+    finger = Joint(
+        'finger', (SAROSI, SAROSI), ('a', 'b'), (0.0875, 0.0875), Transmission((0.01,)), (-1, 1)
+    )
+    e = engine(finger)
+    feed(e, 0, 400e3, 300e3)
+    lengths = (0.0875 - 0.01 * 0.2, 0.0875 + 0.01 * 0.2)  # 0.0855 m and 0.0895 m at 0.2 rad
+    torques = {}
+    for velocity in (0.5, -0.5):  # length rates ∓0.005 m/s
+        torques[velocity], _ = e.angle(0, 0.2, velocity, 0.0, 0.0)
+        rate = 0.01 * velocity
+        assert torques[velocity] == pytest.approx(
+            0.01
+            * (force(SAROSI, 400e3, lengths[0], -rate) - force(SAROSI, 300e3, lengths[1], rate)),
+            rel=1e-9,
+        )
+    assert abs(torques[0.5] - torques[-0.5]) > 1e-3  # the branches differ (> 0.1 N of force)
+    assert e.status(0, 0.0)[0] == Level.OK
+    mean, _ = e.angle(0, 0.2, math.nan, 0.0, 0.0)  # no velocity: the mean branch, flagged
+    assert min(torques.values()) < mean < max(torques.values())
+    assert e.status(0, 0.0)[:2] == (Level.WARN, 'hysteresis branch unknown (BRANCH_UNKNOWN)')
+
+
+def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_ends():
+    """A 30 mm pulley at 0.7 rad: s = 0.021 m, flexor 0.213 m, extensor 0.255 m > 0.25 m."""
+    reach = Joint(
+        'reach', (HILDEBRANDT,) * 2, ('a', 'b'), (0.234, 0.234), Transmission((0.03,)), (-1, 1)
+    )
+    e = engine(reach, hold=1.0)
+    feed(e, 0, 500e3, 200e3)
+    tau, stiffness = e.angle(0, 0.7, 0.0, 0.0, 0.0)
+    # hildebrandt does not extrapolate: the extensor's force is the one at 0.25 m ...
+    assert tau == pytest.approx(
+        0.03 * (force(HILDEBRANDT, 500e3, 0.213) - force(HILDEBRANDT, 200e3, 0.25)), rel=1e-9
+    )
+    # ... and does not change with θ there: K = r² dF0/dL alone
+    h = 1e-6
+    slope = (force(HILDEBRANDT, 500e3, 0.213 + h) - force(HILDEBRANDT, 500e3, 0.213 - h)) / (2 * h)
+    assert stiffness == pytest.approx(0.03**2 * slope, rel=1e-6)
+    assert e.status(0, 0.0)[:2] == (Level.WARN, 'outside validity domain (LENGTH_OUT_OF_RANGE)')
+    feed(e, 0, 500e3, 200e3, t=0.5)
+    assert e.angle(0, 0.0, 0.0, 0.5, 0.5) is not None  # inside again: 0.234 m both
+    assert e.status(0, 0.5)[0] == Level.WARN  # 0.5 s after the flag, within the 1 s hold
+    assert e.status(0, 1.0)[0] == Level.WARN  # exactly 1 s after: still held (<=)
+    assert e.status(0, 1.5)[:2] == (Level.OK, 'OK')
+    assert e.status(0, 1.5)[2]['last warning flags'] == 'LENGTH_OUT_OF_RANGE'
+
+
+@pytest.mark.parametrize(
+    'muscle, gauge, served, flags',
+    [
+        # README flag table: within the 10 kPa vented band below 0 a muscle is vented, unflagged
+        (HILDEBRANDT, -5e3, 0.0, set()),
+        (HILDEBRANDT, 0.0, 0.0, set()),
+        (HILDEBRANDT, 650e3, 650e3, set()),  # the map's top (Table A2)
+        # beyond the band: a vacuum a muscle cannot hold
+        (HILDEBRANDT, -20e3, 0.0, {'BELOW_AMBIENT', 'PRESSURE_OUT_OF_RANGE'}),
+        (HILDEBRANDT, 700e3, 650e3, {'PRESSURE_OUT_OF_RANGE'}),  # served at the top
+        # martens extrapolates up to the rated 800 kPa: its own value there, then held
+        (MARTENS, 700e3, 700e3, {'EXTRAPOLATED'}),
+        (MARTENS, 900e3, 800e3, {'EXTRAPOLATED', 'PRESSURE_OUT_OF_RANGE'}),
+    ],
+    ids=['vented', 'zero', 'map-top', 'vacuum', 'above-map', 'extrapolated', 'above-rated'],
+)
+def test_pressure_flags_follow_the_readme_rule(muscle, gauge, served, flags):
+    """Muscle 1 at ``gauge`` [Pa]: the torque is that of the ``served`` pressure; the joint warns
+    with the README flag table's ``flags``, or is OK without any.
+    """
+    joint = Joint(
+        'j', (muscle, muscle), ('a', 'b'), (0.234, 0.234), Transmission((0.015,)), (-1, 1)
+    )
+    e = engine(joint)
+    feed(e, 0, 300e3, gauge)
+    tau, _ = e.angle(0, 0.0, 0.0, 0.0, 0.0)
+    assert tau == pytest.approx(
+        0.015 * (force(muscle, 300e3, 0.234) - force(muscle, served, 0.234)), rel=1e-9, abs=1e-12
+    )
+    level, message, values = e.status(0, 0.0)
+    assert level == (Level.WARN if flags else Level.OK)
+    assert set(values['last warning flags'].split('|')) == (flags or {'OK'})
+    assert all(f'({flag})' in message for flag in flags)
+
+
+def test_only_fresh_pressures_give_an_estimate():
+    e = engine()
+    assert e.angle(0, 0.0, 0.0, 0.0, 0.0) is None  # no pressure yet
+    assert e.status(0, 0.0)[:2] == (Level.ERROR, 'no estimate yet: pressures missing or stale')
+    e.pressure(0, 0, AMBIENT + 300e3, 0.0, 0.0)
+    assert e.angle(0, 0.0, 0.0, 0.0, 0.0) is None  # the extensor's still missing
+    e.pressure(0, 1, AMBIENT + 300e3, 0.125, 0.125)  # stamped 0.125 s after the flexor's
+    assert e.angle(0, 0.0, 0.0, 0.125, 0.125) is not None  # 0.125 s old: max_input_age, fresh
+    assert e.angle(0, 0.0, 0.0, 0.125, 0.25) is None  # the angle and flexor now 0.125/0.25 s old
+    assert e.angle(0, 0.0, 0.0, 0.25, 0.25) is None  # the flexor 0.25 s old
+    assert e.angle(0, 0.0, 0.0, 0.0625, 0.0625) is not None  # a stamp ahead by 0.0625 s: fresh
+    counts = e.status(0, 0.25)[2]
+    assert (counts['joint_states'], counts['stale skipped'], counts['estimates']) == (
+        '6',
+        '4',
+        '2',
+    )
+
+
+def test_a_torque_command_round_trips_through_the_hand_torque():
+    e = engine(ELBOW, WRIST, settings=[Settings(300e3, 'min'), Settings(600e3, 'sum')])
+    feed(e, 0, 300e3, 300e3)  # fresh pressures: an estimate, so the status can be OK
+    e.angle(0, -0.3, 0.0, 0.0, 0.0)
+    e.angle(1, 0.4, 0.0, 0.0, 0.0)
+    # elbow: the lower pressure at the file's 300 kPa
+    p0, p1 = (p - AMBIENT for p in e.command(0, 2.5, 0.0))
+    assert min(p0, p1) == pytest.approx(300e3, abs=1e-6) and p0 > p1  # the flexor pulls more
+    assert elbow_torque(-0.3, p0, p1) == pytest.approx(2.5, abs=1e-8)
+    # wrist: the pressures sum to 600 kPa
+    p0, p1 = (p - AMBIENT for p in e.command(1, -0.8, 0.0))
+    assert p0 + p1 == pytest.approx(600e3, abs=1e-6)
+    assert wrist_torque(0.4, p0, p1) == pytest.approx(-0.8, abs=1e-8)
+    # a wanted stiffness: both τ and K = -dτ/dθ are met
+    e.angle(0, 0.2, 0.0, 0.0, 0.0)
+    e.stiffness(0, 4.5, 0.0)
+    p0, p1 = (p - AMBIENT for p in e.command(0, 1.0, 0.0))
+    assert elbow_torque(0.2, p0, p1) == pytest.approx(1.0, abs=1e-8)
+    assert stiffness_of(elbow_torque, 0.2, p0, p1) == pytest.approx(4.5, rel=1e-5)
+    assert e.status(0, 0.0)[2]['commands'] == 'stiffness 4.5 N·m/rad'
+    # a co-contraction command ends the stiffness mode
+    e.cocontraction(0, 400e3, 0.0)
+    p0, p1 = (p - AMBIENT for p in e.command(0, -1.0, 0.0))
+    assert p0 == pytest.approx(400e3, abs=1e-6) and elbow_torque(0.2, p0, p1) == pytest.approx(
+        -1.0, abs=1e-8
+    )
+    assert e.status(0, 0.0)[:2] == (Level.OK, 'OK')
+    assert e.status(0, 0.0)[2]['pressure commands'] == '3'  # the elbow's three
+
+
+def test_an_out_of_reach_torque_is_served_at_the_map_top_and_warns():
+    e = engine()
+    feed(e, 0, 300e3, 300e3)
+    e.angle(0, 0.0, 0.0, 0.0, 0.0)
+    assert e.status(0, 0.0)[0] == Level.OK
+    p0, p1 = (p - AMBIENT for p in e.command(0, 100.0, 0.0))
+    # hildebrandt commands up to the map's 650 kPa; the extensor stays at the 300 kPa level
+    assert (p0, p1) == pytest.approx((650e3, 300e3), abs=1e-6)
+    assert elbow_torque(0.0, p0, p1) < 100.0
+    assert e.status(0, 0.0)[:2] == (Level.WARN, 'saturated (SATURATED)')
+
+
+def test_settings_are_checked():
+    with pytest.raises(
+        ValueError, match=r"cocontraction_mode must be one of \('min', 'sum'\), got 'max'"
+    ):
+        Settings(300e3, 'max')
+    for level in (-1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match='cocontraction must be a gauge pressure >= 0 Pa'):
+            Settings(level, 'min')
+
+
+def _nan_angle(e):
+    return e.angle(0, math.nan, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    'act, problem',
+    [
+        (_nan_angle, 'angle is nan rad'),
+        # 9 rad: the extensor would be 0.234 + 0.015·9 = 0.369 m, longer than L0/cos Θ0 = 0.2847 m
+        (
+            lambda e: e.angle(0, 9.0, 0.0, 0.0, 0.0),
+            "angle 9 rad puts muscle 'extensor' at 0.369 m, outside its geometry (0, 0.2847) m",
+        ),
+        (lambda e: e.pressure(0, 0, math.nan, 0.0, 0.0), "muscle 'flexor': pressure is nan Pa"),
+        (
+            lambda e: e.pressure(0, 1, -3.0, 0.0, 0.0),
+            "muscle 'extensor': negative absolute pressure -3 Pa",
+        ),
+        (lambda e: e.command(0, math.inf, 0.0), 'torque command is inf N·m'),
+        (lambda e: e.stiffness(0, -1.0, 0.0), 'stiffness -1 N·m/rad is not >= 0'),
+        (
+            lambda e: e.cocontraction(0, math.nan, 0.0),
+            'co-contraction nan Pa is no gauge pressure >= 0',
+        ),
+    ],
+)
+def test_a_bad_input_is_rejected_and_changes_nothing(act, problem):
+    e = engine()
+    feed(e, 0, 400e3, 300e3)
+    before = e.angle(0, 0.5, 0.0, 0.0, 0.0)
+    before_command = e.command(0, 1.0, 0.0)
+    assert act(e) is None
+    level, message, values = e.status(0, 0.0)
+    assert (level, message, values['rejected']) == (Level.ERROR, problem, '1')
+    # the newest inputs are untouched: the same estimate and command as before
+    assert e.angle(0, 0.5, 0.0, 0.0, 0.0) == before and e.command(0, 1.0, 0.0) == before_command
+    assert before == pytest.approx(
+        (elbow_torque(0.5, 400e3, 300e3), stiffness_of(elbow_torque, 0.5, 400e3, 300e3)), rel=1e-6
+    )
+    assert e.status(0, 1.0)[0] == Level.ERROR and e.status(0, 1.5)[:2] == (
+        Level.OK,
+        'OK',
+    )  # 1 s hold
+
+
+def test_a_command_before_any_angle_is_rejected():
+    e = engine()
+    assert e.command(0, 1.0, 0.0) is None
+    assert e.status(0, 0.0)[1] == 'torque command before any angle (joint_states)'
