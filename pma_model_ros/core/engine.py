@@ -41,7 +41,7 @@ import numpy as np
 from .flags import describe, Flag
 from .hysteresis import play
 from .muscle_bank import MuscleBank
-from .muscle_model import force_at, MuscleModel, Operating, VENTED_BAND
+from .muscle_model import force_at, MuscleModel, Operating, served_pressure
 from .node_parameters import SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8
@@ -67,16 +67,7 @@ _WARN_TEXTS = tuple(f'{text} ({flag.name})' for flag, text in WARN_FLAGS.items()
 _WARN_BIT_LIST = tuple(int(flag) for flag in WARN_FLAGS)
 _WARN_BITS = np.array(_WARN_BIT_LIST, np.uint16)
 _WARN_MASK = int(sum(WARN_FLAGS))
-_INVALID, _PRESSURE_OUT, _CLIPPED, _EXTRAPOLATED, _BELOW_AMBIENT = (
-    int(f)
-    for f in (
-        Flag.INVALID_INPUT,
-        Flag.PRESSURE_OUT_OF_RANGE,
-        Flag.CLIPPED,
-        Flag.EXTRAPOLATED,
-        Flag.BELOW_AMBIENT,
-    )
-)
+_INVALID, _CLIPPED = int(Flag.INVALID_INPUT), int(Flag.CLIPPED)
 #: Counters of each muscle, in the order of the engine's count array.
 COUNTERS = (
     'received pressure',
@@ -402,16 +393,8 @@ class Engine:
             return None
         gauge = self._pressure.item(k) - self._ambient.item(k)
         limits = self.configs[k].model.limits
-        flags = int(self._lflags[k])
-        if gauge < 0:  # the rule of force_at, in floats
-            if gauge < -VENTED_BAND:
-                flags |= _PRESSURE_OUT | _BELOW_AMBIENT
-            gauge = 0.0
-        elif gauge > limits.pressure_top:
-            flags |= _PRESSURE_OUT
-            gauge = limits.pressure_top
-        if gauge > limits.pressure_known:
-            flags |= _EXTRAPOLATED
+        pressure_flags, gauge = served_pressure(gauge, limits)
+        flags = int(self._lflags[k]) | pressure_flags
         q = self._q
         raw = (q.item(0, k) * gauge + q.item(1, k)) * gauge + q.item(2, k)
         if flags & _INVALID or not raw < math.inf:  # NaN or inf: the model gives no force here

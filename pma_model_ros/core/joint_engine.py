@@ -17,9 +17,9 @@ import math
 from typing import Sequence
 
 from .engine import Level, pressure_problem, WARN_FLAGS
-from .flags import describe, Flag
+from .flags import describe
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
-from .muscle_model import VENTED_BAND
+from .muscle_model import served_pressure
 
 COUNTERS = (
     'joint_states',
@@ -31,9 +31,6 @@ COUNTERS = (
     'pressure commands',
 )
 _WARN_MASK = int(sum(WARN_FLAGS))
-_PRESSURE_OUT, _BELOW_AMBIENT, _EXTRAPOLATED = (
-    int(f) for f in (Flag.PRESSURE_OUT_OF_RANGE, Flag.BELOW_AMBIENT, Flag.EXTRAPOLATED)
-)
 
 
 @dataclass(frozen=True)
@@ -128,13 +125,8 @@ class JointEngine:
         p0, p1 = s.gauge
         s.torque, s.stiffness_estimate = joint.torque_stiffness(m0, m1, r, r_slope, p0, p1)
         flags = m0.flags | m1.flags
-        for m, muscle, p in ((m0, joint.muscles[0], p0), (m1, joint.muscles[1], p1)):
-            if p < -VENTED_BAND:  # the rule of force_at, in floats: a vented muscle is no warning
-                flags |= _PRESSURE_OUT | _BELOW_AMBIENT
-            elif p > m.p_top:
-                flags |= _PRESSURE_OUT
-            if min(p, m.p_top) > muscle.limits.pressure_known:
-                flags |= _EXTRAPOLATED
+        for muscle, p in zip(joint.muscles, s.gauge):
+            flags |= served_pressure(p, muscle.limits)[0]
         self._note(s, flags, now)
         s.counts['estimates'] += 1
         return s.torque, s.stiffness_estimate

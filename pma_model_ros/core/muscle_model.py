@@ -227,6 +227,23 @@ class Evaluator:
         return pressure_for(op, F)
 
 
+def served_pressure(gauge: float, limits: Limits) -> tuple[int, float]:
+    """The pressure rule of :func:`force_at` for one gauge pressure [Pa] in plain floats (the
+    engines' per-message path): (its flags, the pressure served [Pa]).
+    """
+    flags = 0
+    if gauge < 0:
+        if gauge < -VENTED_BAND:
+            flags = _PRESSURE_OUT | _BELOW_AMBIENT
+        gauge = 0.0
+    elif gauge > limits.pressure_top:
+        flags = _PRESSURE_OUT
+        gauge = limits.pressure_top
+    if gauge > limits.pressure_known:
+        flags |= _EXTRAPOLATED
+    return flags, gauge
+
+
 def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
     """The inverse of :func:`force_at`: gauge pressure [Pa] in [0, p_max] giving tension ``force``
     [N].
