@@ -3,6 +3,7 @@ link's rest.
 """
 
 import math
+import re
 
 import pytest
 
@@ -78,3 +79,39 @@ def test_bad_parameters():
         SimulatedJoint(params(mode='free'), 0.0)
     with pytest.raises(ValueError, match='no shipped force map'):
         SimulatedJoint(params(maps=['DMSP-10-250', 'MAS-20']), 0.0)
+
+
+def test_a_muscle_leaving_its_map_over_the_limits_is_refused():
+    """0.245 m + 0.015 m/rad · 1 rad = 0.260 m at θ = -1 rad, beyond Table A2's longest 0.250 m."""
+    with pytest.raises(ValueError, match=r"'flexor' is 0\.26 m at θ = -1 rad.*\[0\.198, 0\.25\]"):
+        SimulatedJoint(params(length_at_zero=[0.245, 0.234]), 0.0)
+
+
+def test_a_link_too_light_for_its_rate_is_refused_and_the_lightest_accepted_is_stable():
+    """At the bound ω dt = 1 the undamped link, released from 0.5 rad, does not grow: semi-implicit
+    Euler conserves a nearby energy, whose swing is at most 0.5 / sqrt(1 - (ω dt / 2)^2) rad.
+    """
+    released = {'mode': 'link', 'angle': 0.5, 'damping': 0.0, 'pressure_time_constant': 0.0}
+    with pytest.raises(ValueError, match=r"'inertia' 1e-05 kg m\^2 is too small") as refused:
+        SimulatedJoint(params(inertia=1e-5, **released), 0.0)
+    least = float(re.search(r'at least ([0-9.e-]+)', str(refused.value))[1])
+    joint = SimulatedJoint(params(inertia=least * 1.01, **released), 0.0)
+    for k in (0, 1):
+        joint.command(k, AMBIENT + 650e3)  # the stiffest: both at the map's top
+    angles = [joint.step(i / 200) and joint.angle for i in range(1, 2001)]
+    swing = [max(abs(a) for a in angles[i : i + 500]) for i in range(0, 2000, 500)]
+    assert max(swing) <= 0.5 / math.sqrt(0.75) and swing[-1] <= 1.01 * swing[0], swing
+
+
+def test_heavy_damping_is_stable_and_does_not_overshoot():
+    """With c dt / I = 1000 · 0.005 / 0.01 = 500 (an explicit damping term is unstable beyond 2),
+    the implicit one creeps toward 0 rad from 0.5 rad without crossing it.
+    """
+    joint = SimulatedJoint(
+        params(mode='link', angle=0.5, inertia=0.01, damping=1e3, pressure_time_constant=0.0),
+        0.0,
+    )
+    for k in (0, 1):
+        joint.command(k, AMBIENT + 500e3)
+    angles = [joint.step(i / 200) and joint.angle for i in range(1, 401)]
+    assert all(0.0 < b <= a <= 0.5 for a, b in zip([0.5, *angles], angles))

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .joint import Transmission
 from .node_parameters import SPECS, STANDARD_ATMOSPHERE
@@ -44,7 +45,11 @@ PARAMETERS = {
         None,
     ),
     'angle': (0.0, 'initial angle [rad]', (-10.0, 10.0)),
-    'inertia': (0.01, 'link inertia about the joint axis [kg m^2]', (1e-6, 1e3)),
+    'inertia': (
+        0.01,
+        'link inertia about the joint axis [kg m^2]; at least K_max / rate^2 (start-up checks it)',
+        (1e-6, 1e3),
+    ),
     'damping': (0.1, 'link viscous damping [N·m·s/rad]', (0.0, 1e3)),
     'rate': (
         200.0,
@@ -99,10 +104,53 @@ class SimulatedJoint:
                 'it must be > 0 m over the limits'
             )
         self.params = params
+        self._check_lengths(angles)
+        if params['mode'] == 'link':
+            self._check_stable(angles)
         self.angle, self.velocity = float(params['angle']), 0.0
         self.pressures = [0.0, 0.0]  # gauge [Pa]
         self._targets = [0.0, 0.0]
         self._last = start
+
+    def _lengths(self, angle: ArrayLike) -> tuple:
+        """Each muscle's length [m] at ``angle`` [rad] (the first shortens for positive θ)."""
+        s = self.transmission.travel(angle)
+        zero = self.params['length_at_zero']
+        return zero[0] - s, zero[1] + s
+
+    def _check_lengths(self, angles: np.ndarray) -> None:
+        """Each muscle stays within its map's measured lengths over the limits: the truth is known
+        only there (the map would hold a longer or shorter muscle at its edge, silently).
+        """
+        for name, truth, lengths in zip(
+            self.params['muscles'], self.truths, self._lengths(angles)
+        ):
+            outside = (lengths < truth.lengths[0]) | (lengths > truth.lengths[-1])
+            if outside.any():
+                i = int(np.argmax(outside))
+                raise ValueError(
+                    f"parameter 'length_at_zero': muscle '{name}' is {lengths[i]:.4g} m at "
+                    f"θ = {angles[i]:.4g} rad, outside its map's lengths "
+                    f'[{truth.lengths[0]:g}, {truth.lengths[-1]:g}] m'
+                )
+
+    def _check_stable(self, angles: np.ndarray) -> None:
+        """The link's explicit step in angle is stable and resolves its oscillation: ω dt ≤ 1 with
+        ω² = K_max / I, K_max the stiffest point of the range with both muscles at their maps' top
+        pressure, dt = 1 / rate.
+        """
+        lengths = self._lengths(angles)
+        tops = [t.pressures[-1] for t in self.truths]
+        forces = [t.force(p, L) for t, p, L in zip(self.truths, tops, lengths)]
+        torque = self.transmission.radius(angles) * (forces[0] - forces[1])
+        k_max = float(np.max(-np.gradient(torque, angles)))
+        least = k_max / self.params['rate'] ** 2
+        if self.params['inertia'] < least:
+            raise ValueError(
+                f"parameter 'inertia' {self.params['inertia']:g} kg m^2 is too small for 'rate' "
+                f'{self.params["rate"]:g} Hz: the link (stiffness up to {k_max:.3g} N·m/rad) '
+                f'needs at least {least:.3g} kg m^2 (ω dt ≤ 1), or a higher rate'
+            )
 
     def command(self, k: int, absolute: float) -> None:
         """Muscle ``k``'s pressure command [Pa absolute]; non-finite values are ignored."""
@@ -119,8 +167,7 @@ class SimulatedJoint:
 
     def forces(self) -> tuple[float, float]:
         """Each muscle's measured-map tension [N] at the present angle and pressures."""
-        s = self.transmission.travel(self.angle)
-        lengths = (self.params['length_at_zero'][0] - s, self.params['length_at_zero'][1] + s)
+        lengths = self._lengths(self.angle)
         return tuple(float(t.force(p, L)) for t, p, L in zip(self.truths, self.pressures, lengths))
 
     def torque(self) -> float:
@@ -136,9 +183,12 @@ class SimulatedJoint:
         for k in (0, 1):
             self.pressures[k] += (self._targets[k] - self.pressures[k]) * share
         torque = self.torque()
-        if self.params['mode'] == 'link' and dt > 0:  # semi-implicit Euler
-            self.velocity += (
-                (torque - self.params['damping'] * self.velocity) / self.params['inertia'] * dt
+        if self.params['mode'] == 'link' and dt > 0:
+            # Semi-implicit Euler, the damping implicit (stable for any c):
+            # v' = (v + τ dt / I) / (1 + c dt / I), θ' = θ + v' dt.
+            inertia = self.params['inertia']
+            self.velocity = (self.velocity + torque * dt / inertia) / (
+                1.0 + self.params['damping'] * dt / inertia
             )
             self.angle += self.velocity * dt
             low, high = self.params['limits']
