@@ -12,7 +12,7 @@ import pytest
 
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.models import MODELS
-from pma_model_ros.core.muscle_model import MuscleModel
+from pma_model_ros.core.muscle_model import MuscleModel, pressure_for_one
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 from conftest import CONFIGS
@@ -127,7 +127,8 @@ GRID = np.linspace(0.0, 1.0, 4001)
     st.sampled_from((-1.0, 1.0)),
 )
 def test_inverse_of_random_parameter_sets(shape, factors, u_length, u_pressure, u_target, rate):
-    """Any parameter set within the fitter's bounds, any sign of q2 and q1 (1,500 examples).
+    """Any parameter set within the fitter's bounds, any sign of q2 and q1 (1,500 examples); the
+    float twin (pressure_for_one) agrees.
 
     A force the model reaches in [0, max_pressure] comes back unflagged, at the smallest pressure
     that gives it; any other force gives a pressure whose force is at least as near the target as
@@ -169,3 +170,13 @@ def test_inverse_of_random_parameter_sets(shape, factors, u_length, u_pressure, 
         assert best > 0.0
     elif target > 0:
         assert served == pytest.approx(target, abs=1e-9 * scale)
+    # The float twin of the joints' inverse gives the same pressures (its q's differ from the
+    # vector's in the last bits: 1e-6 of p_max, and the same force to round-off).
+    _, q2, q1, q0 = muscle.operating_one(L, rate)
+    for force in (wanted, target):
+        twin = pressure_for_one(q2, q1, q0, force, 0.0, muscle.limits.command_top)
+        vector = float(muscle.pressure(force, L, rate).pressure)
+        assert twin == pytest.approx(vector, abs=1e-6 * p_max)
+        assert float(muscle.force(twin, L, rate).force) == pytest.approx(
+            float(muscle.force(vector, L, rate).force), abs=1e-9 * scale
+        )

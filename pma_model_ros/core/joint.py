@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 
 from .flags import Flag
 from .models import coefficient_slopes
-from .muscle_model import force_at, MuscleModel
+from .muscle_model import force_at, MuscleModel, pressure_for_one
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
 COCONTRACTION_MODES = ('min', 'sum')
@@ -133,29 +133,10 @@ class MuscleAt:
         return (self.d2 * p + self.d1) * p + self.d0
 
     def pressure(self, force: float, low: float = 0.0) -> float:
-        """The lowest gauge pressure [Pa] in [low, p_max] (the highest commanded) whose tension
-        reaches ``force`` [N] (the bound if none does).  Closed form (the rising root of q2 p² + q1
-        p + q0 = F), brentq where that fails.
+        """The lowest gauge pressure [Pa] in [low, p_max] (the highest commanded) giving tension
+        ``force`` [N], else that of the nearest reachable tension (:func:`.pressure_for_one`).
         """
-        if force <= self.force(low):
-            return low
-        if force >= self.force(self.p_max):
-            return self.p_max
-        q2, q1, q0 = self.q2, self.q1, self.q0
-        disc = q1 * q1 - 4 * q2 * (q0 - force)
-        if disc >= 0:
-            denom = q1 + math.sqrt(disc)
-            if denom > 0:
-                p = 2 * (force - q0) / denom
-                if low <= p <= self.p_max:
-                    return p
-        return brentq(
-            lambda p: self.force(p) - force,
-            low,
-            self.p_max,
-            xtol=1e-9,
-            rtol=4 * np.finfo(float).eps,
-        )
+        return pressure_for_one(self.q2, self.q1, self.q0, force, low, self.p_max)
 
 
 @dataclass(frozen=True)

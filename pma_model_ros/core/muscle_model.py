@@ -289,6 +289,29 @@ def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
     return PressureResult(np.where(usable, p, np.nan), flags)
 
 
+def pressure_for_one(
+    q2: float, q1: float, q0: float, force: float, low: float, high: float
+) -> float:
+    """:func:`pressure_for`'s rule in plain floats, on [``low``, ``high``] [Pa] (the joint's
+    per-message inverse): the smallest root of q2 p^2 + q1 p + q0 = max(``force``, 0) [N] there,
+    else the pressure of the nearest reachable force (a bound or the vertex; the smaller on a tie).
+    """
+    c = q0 - max(force, 0.0)
+    disc = q1 * q1 - 4 * q2 * c
+    if disc >= 0:
+        big = -0.5 * (q1 + math.copysign(math.sqrt(disc), q1))
+        slack = 1e-9 * high  # round-off at the bounds is not out of reach
+        roots = [
+            r
+            for r in (big / q2 if q2 else math.inf, c / big if big else math.inf)
+            if low - slack <= r <= high + slack
+        ]
+        if roots:
+            return min(max(min(roots), low), high)
+    vertex = [min(max(-q1 / (2 * q2), low), high)] if q2 else []
+    return min([low, *vertex, high], key=lambda p: (abs((q2 * p + q1) * p + c), p))
+
+
 @dataclass(frozen=True)
 class MuscleModel(Evaluator):
     """A muscle with one identified static force model."""
