@@ -35,6 +35,15 @@ COLCON = Path(sys.executable).parent / 'colcon'
 NO_DISCOVERY = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}
 
 
+def lines_of_failed_start(cmd: list[str]) -> list[str]:
+    """The output lines of a node process ``cmd`` that must fail at start-up with exit code 1."""
+    run = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=30, check=False, env=NO_DISCOVERY, cwd=REPO
+    )
+    assert run.returncode == 1, run.stdout + run.stderr
+    return (run.stdout + run.stderr).strip().splitlines()
+
+
 def explain(proc):
     return f'exit {proc.returncode}\n--- stdout ---\n{proc.stdout}\n--- stderr ---\n{proc.stderr}'
 

@@ -10,7 +10,6 @@ start-up with a StartupError naming them (and the process with one line).
 import copy
 import csv
 import math
-import subprocess
 import sys
 
 import numpy as np
@@ -26,7 +25,7 @@ from pma_model_ros.core.simulation import GroundTruth
 from pma_model_ros.nodes.joint_simulator_node import JointSimulatorNode
 from pma_model_ros.nodes.startup import StartupError
 
-from conftest import REPO
+from conftest import lines_of_failed_start, REPO
 from node_messages import AMBIENT
 
 with open(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv') as f:
@@ -238,14 +237,8 @@ def test_bad_parameters_are_a_startup_error_naming_them(make_node, params, messa
 
 
 def test_process_with_a_bad_mode_exits_1_with_one_line():
-    run = subprocess.run(
+    lines = lines_of_failed_start(
         [sys.executable, '-m', 'pma_model_ros.nodes.joint_simulator_node']
-        + ['--ros-args', '-p', 'mode:=free'],
-        capture_output=True,
-        text=True,
-        timeout=30,
-        check=False,
+        + ['--ros-args', '-p', 'mode:=free']
     )
-    lines = (run.stdout + run.stderr).strip().splitlines()
-    assert run.returncode == 1
     assert len(lines) == 1 and "parameter 'mode' must be one of" in lines[0], lines

@@ -11,20 +11,14 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
+from conftest import lines_of_failed_start
+
 pytestmark = pytest.mark.ros
 NODE = [sys.executable, '-m', 'pma_model_ros.nodes.simulator_node']
 
 
 def test_a_rate_out_of_range_is_one_line_naming_it():
-    run = subprocess.run(
-        [*NODE, '--ros-args', '-p', 'rate:=5000.0'],
-        capture_output=True,
-        text=True,
-        timeout=30,
-        check=False,
-    )
-    lines = (run.stdout + run.stderr).strip().splitlines()
-    assert run.returncode == 1
+    lines = lines_of_failed_start([*NODE, '--ros-args', '-p', 'rate:=5000.0'])
     assert len(lines) == 1 and 'rate' in lines[0], lines
 
 

@@ -10,7 +10,7 @@ import time
 import pytest
 import rclpy
 
-from conftest import NO_DISCOVERY, REPO
+from conftest import lines_of_failed_start, REPO
 
 pytestmark = pytest.mark.ros
 CONFIG = REPO / 'config' / 'dmsp_10_250.yaml'
@@ -18,14 +18,6 @@ CONFIG = REPO / 'config' / 'dmsp_10_250.yaml'
 
 def model_node(*ros_args: str) -> list[str]:
     return [sys.executable, '-m', 'pma_model_ros.nodes.model_node', '--ros-args', *ros_args]
-
-
-def lines_of_failed_start(cmd: list[str]) -> list[str]:
-    run = subprocess.run(
-        cmd, capture_output=True, text=True, timeout=30, check=False, env=NO_DISCOVERY
-    )
-    assert run.returncode == 1, run.stdout + run.stderr
-    return (run.stdout + run.stderr).strip().splitlines()
 
 
 def test_a_params_file_rcl_cannot_parse_is_one_line(tmp_path):
