@@ -30,8 +30,10 @@ from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
 from .flags import Flag
+from .hysteresis import Follow
 from .models import coefficient_slopes
 from .muscle_model import force_at, MuscleModel, pressure_for_one
+from .node_parameters import SPECS
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
 COCONTRACTION_MODES = ('min', 'sum')
@@ -39,6 +41,9 @@ COCONTRACTION_MODES = ('min', 'sum')
 #: are SATURATED.
 TOLERANCE = 1e-9
 _SATURATED, _INVALID = int(Flag.SATURATED), int(Flag.INVALID_INPUT)
+_INPUT = SPECS['hysteresis.input'].default
+#: What a muscle's branch follows unless its parameters say otherwise (model_node's defaults).
+DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)
 
 
 @dataclass(frozen=True)
@@ -149,6 +154,8 @@ class Joint:
     length_at_zero: tuple[float, float]  #: each muscle's length at θ = 0 [m]
     transmission: Transmission
     limits: tuple[float, float]  #: joint range [rad]
+    #: what each muscle's hysteresis branch follows in joint_node (its parameters' ``hysteresis``)
+    follows: tuple[Follow, Follow] = (DEFAULT_FOLLOW, DEFAULT_FOLLOW)
 
     def __post_init__(self) -> None:
         low, high = self.limits

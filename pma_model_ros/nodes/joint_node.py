@@ -58,7 +58,7 @@ def declare(node: Node) -> None:
         for muscle in muscles or []:
             for spec in MUSCLE_PARAMETERS:
                 _declare(node, spec, f'{joint}.{muscle}.')
-            model_params._declare_muscle(node, f'{joint}.{muscle}.')
+            model_params._declare_muscle(node, f'{joint}.{muscle}.', defaults=False)
 
 
 class JointNode(Node):
