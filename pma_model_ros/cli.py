@@ -368,7 +368,10 @@ def cmd_joint_torque(args: argparse.Namespace) -> None:
         _finite('--pressures', v, -1e7, 1e7, 'Pa', 'gauge pressures in Pa (300000, not 3 bar)')
         for v in args.pressures
     ]
-    result = joint.forward(theta, p[0], p[1], args.velocity)
+    velocity = args.velocity
+    sign = math.copysign(1.0, velocity) if velocity and math.isfinite(velocity) else 0.0
+    # one shot, no memory: muscle 0 shortens while θ rises (branch -1), muscle 1 lengthens (+1)
+    result = joint.forward(theta, p[0], p[1], (-sign, sign))
     print(
         f'torque {float(result.torque):.6g} N·m  stiffness {float(result.stiffness):.6g} N·m/rad'
     )
@@ -477,7 +480,8 @@ def add_joint_commands(sub) -> None:
                 '--velocity',
                 type=float,
                 default=None,
-                help='joint velocity [rad/s] (hysteresis branch)',
+                help='joint velocity [rad/s]: its sign picks the hysteresis branches (absent: '
+                'unknown, the mean of both)',
             )
         else:
             p.add_argument('--torque', required=True, type=float, help='wanted torque [N·m]')

@@ -6,9 +6,10 @@ import sys
 
 import numpy as np
 import pytest
+import yaml
 
 from pma_model_ros.cli import main
-from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
 from conftest import CONFIGS, REPO
@@ -169,6 +170,51 @@ def test_joint_torque_prints_the_worked_example(capsys):
     assert lines[1].startswith('flexor: length 0.2265 m') and lines[2].startswith(
         'extensor: length 0.2415 m'
     )
+
+
+@pytest.mark.parametrize(
+    'velocity, branches, flags',
+    [(['--velocity', '0.5'], (-1, 1), 'OK'), ([], (0, 0), 'BRANCH_UNKNOWN')],
+)
+def test_joint_torque_takes_the_branches_from_the_velocity_sign(
+    tmp_path, capsys, velocity, branches, flags
+):
+    """One shot, no memory: θ rising shortens muscle a (branch -1) and lengthens b (+1); no
+    velocity, both unknown: the mean of the branches.  Two DMSP-10-100 on a 10 mm pulley at
+    0.2 rad: 0.0855 and 0.0895 m.
+    """
+    muscle = {'file': str(CONFIGS['DMSP-10-100']), 'length_at_zero': 0.0875}
+    finger = {
+        'radius': [0.01],
+        'limits': [-1.0, 1.0],
+        'muscles': ['a', 'b'],
+        'positive': 'a',
+        'a': muscle,
+        'b': dict(muscle),
+    }
+    path = tmp_path / 'finger.yaml'
+    path.write_text(
+        yaml.safe_dump({'/**': {'ros__parameters': {'joints': ['finger'], 'finger': finger}}})
+    )
+    args = [
+        'joint',
+        'torque',
+        '--config',
+        str(path),
+        '--angle',
+        '0.2',
+        '--pressures',
+        '600000',
+        '500000',
+    ]
+    assert main(args + velocity) == 0
+    lines = capsys.readouterr().out.splitlines()
+    sarosi = muscle_model(read_parameters(CONFIGS['DMSP-10-100']))
+    for line, p, length, branch in zip(lines[1:], (600e3, 500e3), (0.0855, 0.0895), branches):
+        up, down = (float(sarosi.force(p, length, rate).force) for rate in (1.0, -1.0))
+        expected = {1: up, -1: down, 0: (up + down) / 2}[branch]
+        assert float(line.split('force ')[1].split()[0]) == pytest.approx(expected, rel=1e-5)
+        assert line.endswith(f'flags {flags}')
 
 
 def test_joint_pressures_round_trip_through_torque(capsys):

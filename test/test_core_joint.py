@@ -90,10 +90,11 @@ def test_stiffness_is_minus_the_torque_slope(joint):
     box.
     """
     theta = np.linspace(-0.8, 0.8, 9)
-    p0, p1, h = 500e3, 450e3, 1e-5
-    k = joint.forward(theta, p0, p1, 1.0).stiffness
+    p0, p1, h, branches = 500e3, 450e3, 1e-5, (-1.0, 1.0)  # θ rising: 0 shortens, 1 lengthens
+    k = joint.forward(theta, p0, p1, branches).stiffness
     fd = -(
-        joint.forward(theta + h, p0, p1, 1.0).torque - joint.forward(theta - h, p0, p1, 1.0).torque
+        joint.forward(theta + h, p0, p1, branches).torque
+        - joint.forward(theta - h, p0, p1, branches).torque
     ) / (2 * h)
     assert k == pytest.approx(fd, rel=1e-5, abs=1e-6 * np.abs(fd).max())
 
@@ -114,6 +115,33 @@ def test_float_path_equals_vector_path():
         assert EXAMPLE.torque_stiffness(m0, m1, r, r_slope, p0, p1) == pytest.approx(
             (float(vector.torque), float(vector.stiffness)), rel=1e-9, abs=1e-12
         )
+
+
+@pytest.mark.parametrize('branches', [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (0.0, -1.0)])
+def test_each_muscle_is_on_the_branch_given(branches):
+    """Two DMSP-10-100 (sarosi_hysteresis) on a 10 mm pulley at 0.2 rad (0.0855 and 0.0895 m): the
+    forces are the single muscle's on each branch (0: unknown, flagged BRANCH_UNKNOWN), the torque
+    r (F0 - F1), both paths alike.
+    """
+    sarosi = muscle_model(read_parameters(CONFIGS['DMSP-10-100']), 'sarosi_hysteresis')
+    finger = Joint(
+        'finger', (sarosi,) * 2, ('a', 'b'), (0.0875,) * 2, Transmission((0.01,)), (-1, 1)
+    )
+    rates = [b or None for b in branches]  # the single muscle's length rate: None is unknown
+    forces = [
+        float(sarosi.force(p, length, rate).force)
+        for p, length, rate in zip((600e3, 500e3), (0.0855, 0.0895), rates)
+    ]
+    vector = finger.forward(0.2, 600e3, 500e3, branches)
+    assert vector.forces.tolist() == pytest.approx(forces, rel=1e-12)
+    assert float(vector.torque) == pytest.approx(0.01 * (forces[0] - forces[1]), rel=1e-12)
+    unknown = [bool(f & Flag.BRANCH_UNKNOWN) for f in vector.flags.tolist()]
+    assert unknown == [b == 0 for b in branches]
+    m0, m1, r, r_slope = finger.at(0.2, branches)
+    assert [bool(m.flags & Flag.BRANCH_UNKNOWN) for m in (m0, m1)] == unknown
+    assert finger.torque_stiffness(m0, m1, r, r_slope, 600e3, 500e3) == pytest.approx(
+        (float(vector.torque), float(vector.stiffness)), rel=1e-12
+    )
 
 
 def _scale(joint, theta):

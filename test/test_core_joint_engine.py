@@ -1,6 +1,7 @@
 """JointEngine (joint_node's decisions, no ROS): estimates of several joints against
-τ = r (F0 - F1) of the single muscles at lengths computed by hand, flags and how long they hold,
-freshness, the command path's round trips, and inputs it must reject.
+τ = r (F0 - F1) of the single muscles at lengths computed by hand, hysteresis branches with memory
+(the play operator on each muscle's length or pressure), flags and how long they hold, freshness,
+the command path's round trips, and inputs it must reject.
 
 The forces come from each muscle's own parameter file (``MuscleModel.force``, the vector path), not
 from the joint file or :class:`~pma_model_ros.core.joint.MuscleAt`; stiffnesses are central
@@ -9,12 +10,15 @@ differences of those hand torques.
 
 import math
 
+import numpy as np
 import pytest
 
-from pma_model_ros.core.engine import Level
+from pma_model_ros.core.engine import Config, Engine, Level
+from pma_model_ros.core.flags import Flag
+from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint import Joint, Transmission
 from pma_model_ros.core.joint_engine import JointEngine, Settings
-from pma_model_ros.core.joint_file import load_joints
+from pma_model_ros.core.joint_file import joints, load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 from conftest import CONFIGS, REPO
@@ -40,6 +44,11 @@ WRIST = Joint(
     (0.226, 0.228),
     Transmission((0.012, 0.003)),
     (-1.0, 1.0),
+)
+#: Two DMSP-10-100 (sarosi_hysteresis) on a 10 mm pulley, 0.0875 m long at 0 rad; both branches
+#: follow the muscle's length with the default 0.5 mm deadband.
+FINGER = Joint(
+    'finger', (SAROSI, SAROSI), ('a', 'b'), (0.0875, 0.0875), Transmission((0.01,)), (-1, 1)
 )
 #: Two DMSP-20-300 on a 20 mm pulley, 0.26 m long at 0 rad.
 KNEE = Joint(
@@ -106,7 +115,7 @@ def test_three_joints_estimate_r_times_the_force_difference():
     for k, _, pair, _ in cases:
         feed(e, k, *pair, t=10.0)
     for k, theta, pair, torque in cases:
-        tau, stiffness = e.angle(k, theta, 0.0, 10.01, 10.02)
+        tau, stiffness = e.angle(k, theta, 10.01, 10.02)
         assert tau == pytest.approx(torque(theta, *pair), rel=1e-9)
         assert stiffness == pytest.approx(stiffness_of(torque, theta, *pair), rel=1e-6)
         assert e.status(k, 10.02)[:2] == (Level.OK, 'OK')
@@ -118,28 +127,125 @@ def test_three_joints_estimate_r_times_the_force_difference():
     assert values['commands'] == 'co-contraction sum 600000 Pa'
 
 
-def test_the_velocity_picks_each_muscles_hysteresis_branch():
-    """Positive θ' shortens muscle 0 (length rate -r θ') and lengthens muscle 1 (+r θ')."""
-    finger = Joint(
-        'finger', (SAROSI, SAROSI), ('a', 'b'), (0.0875, 0.0875), Transmission((0.01,)), (-1, 1)
+def finger_torque(theta, p0, p1, b0, b1):
+    """τ [N·m] of FINGER with muscle 0 on branch ``b0`` and muscle 1 on ``b1`` (+1 or -1), each
+    force the model's own on that branch: r = 10 mm, lengths 0.0875 ∓ 0.01 θ m.
+    """
+    return 0.01 * (
+        force(SAROSI, p0, 0.0875 - 0.01 * theta, b0) - force(SAROSI, p1, 0.0875 + 0.01 * theta, b1)
     )
-    e = engine(finger)
-    feed(e, 0, 400e3, 300e3)
-    lengths = (0.0875 - 0.01 * 0.2, 0.0875 + 0.01 * 0.2)  # 0.0855 m and 0.0895 m at 0.2 rad
-    torques = {}
-    for velocity in (0.5, -0.5):  # length rates ∓0.005 m/s
-        torques[velocity], _ = e.angle(0, 0.2, velocity, 0.0, 0.0)
-        rate = 0.01 * velocity
-        assert torques[velocity] == pytest.approx(
-            0.01
-            * (force(SAROSI, 400e3, lengths[0], -rate) - force(SAROSI, 300e3, lengths[1], rate)),
-            rel=1e-9,
+
+
+def mean_force(p, length):
+    """The mean of the two branches' forces [N] (both pull at the pressures used here)."""
+    return (force(SAROSI, p, length, 1.0) + force(SAROSI, p, length, -1.0)) / 2
+
+
+def test_before_any_motion_the_branches_are_unknown_and_served_as_their_mean():
+    e = engine(FINGER)
+    feed(e, 0, 600e3, 500e3)
+    tau, _ = e.angle(0, 0.2, 0.0, 0.0)  # the first angle: lengths 0.0855 and 0.0895 m
+    assert tau == pytest.approx(
+        0.01 * (mean_force(600e3, 0.0855) - mean_force(500e3, 0.0895)), rel=1e-9
+    )
+    # what model_node's engine serves a single muscle before its first motion
+    single = Engine([Config(SAROSI, AMBIENT, 10.0)] * 2)
+    served = []
+    for m, (p, length) in enumerate(((600e3, 0.0855), (500e3, 0.0895))):
+        single.pressure(m, AMBIENT + p, 0.0, 0.0)
+        served.append(single.length(m, length, None, 0.0, 0.0))
+        assert single.flags & Flag.BRANCH_UNKNOWN
+    assert tau == pytest.approx(0.01 * (served[0] - served[1]), rel=1e-12)
+    level, message, values = e.status(0, 0.0)
+    assert (level, message) == (Level.WARN, 'hysteresis branch unknown (BRANCH_UNKNOWN)')
+    assert values['last warning flags'] == 'BRANCH_UNKNOWN'
+    # 0.04 rad: 0.4 mm, inside the 0.5 mm deadband: still no motion
+    tau, _ = e.angle(0, 0.24, 0.0, 0.0)
+    assert tau == pytest.approx(
+        0.01 * (mean_force(600e3, 0.0851) - mean_force(500e3, 0.0899)), rel=1e-9
+    )
+
+
+def test_angle_noise_keeps_the_branches_of_the_last_motion():
+    """θ from 0 to 0.2 rad shortens muscle 0 by 2 mm (branch -1) and lengthens muscle 1 (+1);
+    then 500 angles within ±0.024 rad of 0.2 (±0.24 mm: 0.48 mm peak to peak, inside the 0.5 mm
+    deadband) keep both.  joint_states velocities never reach the engine.
+    """
+    e = engine(FINGER)
+    feed(e, 0, 600e3, 500e3)
+    e.angle(0, 0.0, 0.0, 0.0)  # the first angle: branches unknown, warned at 0 s
+    feed(e, 0, 600e3, 500e3, t=1.5)
+    e.angle(0, 0.2, 1.5, 1.5)
+    angles = 0.2 + np.random.default_rng(3).uniform(-0.024, 0.024, 500)
+    torques = [e.angle(0, float(theta), 1.5, 1.5)[0] for theta in angles]
+    assert torques == pytest.approx(
+        [finger_torque(theta, 600e3, 500e3, -1.0, 1.0) for theta in angles], rel=1e-9
+    )
+    # what a flip would have cost: each force moves by 25..31 N, the torque by over 0.4 N·m
+    theta = float(angles[-1])
+    assert abs(finger_torque(theta, 600e3, 500e3, 1.0, -1.0) - torques[-1]) > 0.4
+
+    def held(t, p0, p1):  # the branches of the last motion
+        return finger_torque(t, p0, p1, -1.0, 1.0)
+
+    assert e.state[0].stiffness_estimate == pytest.approx(
+        stiffness_of(held, theta, 600e3, 500e3), rel=1e-6
+    )
+    assert e.status(0, 1.5)[:2] == (Level.OK, 'OK')  # no BRANCH_UNKNOWN since the 0 s warning
+
+
+def test_a_reversal_beyond_the_deadband_sends_the_muscles_to_opposite_branches():
+    e = engine(FINGER)
+    feed(e, 0, 600e3, 500e3)
+    e.angle(0, 0.0, 0.0, 0.0)
+    e.angle(0, 0.2, 0.0, 0.0)  # muscle 0 shortening (-1), muscle 1 lengthening (+1)
+    tau, _ = e.angle(0, 0.16, 0.0, 0.0)  # back 0.4 mm: inside the deadband
+    assert tau == pytest.approx(finger_torque(0.16, 600e3, 500e3, -1.0, 1.0), rel=1e-9)
+    tau, _ = e.angle(0, 0.14, 0.0, 0.0)  # back 0.6 mm from the run's extreme at 0.2 rad
+    assert tau == pytest.approx(finger_torque(0.14, 600e3, 500e3, 1.0, -1.0), rel=1e-9)
+    assert abs(tau - finger_torque(0.14, 600e3, 500e3, -1.0, 1.0)) > 0.4  # both flipped
+    # a torque command is inverted on the same branches
+    p0, p1 = (p - AMBIENT for p in e.command(0, 0.2, 0.0))
+    assert p1 == pytest.approx(300e3, abs=1e-6)  # the co-contraction level
+    assert finger_torque(0.14, p0, p1, 1.0, -1.0) == pytest.approx(0.2, abs=1e-8)
+
+
+def test_a_branch_can_follow_its_muscles_pressure():
+    """Muscle b's branch follows its gauge pressure (5 kPa deadband, inline beside its file);
+    muscle a's still follows its length and, the joint held still, stays unknown.
+    """
+    block = {
+        'radius': [0.01],
+        'limits': [-1.0, 1.0],
+        'muscles': ['a', 'b'],
+        'positive': 'a',
+        'a': {'file': 'dmsp_10_100.yaml', 'length_at_zero': 0.0875},
+        'b': {
+            'file': 'dmsp_10_100.yaml',
+            'length_at_zero': 0.0875,
+            'hysteresis': {'input': 'pressure', 'pressure_deadband': 5000.0},
+        },
+    }
+    (joint,) = joints({'joints': ['finger'], 'finger': block}, REPO / 'config')
+    assert joint.follows == (Follow('length', 0.0005), Follow('pressure', 5000.0))
+    e = engine(joint)
+    steps = [  # b's gauge pressure [Pa] and its branch after it
+        (400e3, None),  # the first reading
+        (500e3, 1.0),  # filled by 100 kPa
+        (497e3, 1.0),  # 3 kPa back: inside the deadband
+        (490e3, -1.0),  # 10 kPa back from the 500 kPa peak: venting
+        (494e3, -1.0),
+    ]
+    for p1, branch in steps:
+        feed(e, 0, 600e3, p1)
+        tau, _ = e.angle(0, 0.0, 0.0, 0.0)
+        expected = 0.01 * (
+            mean_force(600e3, 0.0875)
+            - (mean_force(p1, 0.0875) if branch is None else force(SAROSI, p1, 0.0875, branch))
         )
-    assert abs(torques[0.5] - torques[-0.5]) > 1e-3  # the branches differ (> 0.1 N of force)
-    assert e.status(0, 0.0)[0] == Level.OK
-    mean, _ = e.angle(0, 0.2, math.nan, 0.0, 0.0)  # no velocity: the mean branch, flagged
-    assert min(torques.values()) < mean < max(torques.values())
-    assert e.status(0, 0.0)[:2] == (Level.WARN, 'hysteresis branch unknown (BRANCH_UNKNOWN)')
+        assert tau == pytest.approx(expected, rel=1e-9), p1
+        # muscle a has not moved: the joint keeps warning
+        assert e.status(0, 0.0)[:2] == (Level.WARN, 'hysteresis branch unknown (BRANCH_UNKNOWN)')
 
 
 def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_ends():
@@ -149,7 +255,7 @@ def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_
     )
     e = engine(reach, hold=1.0)
     feed(e, 0, 500e3, 200e3)
-    tau, stiffness = e.angle(0, 0.7, 0.0, 0.0, 0.0)
+    tau, stiffness = e.angle(0, 0.7, 0.0, 0.0)
     # hildebrandt does not extrapolate: the extensor's force is the one at 0.25 m ...
     assert tau == pytest.approx(
         0.03 * (force(HILDEBRANDT, 500e3, 0.213) - force(HILDEBRANDT, 200e3, 0.25)), rel=1e-9
@@ -160,7 +266,7 @@ def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_
     assert stiffness == pytest.approx(0.03**2 * slope, rel=1e-6)
     assert e.status(0, 0.0)[:2] == (Level.WARN, 'outside validity domain (LENGTH_OUT_OF_RANGE)')
     feed(e, 0, 500e3, 200e3, t=0.5)
-    assert e.angle(0, 0.0, 0.0, 0.5, 0.5) is not None  # inside again: 0.234 m both
+    assert e.angle(0, 0.0, 0.5, 0.5) is not None  # inside again: 0.234 m both
     assert e.status(0, 0.5)[0] == Level.WARN  # 0.5 s after the flag, within the 1 s hold
     assert e.status(0, 1.0)[0] == Level.WARN  # exactly 1 s after: still held (<=)
     assert e.status(0, 1.5)[:2] == (Level.OK, 'OK')
@@ -192,7 +298,7 @@ def test_pressure_flags_follow_the_readme_rule(muscle, gauge, served, flags):
     )
     e = engine(joint)
     feed(e, 0, 300e3, gauge)
-    tau, _ = e.angle(0, 0.0, 0.0, 0.0, 0.0)
+    tau, _ = e.angle(0, 0.0, 0.0, 0.0)
     assert tau == pytest.approx(
         0.015 * (force(muscle, 300e3, 0.234) - force(muscle, served, 0.234)), rel=1e-9, abs=1e-12
     )
@@ -204,15 +310,15 @@ def test_pressure_flags_follow_the_readme_rule(muscle, gauge, served, flags):
 
 def test_only_fresh_pressures_give_an_estimate():
     e = engine()
-    assert e.angle(0, 0.0, 0.0, 0.0, 0.0) is None  # no pressure yet
+    assert e.angle(0, 0.0, 0.0, 0.0) is None  # no pressure yet
     assert e.status(0, 0.0)[:2] == (Level.ERROR, 'no estimate yet: pressures missing or stale')
     e.pressure(0, 0, AMBIENT + 300e3, 0.0, 0.0)
-    assert e.angle(0, 0.0, 0.0, 0.0, 0.0) is None  # the extensor's still missing
+    assert e.angle(0, 0.0, 0.0, 0.0) is None  # the extensor's still missing
     e.pressure(0, 1, AMBIENT + 300e3, 0.125, 0.125)  # stamped 0.125 s after the flexor's
-    assert e.angle(0, 0.0, 0.0, 0.125, 0.125) is not None  # 0.125 s old: max_input_age, fresh
-    assert e.angle(0, 0.0, 0.0, 0.125, 0.25) is None  # the angle and flexor now 0.125/0.25 s old
-    assert e.angle(0, 0.0, 0.0, 0.25, 0.25) is None  # the flexor 0.25 s old
-    assert e.angle(0, 0.0, 0.0, 0.0625, 0.0625) is not None  # a stamp ahead by 0.0625 s: fresh
+    assert e.angle(0, 0.0, 0.125, 0.125) is not None  # 0.125 s old: max_input_age, fresh
+    assert e.angle(0, 0.0, 0.125, 0.25) is None  # the angle and flexor now 0.125/0.25 s old
+    assert e.angle(0, 0.0, 0.25, 0.25) is None  # the flexor 0.25 s old
+    assert e.angle(0, 0.0, 0.0625, 0.0625) is not None  # a stamp ahead by 0.0625 s: fresh
     counts = e.status(0, 0.25)[2]
     assert (counts['joint_states'], counts['stale skipped'], counts['estimates']) == (
         '6',
@@ -224,8 +330,8 @@ def test_only_fresh_pressures_give_an_estimate():
 def test_a_torque_command_round_trips_through_the_hand_torque():
     e = engine(ELBOW, WRIST, settings=[Settings(300e3, 'min'), Settings(600e3, 'sum')])
     feed(e, 0, 300e3, 300e3)  # fresh pressures: an estimate, so the status can be OK
-    e.angle(0, -0.3, 0.0, 0.0, 0.0)
-    e.angle(1, 0.4, 0.0, 0.0, 0.0)
+    e.angle(0, -0.3, 0.0, 0.0)
+    e.angle(1, 0.4, 0.0, 0.0)
     # elbow: the lower pressure at the file's 300 kPa
     p0, p1 = (p - AMBIENT for p in e.command(0, 2.5, 0.0))
     assert min(p0, p1) == pytest.approx(300e3, abs=1e-6) and p0 > p1  # the flexor pulls more
@@ -235,7 +341,7 @@ def test_a_torque_command_round_trips_through_the_hand_torque():
     assert p0 + p1 == pytest.approx(600e3, abs=1e-6)
     assert wrist_torque(0.4, p0, p1) == pytest.approx(-0.8, abs=1e-8)
     # a wanted stiffness: both τ and K = -dτ/dθ are met
-    e.angle(0, 0.2, 0.0, 0.0, 0.0)
+    e.angle(0, 0.2, 0.0, 0.0)
     e.stiffness(0, 4.5, 0.0)
     p0, p1 = (p - AMBIENT for p in e.command(0, 1.0, 0.0))
     assert elbow_torque(0.2, p0, p1) == pytest.approx(1.0, abs=1e-8)
@@ -254,7 +360,7 @@ def test_a_torque_command_round_trips_through_the_hand_torque():
 def test_an_out_of_reach_torque_is_served_at_the_map_top_and_warns():
     e = engine()
     feed(e, 0, 300e3, 300e3)
-    e.angle(0, 0.0, 0.0, 0.0, 0.0)
+    e.angle(0, 0.0, 0.0, 0.0)
     assert e.status(0, 0.0)[0] == Level.OK
     p0, p1 = (p - AMBIENT for p in e.command(0, 100.0, 0.0))
     # hildebrandt commands up to the map's 650 kPa; the extensor stays at the 300 kPa level
@@ -274,7 +380,7 @@ def test_settings_are_checked():
 
 
 def _nan_angle(e):
-    return e.angle(0, math.nan, 0.0, 0.0, 0.0)
+    return e.angle(0, math.nan, 0.0, 0.0)
 
 
 @pytest.mark.parametrize(
@@ -283,7 +389,7 @@ def _nan_angle(e):
         (_nan_angle, 'angle is nan rad'),
         # 9 rad: the extensor would be 0.234 + 0.015·9 = 0.369 m, longer than L0/cos Θ0 = 0.2847 m
         (
-            lambda e: e.angle(0, 9.0, 0.0, 0.0, 0.0),
+            lambda e: e.angle(0, 9.0, 0.0, 0.0),
             "angle 9 rad puts muscle 'extensor' at 0.369 m, outside its geometry (0, 0.2847) m",
         ),
         (lambda e: e.pressure(0, 0, math.nan, 0.0, 0.0), "muscle 'flexor': pressure is nan Pa"),
@@ -302,13 +408,13 @@ def _nan_angle(e):
 def test_a_bad_input_is_rejected_and_changes_nothing(act, problem):
     e = engine()
     feed(e, 0, 400e3, 300e3)
-    before = e.angle(0, 0.5, 0.0, 0.0, 0.0)
+    before = e.angle(0, 0.5, 0.0, 0.0)
     before_command = e.command(0, 1.0, 0.0)
     assert act(e) is None
     level, message, values = e.status(0, 0.0)
     assert (level, message, values['rejected']) == (Level.ERROR, problem, '1')
     # the newest inputs are untouched: the same estimate and command as before
-    assert e.angle(0, 0.5, 0.0, 0.0, 0.0) == before and e.command(0, 1.0, 0.0) == before_command
+    assert e.angle(0, 0.5, 0.0, 0.0) == before and e.command(0, 1.0, 0.0) == before_command
     assert before == pytest.approx(
         (elbow_torque(0.5, 400e3, 300e3), stiffness_of(elbow_torque, 0.5, 400e3, 300e3)), rel=1e-6
     )

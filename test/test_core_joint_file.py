@@ -5,6 +5,7 @@ import copy
 import pytest
 import yaml
 
+from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import joints, load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
@@ -39,6 +40,26 @@ def test_inline_muscle_equals_its_file():
     assert inline.forward(0.4, 300e3, 500e3).torque == from_file.forward(0.4, 300e3, 500e3).torque
 
 
+def test_each_muscle_says_what_its_hysteresis_branch_follows(tmp_path):
+    """By file, inline beside the file (it overrides the file's mapping), or model_node's defaults:
+    the length with a 0.5 mm deadband.
+    """
+    single = read_parameters(CONFIGS['DMSP-10-100'])
+    single['hysteresis'] = {'input': 'pressure', 'pressure_deadband': 8000.0}
+    (tmp_path / 'finger.yaml').write_text(yaml.safe_dump({'/**': {'ros__parameters': single}}))
+    parameters = example()
+    parameters['elbow']['flexor'] = {'file': 'finger.yaml', 'length_at_zero': 0.0875}
+    parameters['elbow']['extensor'] = {
+        'file': 'finger.yaml',
+        'length_at_zero': 0.0875,
+        'hysteresis': {'length_deadband': 0.001},
+    }
+    parameters['elbow']['radius'] = [0.01]
+    (joint,) = joints(parameters, tmp_path)
+    assert joint.follows == (Follow('pressure', 8000.0), Follow('length', 0.001))
+    assert load_joints(EXAMPLE)[0].follows == (Follow('length', 0.0005),) * 2
+
+
 def test_positive_picks_the_muscle_that_shortens():
     parameters = example()
     parameters['elbow']['positive'] = 'extensor'
@@ -61,6 +82,14 @@ def test_positive_picks_the_muscle_that_shortens():
         (
             lambda j: j['flexor'].update(length_at_zero=0.3),
             "muscle 'flexor' would be 0.315 m long at θ = -1 rad",
+        ),
+        (
+            lambda j: j['extensor'].update(hysteresis={'input': 'velocity'}),
+            "muscle 'extensor': parameter 'hysteresis.input': unknown hysteresis.input 'velocity'",
+        ),
+        (
+            lambda j: j['flexor'].update(hysteresis={'length_deadband': 0.5}),
+            r"parameter 'hysteresis.length_deadband' must be in \[0, 0.1\] m",
         ),
     ],
 )

@@ -16,8 +16,9 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
+from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import load_joints
-from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.startup import StartupError
 from pma_model_ros.tools import node_process
@@ -240,6 +241,51 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
         [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9
     )
+
+
+def test_hysteresis_branches_follow_the_muscle_lengths_not_the_velocity(make_node, tmp_path):
+    """Two DMSP-10-100 (sarosi_hysteresis) on a 10 mm pulley, by a muscle file whose
+    ``hysteresis`` mapping (1 mm deadband) reaches the node; after θ rose 0 → 0.2 rad (muscle a
+    shortened 2 mm: branch -1, b +1) joint_states within ±0.04 mm and with velocities of
+    alternating sign keep both branches.
+    """
+    single = read_parameters(REPO / 'config' / 'dmsp_10_100.yaml')
+    single['hysteresis'] = {'length_deadband': 0.001}
+    (tmp_path / 'finger.yaml').write_text(yaml.safe_dump({'/**': {'ros__parameters': single}}))
+    muscle = {'file': 'finger.yaml', 'length_at_zero': 0.0875}
+    finger = {'radius': [0.01], 'limits': [-1.0, 1.0], 'muscles': ['a', 'b'], 'positive': 'a'}
+    path = tmp_path / 'joint.yaml'
+    path.write_text(
+        yaml.safe_dump(
+            {
+                '/**': {
+                    'ros__parameters': {
+                        'joints': ['finger'],
+                        'finger': finger | {'a': muscle, 'b': dict(muscle)},
+                    }
+                }
+            }
+        )
+    )
+    node = make_node(params_file=path, config_dir=str(tmp_path))
+    assert node.engine.joints[0].follows == (Follow('length', 0.001),) * 2
+    torques = record(node._torque_pub)
+    node._on_pressure(0, 0, pressure(node, AMBIENT + 600e3))
+    node._on_pressure(0, 1, pressure(node, AMBIENT + 500e3))
+    node._on_states(joint_state(node, 0.0, 'finger'))
+    angles = [0.2] + [0.2 + 0.004 * (-1) ** k for k in range(20)]
+    for k, theta in enumerate(angles):
+        node._on_states(joint_state(node, theta, 'finger', velocity=(-1) ** k * 0.5))
+    sarosi = muscle_model(single)
+    expected = [
+        0.01
+        * (
+            float(sarosi.force(600e3, 0.0875 - 0.01 * theta, -1.0).force)
+            - float(sarosi.force(500e3, 0.0875 + 0.01 * theta, 1.0).force)
+        )
+        for theta in angles
+    ]
+    assert [t.effort[0] for t in torques[1:]] == pytest.approx(expected, rel=1e-9)
 
 
 def test_parameter_changes_are_refused(make_node):

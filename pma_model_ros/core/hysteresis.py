@@ -15,12 +15,22 @@ arrays (many muscles, one sample each); :func:`branches` runs it along a time se
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 #: What a hysteresis model's branches follow.
 INPUTS = ('length', 'pressure')
+
+
+class Follow(NamedTuple):
+    """What one muscle's branch follows: ``input`` (one of :data:`INPUTS`) and the play
+    operator's ``deadband`` [m for the length, Pa gauge for the pressure].
+    """
+
+    input: str
+    deadband: float
 
 
 def play(branch, anchor, value, deadband):

@@ -13,6 +13,11 @@ where the served force does not change with length: a clipped (slack) muscle, or
 the edge of the lengths served (LENGTH_OUT_OF_RANGE,
 :meth:`~pma_model_ros.core.muscle_model.Evaluator.operating`).
 
+A hysteresis muscle's branch (+1 lengthening or filling, -1 shortening or venting, 0 unknown: the
+mean of both, BRANCH_UNKNOWN) is an input here: joint_node keeps it per muscle with the play
+operator (:mod:`~pma_model_ros.core.hysteresis`, what ``follows`` says), the one-shot CLI takes it
+from the sign of a velocity.
+
 The forward model is vectorised over samples (:meth:`Joint.forward`); :class:`MuscleAt` is the
 float twin of one muscle at one length, used by the inverse and by joint_node per message.  The
 inverse (:meth:`Joint.pressures_one`) needs forces that do not fall with pressure (true of every
@@ -30,8 +35,10 @@ from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
 from .flags import Flag
+from .hysteresis import Follow
 from .models import coefficient_slopes
 from .muscle_model import force_at, MuscleModel, pressure_for_one
+from .node_parameters import SPECS
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
 COCONTRACTION_MODES = ('min', 'sum')
@@ -39,6 +46,11 @@ COCONTRACTION_MODES = ('min', 'sum')
 #: are SATURATED.
 TOLERANCE = 1e-9
 _SATURATED, _INVALID = int(Flag.SATURATED), int(Flag.INVALID_INPUT)
+_INPUT = SPECS['hysteresis.input'].default
+#: What a muscle's branch follows unless its parameters say otherwise (model_node's defaults).
+DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)
+#: Both branches unknown.
+UNKNOWN = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -95,16 +107,16 @@ class Pressures:
 
 
 class MuscleAt:
-    """One muscle at one length, in plain floats: force, its length slope, and the inverse in
-    pressure.
+    """One muscle at one length [m] on one hysteresis ``branch`` (+1, -1, 0: unknown), in plain
+    floats: force, its length slope, and the inverse in pressure.
     """
 
     __slots__ = ('flags', 'q2', 'q1', 'q0', 'd2', 'd1', 'd0', 'p_top', 'p_max')
 
     def __init__(
-        self, model: MuscleModel, theta: tuple[float, ...], length: float, rate: float
+        self, model: MuscleModel, theta: tuple[float, ...], length: float, branch: float
     ) -> None:
-        self.flags, self.q2, self.q1, self.q0 = model.operating_one(length, rate)
+        self.flags, self.q2, self.q1, self.q0 = model.operating_one(length, branch)
         self.p_top, self.p_max = (
             model.limits.pressure_top,
             model.limits.command_top,
@@ -112,7 +124,6 @@ class MuscleAt:
         if self.flags & int(Flag.LENGTH_OUT_OF_RANGE):
             self.d2 = self.d1 = self.d0 = 0.0
         else:
-            branch = math.copysign(1.0, rate) if rate and math.isfinite(rate) else 0.0
             d2, d1, d0 = coefficient_slopes(
                 model.model, theta, model.spec, model.domain, length, branch
             )
@@ -149,6 +160,8 @@ class Joint:
     length_at_zero: tuple[float, float]  #: each muscle's length at θ = 0 [m]
     transmission: Transmission
     limits: tuple[float, float]  #: joint range [rad]
+    #: what each muscle's hysteresis branch follows in joint_node (its parameters' ``hysteresis``)
+    follows: tuple[Follow, Follow] = (DEFAULT_FOLLOW, DEFAULT_FOLLOW)
 
     def __post_init__(self) -> None:
         low, high = self.limits
@@ -184,24 +197,23 @@ class Joint:
         return self.length_at_zero[0] - s, self.length_at_zero[1] + s
 
     def forward(
-        self, theta: ArrayLike, p0: ArrayLike, p1: ArrayLike, velocity: ArrayLike | None = None
+        self,
+        theta: ArrayLike,
+        p0: ArrayLike,
+        p1: ArrayLike,
+        branches: tuple[ArrayLike, ArrayLike] = UNKNOWN,
     ) -> Forward:
         """Torque [N·m] and stiffness [N·m/rad] at angle ``theta`` [rad] and gauge pressures
-        ``p0``, ``p1`` [Pa]; ``velocity`` [rad/s] picks the hysteresis branch of each muscle (None:
+        ``p0``, ``p1`` [Pa], each muscle on its hysteresis branch of ``branches`` (+1, -1, 0:
         unknown).
         """
         theta, p0, p1 = np.broadcast_arrays(*(np.asarray(x, float) for x in (theta, p0, p1)))
         r, r_slope = self.transmission.radius(theta), self.transmission.radius_slope(theta)
         forces, slopes, flags = [], [], []
-        for k, (model, length, p) in enumerate(zip(self.muscles, self.lengths(theta), (p0, p1))):
-            rate = (
-                None
-                if velocity is None
-                else np.broadcast_to((r if k else -r) * np.asarray(velocity, float), theta.shape)
-            )
-            op = model.operating(length, rate)
+        for model, length, p, branch in zip(self.muscles, self.lengths(theta), (p0, p1), branches):
+            branch = np.broadcast_to(np.asarray(branch, float), theta.shape)
+            op = model.operating(length, branch)
             result = force_at(op, p)
-            branch = 0.0 if rate is None else np.where(np.isfinite(rate), np.sign(rate), 0.0)
             lim = model.limits
             d2, d1, d0 = coefficient_slopes(
                 model.model,
@@ -226,16 +238,16 @@ class Joint:
     # ------------------------------------------------------------------------------
 
     def at(
-        self, theta: float, velocity: float = math.nan
+        self, theta: float, branches: Sequence[float] = UNKNOWN
     ) -> tuple[MuscleAt, MuscleAt, float, float]:
-        """Both muscles at angle ``theta`` [rad] (velocity [rad/s] picks hysteresis branches), r
-        [m], r' [m/rad].
+        """Both muscles at angle ``theta`` [rad], each on its hysteresis branch of ``branches``
+        (+1, -1, 0: unknown); r [m], r' [m/rad].
         """
         r, r_slope = self.transmission.radius(theta), self.transmission.radius_slope(theta)
         l0, l1 = self.lengths(theta)
         return (
-            MuscleAt(self.muscles[0], self._thetas[0], l0, -r * velocity),
-            MuscleAt(self.muscles[1], self._thetas[1], l1, r * velocity),
+            MuscleAt(self.muscles[0], self._thetas[0], l0, branches[0]),
+            MuscleAt(self.muscles[1], self._thetas[1], l1, branches[1]),
             r,
             r_slope,
         )
@@ -262,18 +274,19 @@ class Joint:
         cocontraction: float = 0.0,
         mode: str = 'min',
         stiffness: float | None = None,
+        branches: Sequence[float] = UNKNOWN,
     ) -> Pressures:
         """Gauge pressures [Pa] for the wanted ``torque`` [N·m] at ``theta`` [rad], with either a
         co-contraction level [Pa] (``mode`` 'min': the lower pressure, closed form; 'sum': the
         pressure sum, brentq) or a wanted ``stiffness`` [N·m/rad] (brentq along the pairs giving
-        the torque).  Out of reach: the nearest reachable level, torque, then stiffness, flagged
-        SATURATED.
+        the torque), the muscles on their hysteresis ``branches``.  Out of reach: the nearest
+        reachable level, torque, then stiffness, flagged SATURATED.
         """
         if mode not in COCONTRACTION_MODES:
             raise ValueError(
                 f'co-contraction mode must be one of {COCONTRACTION_MODES}, got {mode!r}'
             )
-        m0, m1, r, r_slope = self.at(theta)
+        m0, m1, r, r_slope = self.at(theta, branches)
         want = torque / r  # wanted F0 - F1 [N]
         if stiffness is not None:
             p0, p1, span = _for_stiffness(m0, m1, r, r_slope, want, stiffness)

@@ -2,12 +2,15 @@
 joints.
 
 Per joint it keeps the newest angle (with both muscles at it, :meth:`~.joint.Joint.at`:
-coefficients and length slopes computed once per new angle) and each muscle's newest gauge
-pressure; a joint_states entry is answered with the joint's torque and stiffness if both pressures
-are fresh (within ``max_input_age`` of ``now``).  A torque command is inverted at the newest angle
-with the joint's co-contraction level or wanted stiffness.  All of it in plain floats per message:
-numpy's per-call overhead would dominate one joint's arithmetic.  Every time is in seconds on one
-clock (ROS time in the node); ``now`` is passed in.
+coefficients and length slopes computed once per new angle), each muscle's newest gauge pressure,
+and each hysteresis muscle's branch: the play operator (:func:`~.hysteresis.play`, as model_node's
+engine) on the muscle's length computed from the angle, or on its gauge pressure (the joint's
+``follows``), so that velocity noise cannot flip it and a joint held still keeps it.  A
+joint_states entry is answered with the joint's torque and stiffness if both pressures are fresh
+(within ``max_input_age`` of ``now``).  A torque command is inverted at the newest angle, on the
+kept branches, with the joint's co-contraction level or wanted stiffness.  All of it in plain
+floats per message: numpy's per-call overhead would dominate one joint's arithmetic.  Every time is
+in seconds on one clock (ROS time in the node); ``now`` is passed in.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from typing import Sequence
 
 from .engine import Level, pressure_problem, WARN_FLAGS
 from .flags import describe
+from .hysteresis import play
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 from .muscle_model import served_pressure
 
@@ -55,12 +59,23 @@ class Settings:
 
 
 class _JointState:
-    """The newest inputs of one joint."""
+    """The newest inputs of one joint, and its muscles' hysteresis branches."""
 
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, joint: Joint) -> None:
         self.at: tuple[MuscleAt, MuscleAt, float, float] | None = None
         self.theta, self.theta_stamp = math.nan, math.nan
         self.gauge, self.p_stamps = [math.nan, math.nan], [math.nan, math.nan]
+        # play operator of each muscle (core.hysteresis): branch (+1, -1, 0) and anchor [m or Pa]
+        self.branch, self.anchor = [0.0, 0.0], [math.nan, math.nan]
+        follows = [f if m.model.hysteresis else None for m, f in zip(joint.muscles, joint.follows)]
+        #: (muscle, deadband [m]) of each muscle whose branch follows its length
+        self.by_length = tuple(
+            (k, f.deadband) for k, f in enumerate(follows) if f and f.input == 'length'
+        )
+        #: each muscle's deadband [Pa] if its branch follows its gauge pressure, else None
+        self.by_pressure = tuple(
+            f.deadband if f and f.input == 'pressure' else None for f in follows
+        )
         self.level, self.mode, self.stiffness = (
             settings.cocontraction,
             settings.cocontraction_mode,
@@ -88,24 +103,23 @@ class JointEngine:
     ) -> None:
         self.joints, self.ambient, self.max_age, self.hold = tuple(joints), ambient, max_age, hold
         self.index = {j.name: k for k, j in enumerate(joints)}
-        self.state = [_JointState(s) for s in settings]
+        self.state = [_JointState(s, j) for s, j in zip(settings, self.joints)]
 
     def reject(self, k: int, problem: str, now: float) -> None:
         s = self.state[k]
         s.counts['rejected'] += 1
         s.problem, s.problem_time = problem, now
 
-    def angle(
-        self, k: int, theta: float, velocity: float, stamp: float, now: float
-    ) -> tuple[float, float] | None:
-        """Joint ``k``'s angle [rad] and velocity [rad/s] (NaN: unknown); its (torque [N·m],
-        stiffness [N·m/rad]) if both pressures are fresh.
+    def angle(self, k: int, theta: float, stamp: float, now: float) -> tuple[float, float] | None:
+        """Joint ``k``'s angle [rad]; its (torque [N·m], stiffness [N·m/rad]) if both pressures
+        are fresh.
         """
         s, joint = self.state[k], self.joints[k]
         s.counts['joint_states'] += 1
         if not math.isfinite(theta):
             return self.reject(k, f'angle is {theta} rad', now)
-        for muscle, length, name in zip(joint.muscles, joint.lengths(theta), joint.muscle_names):
+        lengths = joint.lengths(theta)
+        for muscle, length, name in zip(joint.muscles, lengths, joint.muscle_names):
             if not 0 < length < muscle.max_length:
                 return self.reject(
                     k,
@@ -113,7 +127,9 @@ class JointEngine:
                     f'geometry (0, {muscle.max_length:.4g}) m',
                     now,
                 )
-        s.at, s.theta, s.theta_stamp = joint.at(theta, velocity), theta, stamp
+        for m, deadband in s.by_length:
+            s.branch[m], s.anchor[m] = play(s.branch[m], s.anchor[m], lengths[m], deadband)
+        s.at, s.theta, s.theta_stamp = joint.at(theta, s.branch), theta, stamp
         if not (
             abs(now - stamp) <= self.max_age
             and abs(now - s.p_stamps[0]) <= self.max_age
@@ -133,7 +149,7 @@ class JointEngine:
 
     def pressure(self, k: int, muscle: int, absolute: float, stamp: float, now: float) -> None:
         """Muscle ``muscle`` (0: the one shortening for positive θ) of joint ``k``: a pressure [Pa
-        absolute].
+        absolute]; a branch following it changes for the next estimate and command.
         """
         s = self.state[k]
         s.counts['pressures'] += 1
@@ -142,7 +158,13 @@ class JointEngine:
             return self.reject(
                 k, f"muscle '{self.joints[k].muscle_names[muscle]}': {problem}", now
             )
-        s.gauge[muscle], s.p_stamps[muscle] = absolute - self.ambient, stamp
+        gauge = absolute - self.ambient
+        s.gauge[muscle], s.p_stamps[muscle] = gauge, stamp
+        deadband = s.by_pressure[muscle]
+        if deadband is not None:
+            s.branch[muscle], s.anchor[muscle] = play(
+                s.branch[muscle], s.anchor[muscle], gauge, deadband
+            )
 
     def cocontraction(self, k: int, level: float, now: float) -> None:
         """Joint ``k``'s torque commands from now on: co-contraction ``level`` [Pa gauge] (its
@@ -169,9 +191,13 @@ class JointEngine:
         if s.at is None:
             return self.reject(k, 'torque command before any angle (joint_states)', now)
         if s.stiffness is not None:
-            result = self.joints[k].pressures_one(s.theta, torque, stiffness=s.stiffness)
+            result = self.joints[k].pressures_one(
+                s.theta, torque, stiffness=s.stiffness, branches=s.branch
+            )
         else:
-            result = self.joints[k].pressures_one(s.theta, torque, s.level, s.mode)
+            result = self.joints[k].pressures_one(
+                s.theta, torque, s.level, s.mode, branches=s.branch
+            )
         self._note(s, result.flags, now)
         s.counts['pressure commands'] += 1
         return result.pressures[0] + self.ambient, result.pressures[1] + self.ambient

@@ -18,19 +18,23 @@ Layout (SI units; ``config/example_joint.yaml``)::
             model: martens
             length_range: [...]
             models: {...}
+            hysteresis: {input: length, length_deadband: 0.0005}   # optional, as model_node's
 
 A muscle's ``file`` is a single-muscle parameter file (``config/dmsp_10_250.yaml``), relative to
 ``base`` (the joint file's directory, or joint_node's ``config_dir``); keys beside ``file`` (e.g.
-``model``) override the file's.
+``model``) override the file's.  A hysteresis muscle's ``hysteresis`` mapping says what its branch
+follows in joint_node (:func:`~pma_model_ros.core.param_file.hysteresis_follow`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from .hysteresis import Follow
 from .joint import Joint, Transmission
+from .muscle_model import MuscleModel
 from .node_parameters import ParameterSpec, SPECS
-from .param_file import muscle_model, read_parameters
+from .param_file import hysteresis_follow, muscle_model, read_parameters
 
 #: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle
 #: (``<joint>.<muscle>.``).
@@ -138,13 +142,13 @@ def joint(name: str, parameters: dict, base: Path) -> Joint:
             f'got {positive!r}'
         )
     ordered = names if positive == names[0] else names[::-1]
-    models, zero = [], []
+    models, follows, zero = [], [], []
     for muscle in ordered:
         block = parameters.get(muscle)
         if not isinstance(block, dict):
             raise ValueError(f"{where}: no parameters under '{muscle}:'")
         try:
-            models.append(_muscle(block, base))
+            model, follow = _muscle(block, base)
         except (ValueError, OSError) as err:
             raise ValueError(f"{where}, muscle '{muscle}': {err}") from None
         length = block.get('length_at_zero')
@@ -152,6 +156,8 @@ def joint(name: str, parameters: dict, base: Path) -> Joint:
             raise ValueError(
                 f"{where}, muscle '{muscle}': length_at_zero must be a length in m, got {length!r}"
             )
+        models.append(model)
+        follows.append(follow)
         zero.append(float(length))
     return Joint(
         name,
@@ -160,20 +166,24 @@ def joint(name: str, parameters: dict, base: Path) -> Joint:
         tuple(zero),
         Transmission(tuple(float(v) for v in radius)),
         (float(limits[0]), float(limits[1])),
+        tuple(follows),
     )
 
 
-def _muscle(block: dict, base: Path):
+def _muscle(block: dict, base: Path) -> tuple[MuscleModel, Follow]:
+    """A muscle's model and what its hysteresis branch follows, from its block (by file or
+    inline).
+    """
     file = block.get('file') or ''
     own = {
         k: v
         for k, v in block.items()
         if k not in ('file', 'length_at_zero') and v not in (None, '')
     }
-    if not file:
-        return muscle_model(own)
-    path = Path(file) if Path(file).is_absolute() else base / file
-    return muscle_model(read_parameters(path) | own)
+    if file:
+        path = Path(file) if Path(file).is_absolute() else base / file
+        own = read_parameters(path) | own
+    return muscle_model(own), hysteresis_follow(own)
 
 
 def _number(value: object) -> bool:

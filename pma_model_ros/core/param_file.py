@@ -28,6 +28,7 @@ from pathlib import Path
 from . import calibration
 from .engine import Config
 from .geometry import MuscleSpec
+from .hysteresis import Follow
 from .models import Domain, get_model
 from .muscle_model import MuscleModel
 from .node_parameters import SPECS
@@ -105,6 +106,23 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     return MuscleModel(spec, model, params, domain)
 
 
+def hysteresis_follow(parameters: dict) -> Follow:
+    """What the muscle's hysteresis branch follows, from the ``hysteresis`` mapping of its
+    ``ros__parameters`` (nested; absent entries take the parameter table's defaults).
+    """
+    hysteresis = parameters.get('hysteresis') or {}
+    if not isinstance(hysteresis, dict):
+        raise ValueError(
+            f'hysteresis must be a mapping (input, length_deadband, pressure_deadband), got '
+            f'{hysteresis!r}'
+        )
+    follow = hysteresis.get('input', SPECS['hysteresis.input'].default)
+    SPECS['hysteresis.input'].check(follow)
+    deadband = SPECS[f'hysteresis.{follow}_deadband']
+    value = hysteresis.get(f'{follow}_deadband')
+    return Follow(follow, deadband.check(deadband.default if value is None else value))
+
+
 def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
     """The model node's settings from ``ros__parameters`` (nested); absent node settings take their
     defaults.
@@ -115,21 +133,9 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
         ambient, max_age = float(values['ambient_pressure']), float(values['max_input_age'])
     except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f'ambient_pressure/max_input_age must be numbers: {err}') from None
-    hysteresis = parameters.get('hysteresis') or {}
-    if not isinstance(hysteresis, dict):
-        raise ValueError(
-            f'hysteresis must be a mapping (input, length_deadband, pressure_deadband), got '
-            f'{hysteresis!r}'
-        )
-    follow = hysteresis.get('input', SPECS['hysteresis.input'].default)
-    SPECS['hysteresis.input'].check(follow)
+    follow = hysteresis_follow(parameters)
     config = Config(
-        muscle,
-        ambient,
-        max_age,
-        values['pressure_reference'],
-        follow,
-        hysteresis.get(f'{follow}_deadband'),
+        muscle, ambient, max_age, values['pressure_reference'], follow.input, follow.deadband
     )
     joint = str(parameters.get('joint_name') or muscle.spec.name)
     return NodeSettings(config, joint, str(parameters.get('frame_id') or joint))

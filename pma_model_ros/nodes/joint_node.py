@@ -4,8 +4,9 @@ Parameters: a joint file (``config/example_joint.yaml``, layout in
 :mod:`pma_model_ros.core.joint_file`), read at start-up (later changes are refused).  Topics
 (relative, so a namespace applies):
 
-* in ``joint_states`` (sensor_msgs/JointState: position θ [rad], velocity [rad/s]; entries by joint
-  name) and each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa);
+* in ``joint_states`` (sensor_msgs/JointState: position θ [rad], entries by joint name; the
+  velocity is not used: a hysteresis muscle's branch follows its length or pressure with memory)
+  and each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa);
 * out, once per joint_states message, for its joints whose pressures are fresh: ``torque_estimate``
   (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate``
   (JointState: effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics``
@@ -21,7 +22,6 @@ Parameters: a joint file (``config/example_joint.yaml``, layout in
 from __future__ import annotations
 
 from functools import partial
-import math
 from pathlib import Path
 import sys
 
@@ -58,7 +58,7 @@ def declare(node: Node) -> None:
         for muscle in muscles or []:
             for spec in MUSCLE_PARAMETERS:
                 _declare(node, spec, f'{joint}.{muscle}.')
-            model_params._declare_muscle(node, f'{joint}.{muscle}.')
+            model_params._declare_muscle(node, f'{joint}.{muscle}.', defaults=False)
 
 
 class JointNode(Node):
@@ -154,8 +154,7 @@ class JointNode(Node):
     def _on_states(self, msg: JointState) -> None:
         now, stamp = self.now(), msg.header.stamp
         t = seconds(stamp)
-        names, positions, velocities = msg.name, msg.position, msg.velocity
-        has_velocity = len(velocities) == len(names)
+        names, positions = msg.name, msg.position
         done, torques, stiffnesses = [], [], []
         if len(positions) != len(names):
             for k in {self.engine.index[n] for n in names if n in self.engine.index}:
@@ -167,9 +166,7 @@ class JointNode(Node):
             k = self.engine.index.get(name)
             if k is None:
                 continue
-            result = self.engine.angle(
-                k, positions[i], velocities[i] if has_velocity else math.nan, t, now
-            )
+            result = self.engine.angle(k, positions[i], t, now)
             if result is not None:
                 done.append(name)
                 torques.append(result[0])

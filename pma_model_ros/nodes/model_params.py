@@ -64,9 +64,9 @@ def descriptor(spec: ParameterSpec, description: str | None = None) -> Parameter
     )
 
 
-def _declare(node: Node, spec: ParameterSpec, name: str | None = None):
+def _declare(node: Node, spec: ParameterSpec, name: str | None = None, default: bool = True):
     # no value: the type alone
-    value = spec.default if spec.default not in (None, []) else TYPES[spec.kind]
+    value = spec.default if default and spec.default not in (None, []) else TYPES[spec.kind]
     return node.declare_parameter(name or spec.name, value, descriptor(spec))
 
 
@@ -88,10 +88,13 @@ def declare(node: Node) -> tuple[list[str], str]:
     return names, mode
 
 
-def _declare_muscle(node: Node, prefix: str) -> None:
+def _declare_muscle(node: Node, prefix: str, defaults: bool = True) -> None:
+    """Declare one muscle's parameters under ``prefix``; without ``defaults`` unset ones stay
+    unset (joint_node: a muscle ``file``'s values then apply).
+    """
     for spec in PARAMETERS:
         if spec.per_muscle and not spec.name.startswith('models.'):
-            _declare(node, spec, prefix + spec.name)
+            _declare(node, spec, prefix + spec.name, defaults)
     params, info = (
         SPECS['models.<model>.params'],
         SPECS['models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err}'],
