@@ -340,21 +340,20 @@ class MuscleModel(Evaluator):
         """The parameters as plain floats (for :meth:`operating_one`)."""
         return tuple(self.theta.tolist())
 
-    def operating_one(self, length: float, length_rate: float) -> tuple[int, float, float, float]:
+    def operating_one(self, length: float, branch: float) -> tuple[int, float, float, float]:
         """:meth:`operating` of one valid length [m] (0 < L < max_length) in plain floats: (flags,
         q2, q1, q0).
 
         The float twin of the vector rule, for one message at a time, where numpy's per-call
-        overhead would cost more than the arithmetic; ``length_rate`` NaN: unknown.
+        overhead would cost more than the arithmetic.  ``branch``: the hysteresis branch from the
+        play operator (:mod:`.hysteresis`), +1 or -1 (only its sign counts; 0 or NaN: unknown).
         """
         lim, domain = self.limits, self.domain
         operating = min(max(length, lim.length_low), lim.length_high)
         flags = _LENGTH_OUT if operating != length else 0
         if operating < domain.length_min or operating > domain.length_max:
             flags |= _EXTRAPOLATED
-        branch = (
-            math.copysign(1.0, length_rate) if length_rate and math.isfinite(length_rate) else 0.0
-        )
+        branch = math.copysign(1.0, branch) if branch and math.isfinite(branch) else 0.0
         if branch == 0.0 and self.model.hysteresis:
             flags |= _BRANCH_UNKNOWN
         q2, q1, q0 = self.model.coefficients(
