@@ -528,10 +528,13 @@ def _minimax(
         return float(np.max(np.abs(residuals(theta))))
 
     t0 = worst(z0)
-    constraints = [
-        {'type': 'ineq', 'fun': lambda y: y[-1] - residuals(y[:-1] * scale)},
-        {'type': 'ineq', 'fun': lambda y: y[-1] + residuals(y[:-1] * scale)},
-    ]
+
+    def within(y: np.ndarray) -> np.ndarray:
+        """Both sides of |r| <= t, [t - r, t + r] >= 0 at y = [z, t] [N]: r evaluated once."""
+        r = residuals(y[:-1] * scale)
+        return np.r_[y[-1] - r, y[-1] + r]
+
+    constraints = [{'type': 'ineq', 'fun': within}]
     bounds = [
         (lo / s, hi / s) if s > 0 else (None, None) for lo, hi, s in zip(lower, upper, scale)
     ] + [(0, None)]
