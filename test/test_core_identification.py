@@ -8,17 +8,10 @@ import pytest
 import yaml
 
 from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
-from pma_model_ros.core.calibration import Calibration
-from pma_model_ros.core.identification import (
-    _environment,
-    _Problem,
-    _WORKER_ENVIRONMENT,
-    domain_of,
-)
-from pma_model_ros.core.models import get_model
+from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
-from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map
 
 from conftest import CONFIGS
 
@@ -191,21 +184,3 @@ def test_worker_environment_is_set_for_the_workers_only(monkeypatch):
     with _environment(_WORKER_ENVIRONMENT):
         assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '20'
     assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '20'
-
-
-@pytest.mark.parametrize('name', FITTED)
-@pytest.mark.parametrize('calibration', [Calibration(False, True), Calibration(True, True)])
-def test_residuals_of_many_x_at_once_are_those_of_each(name, calibration):
-    """The finite-difference Jacobian's map evaluates the model once for all x: bit for bit the
-    residuals of each x.
-    """
-    fmap = shipped_force_map('DMSP-20-300')
-    problem = _Problem(
-        get_model(name), shipped_spec('DMSP-20-300'), fmap, domain_of(fmap), calibration
-    )
-    rng = np.random.default_rng(1)
-    xs = problem.start + 0.01 * problem.scale * rng.standard_normal((7, problem.start.size))
-    each = problem.residuals_each(None, iter(xs))
-    assert len(each) == len(xs)
-    for x, residuals in zip(xs, each):
-        assert np.array_equal(residuals, problem.residuals(x))

@@ -26,11 +26,10 @@ from __future__ import annotations
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-import inspect
 from itertools import repeat
 import multiprocessing
 import os
-from typing import Iterable, Iterator
+from typing import Iterator
 import warnings
 
 import numpy as np
@@ -55,8 +54,6 @@ _LENGTH_CANDIDATES = 5  #: of these, judged by the worst held-out err of multi-s
 #: spinning takes the shared cores from the other workers.  2^4 cycles: they sleep at once (same
 #: threads, same partition of the work, so the same numbers).
 _WORKER_ENVIRONMENT = {'OPENBLAS_THREAD_TIMEOUT': '4'}
-#: scipy >= 1.16 evaluates least_squares' finite-difference Jacobian through a map (``workers``)
-_JACOBIAN_MAP = 'workers' in inspect.signature(least_squares).parameters
 
 
 @dataclass(frozen=True)
@@ -385,7 +382,6 @@ def _solve(problem: '_Problem', x0: np.ndarray) -> tuple[float, np.ndarray]:
             ftol=1e-12,
             gtol=1e-12,
             max_nfev=5000,
-            **({'workers': problem.residuals_each} if _JACOBIAN_MAP else {}),
         )
     return float(np.sum(result.fun**2)), result.x
 
@@ -432,29 +428,14 @@ class _Problem:
         return x[:n], float(x[n]) if self.calibration.pressure else 0.0
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Measured minus model force [N] at the map's points; with L0 fixed also of each row of x
-        (k, n): (k, points), each parameter a column broadcast over the points.
-        """
-        if self.calibration.length:
-            spec = cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1]))
-            theta = x[:-1]
-        else:
-            spec, theta = self.spec, x.T[..., None] if x.ndim == 2 else x
+        spec = (
+            cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1]))
+            if self.calibration.length
+            else self.spec
+        )
+        theta = x[:-1] if self.calibration.length else x
         return self.fmap.force - physical_force(
             self.evaluated, theta, spec, self.domain, self.fmap.pressure, self.fmap.length
-        )
-
-    def residuals_each(self, _fun, xs: Iterable[np.ndarray]) -> list[np.ndarray]:
-        """:meth:`residuals` of every x: least_squares' map (``workers``) over the points of its
-        finite-difference Jacobian (``_fun``: :meth:`residuals` as scipy wraps it).  One model
-        evaluation for all x (elementwise: the same numbers as one per x), one per x if L0 is an
-        unknown.
-        """
-        xs = np.array(list(xs))
-        return (
-            [self.residuals(x) for x in xs]
-            if self.calibration.length
-            else list(self.residuals(xs))
         )
 
     def random_start(self, paper: np.ndarray, rng: np.random.Generator) -> np.ndarray:
