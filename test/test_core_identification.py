@@ -1,12 +1,14 @@
 """Identification: the paper's Table 3, our best fits, cross-validation, shipped configs."""
 
 import math
+import os
 
 import numpy as np
 import pytest
 import yaml
 
 from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
+from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map
@@ -168,3 +170,17 @@ def test_two_branch_model_from_a_map_with_directions(tmp_path):
         )
         == 2
     )  # no direction column: one line, exit 2
+
+
+def test_worker_environment_is_set_for_the_workers_only(monkeypatch):
+    """The workers' OpenBLAS setting is in ``os.environ`` while the pool starts them, a user's own
+    value is kept, and the caller's environment is as before afterwards.
+    """
+    monkeypatch.delenv('OPENBLAS_THREAD_TIMEOUT', raising=False)
+    with _environment(_WORKER_ENVIRONMENT):
+        assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '4'
+    assert 'OPENBLAS_THREAD_TIMEOUT' not in os.environ
+    monkeypatch.setenv('OPENBLAS_THREAD_TIMEOUT', '20')
+    with _environment(_WORKER_ENVIRONMENT):
+        assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '20'
+    assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '20'

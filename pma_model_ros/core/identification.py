@@ -24,10 +24,12 @@ Two protocols:
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from itertools import repeat
 import multiprocessing
 import os
+from typing import Iterator
 import warnings
 
 import numpy as np
@@ -47,6 +49,11 @@ _TIE = 1e-6
 _LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
 _MAX_FOLDS = 8  #: most held-out groups of a cross-validation
 _LENGTH_CANDIDATES = 5  #: of these, judged by the worst held-out err of multi-start fits
+#: Set in the worker processes of :func:`identify_all` (unless the user set them).  OpenBLAS's idle
+#: threads spin 2^28 cycles (~0.1 s) after each threaded call before they sleep: in a worker that
+#: spinning takes the shared cores from the other workers.  2^4 cycles: they sleep at once (same
+#: threads, same partition of the work, so the same numbers).
+_WORKER_ENVIRONMENT = {'OPENBLAS_THREAD_TIMEOUT': '4'}
 
 
 @dataclass(frozen=True)
@@ -502,10 +509,13 @@ def _minimax(
         return float(np.max(np.abs(residuals(theta))))
 
     t0 = worst(z0)
-    constraints = [
-        {'type': 'ineq', 'fun': lambda y: y[-1] - residuals(y[:-1] * scale)},
-        {'type': 'ineq', 'fun': lambda y: y[-1] + residuals(y[:-1] * scale)},
-    ]
+
+    def within(y: np.ndarray) -> np.ndarray:
+        """Both sides of |r| <= t, [t - r, t + r] >= 0 at y = [z, t] [N]: r evaluated once."""
+        r = residuals(y[:-1] * scale)
+        return np.r_[y[-1] - r, y[-1] + r]
+
+    constraints = [{'type': 'ineq', 'fun': within}]
     bounds = [
         (lo / s, hi / s) if s > 0 else (None, None) for lo, hi, s in zip(lower, upper, scale)
     ] + [(0, None)]
@@ -641,13 +651,28 @@ def identify_all(
     # not forked: the caller may hold threads).
     workers = min(len(models), os.cpu_count() or 1)
     if workers > 1:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn')) as pool:
+        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn'))
+        with _environment(_WORKER_ENVIRONMENT), pool:
             done = list(pool.map(_report, models, repeat(spec), repeat(fmap), repeat(calibration)))
     else:
         done = [_report(model, spec, fmap, calibration) for model in models]
     reports = {model.name: report for model, report in zip(models, done)}
     default = min(reports, key=lambda name: reports[name].cv_err)
     return reports, default
+
+
+@contextmanager
+def _environment(values: dict[str, str]) -> Iterator[None]:
+    """``os.environ`` with ``values`` where unset, for the processes started inside; restored on
+    exit.
+    """
+    added = {key: value for key, value in values.items() if key not in os.environ}
+    os.environ.update(added)
+    try:
+        yield
+    finally:
+        for key in added:
+            del os.environ[key]
 
 
 def _report(
