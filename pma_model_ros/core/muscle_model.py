@@ -300,14 +300,14 @@ def pressure_for_one(
     disc = q1 * q1 - 4 * q2 * c
     if disc >= 0:
         big = -0.5 * (q1 + math.copysign(math.sqrt(disc), q1))
-        slack = 1e-9 * high  # round-off at the bounds is not out of reach
-        roots = [
-            r
-            for r in (big / q2 if q2 else math.inf, c / big if big else math.inf)
-            if low - slack <= r <= high + slack
-        ]
-        if roots:
-            return min(max(min(roots), low), high)
+        bottom, top = low - 1e-9 * high, high * (1 + 1e-9)  # round-off at a bound is in reach
+        smallest = math.inf
+        if q2 and bottom <= big / q2 <= top:
+            smallest = big / q2
+        if big and bottom <= c / big <= top:
+            smallest = min(smallest, c / big)
+        if smallest < math.inf:
+            return min(max(smallest, low), high)
     vertex = [min(max(-q1 / (2 * q2), low), high)] if q2 else []
     return min([low, *vertex, high], key=lambda p: (abs((q2 * p + q1) * p + c), p))
 
