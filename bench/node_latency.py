@@ -1,8 +1,8 @@
-"""Round-trip latency and message loss of model_node against a bare rclpy relay, same run, same
-settings.
+"""Round-trip latency and message loss of model_node and joint_node, each against a bare rclpy
+relay, same run, same settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
-        [--muscles 1 64] [--executor single events] [--profile model.prof] [--quick]
+        [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
 stamped with the cycle's time (the stamp is the sequence number), and measures the time until
@@ -10,9 +10,17 @@ the second answer carrying that stamp (both inputs of the cycle processed).  The
 separate process, is model_node or a relay that subscribes the same input types and publishes the
 same output type with no model.  N = 1: ``pressure``/``muscle_state`` -> ``force_estimate`` (the
 single-muscle file); N > 1: ``muscle_pressures``/``muscle_states`` -> ``force_estimates`` (combined
-mode, a homogeneous arm of DMSP-10-250).  Lost = answers expected (2 per cycle) minus received over
-the measured window.  Timings are noisy on a shared machine: read the model/relay ratios, not the
-absolute times.  Not a pass/fail test.
+mode, a homogeneous arm of DMSP-10-250).  ``--joints N``: joint_node with N copies of the example
+elbow (config/example_joint.yaml, as bench/joint_node_cost.py builds them: 2 N muscles); a cycle
+is each muscle's ``<muscle>/pressure`` (FluidPressure, absolute) then one ``joint_states`` of all N
+angles, and the round trip runs from the joint_states publish to the ``torque_estimate`` carrying
+its stamp (1 answer per cycle); its relay subscribes the same inputs (with joint_node's input QoS)
+and answers each joint_states with a JointState of N efforts on ``torque_estimate`` and
+``stiffness_estimate``, no model.  Default: muscle rows N = 1 and 64 and joint rows N = 4; naming
+only ``--muscles`` or only ``--joints`` runs only those rows.  Lost = answers expected minus
+received over the measured window; Hz = the pinger's achieved cycle rate (it publishes 2 N + 1
+messages per joint cycle).  Timings are noisy on a shared machine: read the model/relay ratios,
+not the absolute times.  Not a pass/fail test.
 """
 
 from __future__ import annotations
@@ -36,6 +44,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from joint_node_cost import arm  # noqa: E402  (bench/, this script's folder, is on sys.path)
 import rclpy  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -44,7 +53,8 @@ from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
-from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
+from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
+from pma_model_ros.nodes.model_node import INPUT_QOS, ModelNode  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
 from pma_model_ros.tools import node_process  # noqa: E402
 
@@ -52,7 +62,14 @@ SINGLE = REPO / 'config' / 'dmsp_10_250.yaml'
 AMBIENT = STANDARD_ATMOSPHERE  # [Pa]
 WARMUP = 1.0  # [s] after the first answer, not measured
 DRAIN = 0.5  # [s] after the last cycle, for late answers
-ANSWERS = 2  # per cycle: one per input message
+ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
+ANGLE = 0.2  # [rad] of every joint
+PROFILED = {'model_node': ModelNode, 'joint_node': JointNode}
+
+
+def joint_muscles(joints: int) -> list[str]:
+    """The muscles of :func:`joint_node_cost.arm`'s ``joints`` joints j0, j1, ..."""
+    return [f'j{k}_{side}' for k in range(joints) for side in ('flexor', 'extensor')]
 
 
 class Relay(Node):
@@ -63,7 +80,29 @@ class Relay(Node):
     def __init__(self) -> None:
         super().__init__('relay')
         muscles = self.declare_parameter('muscles', 1).value
-        if muscles == 1:
+        joints = self.declare_parameter('joints', 0).value
+        if joints:
+            self.pressures: dict[str, float] = {}
+            outs = [
+                self.create_publisher(JointState, topic, 10)
+                for topic in ('torque_estimate', 'stiffness_estimate')
+            ]
+
+            def estimates(msg: JointState) -> None:
+                out = JointState(name=msg.name, effort=msg.position)
+                out.header.stamp = msg.header.stamp
+                for pub in outs:
+                    pub.publish(out)
+
+            for muscle in joint_muscles(joints):
+                self.create_subscription(
+                    FluidPressure,
+                    f'{muscle}/pressure',
+                    lambda m, muscle=muscle: self.pressures.__setitem__(muscle, m.fluid_pressure),
+                    INPUT_QOS,
+                )
+            self.create_subscription(JointState, 'joint_states', estimates, INPUT_QOS)
+        elif muscles == 1:
             pub = self.create_publisher(WrenchStamped, 'force_estimate', 10)
 
             def answer(msg, value: float) -> None:
@@ -112,15 +151,35 @@ def multi_muscle_file(n: int, folder: Path) -> Path:
 
 
 class Pinger(Node):
-    """Publishes the inputs of N muscles at a fixed rate; records the round trip of each cycle."""
+    """Publishes the inputs of N muscles (or N joints) at a fixed rate; records the round trip of
+    each cycle.
+    """
 
-    def __init__(self, namespace: str, muscles: int, context: rclpy.Context) -> None:
+    def __init__(
+        self, namespace: str, muscles: int, context: rclpy.Context, joints: bool = False
+    ) -> None:
         super().__init__('pinger', context=context)
         self.sent: dict[int, float] = {}  # stamp [ns] -> perf_counter at publish [s]
         self.answers: dict[int, list[float]] = {}
         reliable = QoSProfile(depth=1000)
-        self.n = muscles
-        if muscles == 1:
+        self.n, self.joints = muscles, joints
+        self.per_cycle = 1 if joints else ANSWERS  # answers per cycle
+        self._timed = 2 * muscles if joints else 0  # the first answered message: sent from there
+        if joints:
+            self._pubs = tuple(
+                self.create_publisher(
+                    FluidPressure, f'{namespace}/{muscle}/pressure', qos_profile_sensor_data
+                )
+                for muscle in joint_muscles(muscles)
+            ) + (
+                self.create_publisher(
+                    JointState, f'{namespace}/joint_states', qos_profile_sensor_data
+                ),
+            )
+            self.create_subscription(
+                JointState, f'{namespace}/torque_estimate', self._on_answer, reliable
+            )
+        elif muscles == 1:
             self._pubs = (
                 self.create_publisher(
                     FluidPressure, f'{namespace}/pressure', qos_profile_sensor_data
@@ -144,7 +203,7 @@ class Pinger(Node):
             self.create_subscription(
                 JointState, f'{namespace}/force_estimates', self._on_answer, reliable
             )
-        self._names = [f'm{i:02d}' for i in range(muscles)]
+        self._names = [f'j{k}' if joints else f'm{k:02d}' for k in range(muscles)]
 
     def _on_answer(self, msg) -> None:
         t = time.perf_counter()
@@ -152,8 +211,12 @@ class Pinger(Node):
         self.answers.setdefault(key, []).append(t)
 
     def messages(self, k: int) -> tuple:
-        """Cycle ``k``'s pressure and length messages (unstamped)."""
+        """Cycle ``k``'s pressure and length (or angle) messages, unstamped, in their order."""
         gauge = 300e3 + 100e3 * np.sin(k * 1e-3)
+        if self.joints:
+            return tuple(
+                FluidPressure(fluid_pressure=AMBIENT + gauge) for _ in range(2 * self.n)
+            ) + (JointState(name=self._names, position=[ANGLE] * self.n),)
         if self.n == 1:
             return (
                 FluidPressure(fluid_pressure=AMBIENT + gauge),
@@ -165,13 +228,14 @@ class Pinger(Node):
         )
 
     def cycle(self, k: int) -> int:
-        """Publish one cycle's pressure and length; its stamp [ns]."""
+        """Publish one cycle's messages, all with one stamp; the stamp [ns]."""
         now = self.get_clock().now()
-        first, second = self.messages(k)
-        first.header.stamp = second.header.stamp = now.to_msg()
-        self.sent[now.nanoseconds] = time.perf_counter()
-        self._pubs[0].publish(first)
-        self._pubs[1].publish(second)
+        messages, stamp = self.messages(k), now.to_msg()
+        for i, (pub, msg) in enumerate(zip(self._pubs, messages)):
+            msg.header.stamp = stamp
+            if i == self._timed:
+                self.sent[now.nanoseconds] = time.perf_counter()
+            pub.publish(msg)
         return now.nanoseconds
 
 
@@ -199,14 +263,21 @@ def cpu_seconds(pid: int) -> float:
 
 
 def measure(
-    responder: list[str], muscles: int, duration: float, rate: float, namespace: str
+    responder: list[str],
+    muscles: int,
+    duration: float,
+    rate: float,
+    namespace: str,
+    joints: bool = False,
 ) -> dict:
-    """Start ``responder``, ping it, stop it; round trips [ms], loss and its CPU use."""
+    """Start ``responder``, ping it, stop it; round trips [ms], loss, its CPU use and the achieved
+    cycle rate.
+    """
     with tempfile.TemporaryFile('w+') as log:
         proc = node_process.start(responder, log)
         context = rclpy.Context()
         rclpy.init(context=context)
-        pinger = Pinger(namespace, muscles, context)
+        pinger = Pinger(namespace, muscles, context, joints)
         executor = EventsExecutor(context=context)
         executor.add_node(pinger)
         try:
@@ -234,16 +305,19 @@ def measure(
             pinger.destroy_node()
             rclpy.shutdown(context=context)
     measured = [s for s in pinger.sent if s >= first[0]]
+    per_cycle = pinger.per_cycle
     trips = [
-        pinger.answers[s][ANSWERS - 1] - pinger.sent[s]
+        pinger.answers[s][per_cycle - 1] - pinger.sent[s]
         for s in measured
-        if len(pinger.answers.get(s, ())) >= ANSWERS
+        if len(pinger.answers.get(s, ())) >= per_cycle
     ]
-    received = sum(min(len(pinger.answers.get(s, ())), ANSWERS) for s in measured)
+    received = sum(min(len(pinger.answers.get(s, ())), per_cycle) for s in measured)
     ms = np.array(trips) * 1e3 if trips else np.array([np.nan])
+    span = pinger.sent[measured[-1]] - pinger.sent[measured[0]]
     return {
         'cycles': len(measured),
-        'lost': ANSWERS * len(measured) - received,
+        'hz': (len(measured) - 1) / span if span > 0 else np.nan,
+        'lost': per_cycle * len(measured) - received,
         'p50': np.percentile(ms, 50),
         'p99': np.percentile(ms, 99),
         'max': ms.max(),
@@ -252,17 +326,23 @@ def measure(
 
 
 def responders(
-    muscles: int, executor: str, folder: Path, profile: Path | None
+    muscles: int, executor: str, folder: Path, profile: Path | None, joints: bool = False
 ) -> dict[str, list[str]]:
-    params = {'executor': executor}
-    if muscles == 1:
-        model = node_process.command('model_node', '/bench', SINGLE, params)
-    else:
+    """The command lines of the model's node (model_node, or joint_node with ``muscles`` joints)
+    and of its relay, by name.
+    """
+    params, name = {'executor': executor}, 'joint_node' if joints else 'model_node'
+    if joints:  # N copies of the example elbow; their muscle files are in config/
+        arm(path := folder / f'joints_{muscles}.yaml', muscles)
         model = node_process.command(
-            'model_node', '/bench', multi_muscle_file(muscles, folder), params
+            name, '/bench', path, params | {'config_dir': REPO / 'config'}
         )
-    if profile is not None:  # this script as model_node, profiled once it is built
-        model[1:3] = [__file__, f'--profiled-node={profile}']
+    elif muscles == 1:
+        model = node_process.command(name, '/bench', SINGLE, params)
+    else:
+        model = node_process.command(name, '/bench', multi_muscle_file(muscles, folder), params)
+    if profile is not None:  # this script as the node, profiled once it is built
+        model[1:3] = [__file__, f'--profiled-{name}={profile}']
     relay = [
         sys.executable,
         __file__,
@@ -273,23 +353,23 @@ def responders(
         '-p',
         f'executor:={executor}',
         '-p',
-        f'muscles:={muscles}',
+        f'{"joints" if joints else "muscles"}:={muscles}',
     ]
-    return {'model_node': model, 'relay': relay}
+    return {name: model, 'relay': relay}
 
 
-def profiled_model_node(out: Path, args: list[str]) -> int:
-    """model_node with cProfile from the end of its construction (its spinning only) to its exit,
-    into ``out``.
+def profiled_node(name: str, out: Path, args: list[str]) -> int:
+    """Node ``name`` (model_node or joint_node) with cProfile from the end of its construction (its
+    spinning only) to its exit, into ``out``.
     """
     profiler = cProfile.Profile()
 
-    def make() -> ModelNode:
-        node = ModelNode()
+    def make() -> Node:
+        node = PROFILED[name]()
         profiler.enable()
         return node
 
-    code = run('model_node', make, args)
+    code = run(name, make, args)
     profiler.disable()
     profiler.dump_stats(out)
     return code
@@ -342,6 +422,44 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
     return per_cycle * 1e6, own * 1e6
 
 
+def print_rows(
+    joints: bool, counts: list[int], args: argparse.Namespace, folder: Path, last: tuple
+) -> None:
+    """Measure and print the rows of ``counts`` muscles (or joints) x ``args.executor``."""
+    node = 'joint_node' if joints else 'model_node'
+    what = (
+        '2 N pressures + 1 joint_states per cycle, 1 answer (torque_estimate); N = joints'
+        if joints
+        else '2 answers per cycle; N = muscles'
+    )
+    print(
+        f'\n{node}: round trip at {args.rate:g} Hz, {args.duration:g} s per row, {what} (times '
+        f'in ms; ratio = {node} / relay)'
+    )
+    print(
+        f'{"N":>3} {"executor":<8} {"responder":<11} {"cycles":>7} {"Hz":>6} {"lost":>5} '
+        f'{"p50":>7} {"p99":>7} {"max":>7} {"cpu %":>6} {"p50 ratio":>9} {"p99 ratio":>9}'
+    )
+    for n in counts:
+        for executor in args.executor:
+            profile = args.profile if (joints, n, executor) == last else None
+            result = {}
+            for name, cmd in responders(n, executor, folder, profile, joints).items():
+                result[name] = r = measure(cmd, n, args.duration, args.rate, '/bench', joints)
+                base = result[node]
+                ratio = (
+                    ''
+                    if name == node
+                    else f'{base["p50"] / r["p50"]:>9.2f} {base["p99"] / r["p99"]:>9.2f}'
+                )
+                print(
+                    f'{n:>3} {executor:<8} {name:<11} {r["cycles"]:>7} {r["hz"]:>6.0f} '
+                    f'{r["lost"]:>5} {r["p50"]:>7.3f} {r["p99"]:>7.3f} {r["max"]:>7.2f} '
+                    f'{r["cpu"]:>6.0f} {ratio}',
+                    flush=True,
+                )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument(
@@ -351,7 +469,10 @@ def main() -> int:
         '--rate', type=float, default=1000.0, help='cycles per second (default 1000)'
     )
     parser.add_argument(
-        '--muscles', type=int, nargs='+', default=[1, 64], help='N muscles (default 1 64)'
+        '--muscles', type=int, nargs='+', help='model_node rows: N muscles (default 1 64)'
+    )
+    parser.add_argument(
+        '--joints', type=int, nargs='+', help='joint_node rows: N joints (default 4)'
     )
     parser.add_argument(
         '--executor',
@@ -361,25 +482,36 @@ def main() -> int:
         help='executor of the responders (default: both)',
     )
     parser.add_argument(
-        '--profile', type=Path, help='cProfile the model node of the last row into this file'
+        '--profile',
+        type=Path,
+        help='cProfile the node (model_node or joint_node) of the last row into this file',
     )
     parser.add_argument(
         '--quick', action='store_true', help='2 s per row (what bench/run --quick passes)'
     )
     if '--relay' in sys.argv:
         return run('relay', Relay, [a for a in sys.argv if a != '--relay'])
-    if sys.argv[1:2] and sys.argv[1].startswith('--profiled-node='):
-        return profiled_model_node(Path(sys.argv[1].partition('=')[2]), sys.argv[2:])
+    if sys.argv[1:2] and sys.argv[1].startswith('--profiled-'):
+        name, _, out = sys.argv[1].removeprefix('--profiled-').partition('=')
+        return profiled_node(name, Path(out), sys.argv[2:])
     args = parser.parse_args()
     if args.quick:
         args.duration = 2.0
-    rows = [(n, e) for n in args.muscles for e in args.executor]
+    if args.muscles is None and args.joints is None:
+        args.muscles, args.joints = [1, 64], [4]
+    muscles, joints = args.muscles or [], args.joints or []
+    last = (
+        (True, joints[-1], args.executor[-1])
+        if joints
+        else (False, muscles[-1], args.executor[-1])
+    )
     with tempfile.TemporaryDirectory() as tmp:
-        print(
-            'model_node callbacks called directly (no executor, no DDS), CPU per cycle (both '
-            'inputs):'
-        )
-        for n in args.muscles:
+        if muscles:
+            print(
+                'model_node callbacks called directly (no executor, no DDS), CPU per cycle (both '
+                'inputs):'
+            )
+        for n in muscles:
             cycle, bank = callback_cost(n, Path(tmp))
             print(
                 f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
@@ -389,37 +521,13 @@ def main() -> int:
                     else ' (its one-muscle float path)'
                 )
             )
-        print(
-            f'\nround trip at {args.rate:g} Hz, {args.duration:g} s per row, 2 answers per cycle '
-            f'(times in ms; ratio = model_node / relay)'
-        )
-        print(
-            f'{"N":>3} {"executor":<8} {"responder":<11} {"cycles":>7} {"lost":>5} {"p50":>7} '
-            f'{"p99":>7} '
-            f'{"max":>7} {"cpu %":>6} {"p50 ratio":>9} {"p99 ratio":>9}'
-        )
-        for i, (n, executor) in enumerate(rows):
-            profile = args.profile if args.profile and i == len(rows) - 1 else None
-            result = {}
-            for name, cmd in responders(n, executor, Path(tmp), profile).items():
-                result[name] = r = measure(cmd, n, args.duration, args.rate, '/bench')
-                base = result['model_node']
-                ratio = (
-                    ''
-                    if name == 'model_node'
-                    else f'{base["p50"] / r["p50"]:>9.2f} {base["p99"] / r["p99"]:>9.2f}'
-                )
-                print(
-                    f'{n:>3} {executor:<8} {name:<11} {r["cycles"]:>7} {r["lost"]:>5} '
-                    f'{r["p50"]:>7.3f} '
-                    f'{r["p99"]:>7.3f} {r["max"]:>7.2f} {r["cpu"]:>6.0f} {ratio}',
-                    flush=True,
-                )
+        if muscles:
+            print_rows(False, muscles, args, Path(tmp), last)
+        if joints:
+            print_rows(True, joints, args, Path(tmp), last)
     if args.profile:
-        print(
-            f'\ncProfile of model_node while spinning (N={rows[-1][0]}, {rows[-1][1]}), top 15 by '
-            f'own time:'
-        )
+        node = 'joint_node' if last[0] else 'model_node'
+        print(f'\ncProfile of {node} while spinning (N={last[1]}, {last[2]}), top 15 by own time:')
         pstats.Stats(str(args.profile)).sort_stats('tottime').print_stats(15)
     return 0
 
