@@ -11,6 +11,7 @@ import pytest
 
 from pma_model_ros.core.engine import Config, Engine, Level
 from pma_model_ros.core.flags import Flag
+from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 
@@ -153,7 +154,7 @@ def test_branch_can_follow_the_pressure():
     pressure).
     """
     model = dmsp_10_100_hysteresis()
-    est = Engine([Config(model, AMBIENT, 0.1, hysteresis_input='pressure', deadband=5e3)])
+    est = Engine([Config(model, AMBIENT, 0.1, follow=Follow('pressure', 5e3))])
     est.length(0, 0.09, 0.0, stamp=0.0, now=0.0)
     for k, gauge in enumerate([0.0, 2e5, 4e5, 6e5, 5.98e5, 5.9e5, 4e5]):
         force = est.pressure(0, AMBIENT + gauge, stamp=k * 0.01, now=k * 0.01)

@@ -39,10 +39,10 @@ from typing import Sequence
 import numpy as np
 
 from .flags import describe, Flag
-from .hysteresis import play
+from .hysteresis import Follow, play
 from .muscle_bank import MuscleBank
 from .muscle_model import force_at, MuscleModel, Operating, served_pressure
-from .node_parameters import SPECS
+from .node_parameters import DEFAULT_FOLLOW, SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8
 #: bar).
@@ -153,21 +153,15 @@ class Config:
     max_input_age: float = SPECS['max_input_age'].default
     #: what pressure readings and commands hold
     pressure_reference: str = SPECS['pressure_reference'].default
-    #: what a hysteresis model's branch follows
-    hysteresis_input: str = SPECS['hysteresis.input'].default
-    #: of the play operator [m or Pa gauge]; None: the input's default
-    deadband: float | None = None
+    #: what a hysteresis model's branch follows, with the play operator's deadband
+    follow: Follow = DEFAULT_FOLLOW
 
     def __post_init__(self) -> None:
         SPECS['ambient_pressure'].check(self.ambient_pressure)
         SPECS['max_input_age'].check(self.max_input_age)
         SPECS['pressure_reference'].check(self.pressure_reference)
-        SPECS['hysteresis.input'].check(self.hysteresis_input)
-        if self.deadband is None:
-            object.__setattr__(
-                self, 'deadband', SPECS[f'hysteresis.{self.hysteresis_input}_deadband'].default
-            )
-        SPECS[f'hysteresis.{self.hysteresis_input}_deadband'].check(self.deadband)
+        SPECS['hysteresis.input'].check(self.follow.input)
+        SPECS[f'hysteresis.{self.follow.input}_deadband'].check(self.follow.deadband)
 
     @property
     def reading_offset(self) -> float:
@@ -256,12 +250,12 @@ class Engine:
         )  # reading + offset = absolute [Pa]
         self._offsets = bool(self._offset.any())
         hysteresis = np.array([c.model.model.hysteresis for c in configs])
-        by_pressure = np.array([c.hysteresis_input == 'pressure' for c in configs])
+        by_pressure = np.array([c.follow.input == 'pressure' for c in configs])
         self._follow_length, self._follow_pressure = (
             hysteresis & ~by_pressure,
             hysteresis & by_pressure,
         )
-        self._deadband = np.array([c.deadband for c in configs])
+        self._deadband = np.array([c.follow.deadband for c in configs])
         self._any_length, self._any_pressure = (
             bool(self._follow_length.any()),
             bool(self._follow_pressure.any()),

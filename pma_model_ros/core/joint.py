@@ -38,7 +38,7 @@ from .flags import Flag
 from .hysteresis import Follow
 from .models import coefficient_slopes
 from .muscle_model import force_at, MuscleModel, pressure_for_one
-from .node_parameters import SPECS
+from .node_parameters import DEFAULT_FOLLOW
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
 COCONTRACTION_MODES = ('min', 'sum')
@@ -46,9 +46,6 @@ COCONTRACTION_MODES = ('min', 'sum')
 #: are SATURATED.
 TOLERANCE = 1e-9
 _SATURATED, _INVALID = int(Flag.SATURATED), int(Flag.INVALID_INPUT)
-_INPUT = SPECS['hysteresis.input'].default
-#: What a muscle's branch follows unless its parameters say otherwise (model_node's defaults).
-DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)
 #: Both branches unknown.
 UNKNOWN = (0.0, 0.0)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from .hysteresis import Follow
 from .hysteresis import INPUTS as HYSTERESIS_INPUTS
 from .models import MODELS
 
@@ -300,6 +301,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
+_INPUT = SPECS['hysteresis.input'].default
+#: What a hysteresis muscle's branch follows unless its parameters say otherwise.
+DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)
 
 
 def markdown_table() -> str:

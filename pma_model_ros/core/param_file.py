@@ -134,9 +134,7 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
     except (TypeError, ValueError, OverflowError) as err:
         raise ValueError(f'ambient_pressure/max_input_age must be numbers: {err}') from None
     follow = hysteresis_follow(parameters)
-    config = Config(
-        muscle, ambient, max_age, values['pressure_reference'], follow.input, follow.deadband
-    )
+    config = Config(muscle, ambient, max_age, values['pressure_reference'], follow)
     joint = str(parameters.get('joint_name') or muscle.spec.name)
     return NodeSettings(config, joint, str(parameters.get('frame_id') or joint))
 
