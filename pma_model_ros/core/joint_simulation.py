@@ -12,6 +12,7 @@ joint_node estimates is judged against data.
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -139,10 +140,7 @@ class SimulatedJoint:
         ω² = K_max / I, K_max the stiffest point of the range with both muscles at their maps' top
         pressure, dt = 1 / rate.
         """
-        lengths = self._lengths(angles)
-        tops = [t.pressures[-1] for t in self.truths]
-        forces = [t.force(p, L) for t, p, L in zip(self.truths, tops, lengths)]
-        torque = self.transmission.radius(angles) * (forces[0] - forces[1])
+        torque = self.torque_at(angles, [t.pressures[-1] for t in self.truths])
         k_max = float(np.max(-np.gradient(torque, angles)))
         least = k_max / self.params['rate'] ** 2
         if self.params['inertia'] < least:
@@ -165,15 +163,16 @@ class SimulatedJoint:
             low, high = self.params['limits']
             self.angle = min(max(angle, low), high)
 
-    def forces(self) -> tuple[float, float]:
-        """Each muscle's measured-map tension [N] at the present angle and pressures."""
-        lengths = self._lengths(self.angle)
-        return tuple(float(t.force(p, L)) for t, p, L in zip(self.truths, self.pressures, lengths))
+    def torque_at(self, angle: ArrayLike, pressures: Sequence[float]) -> np.ndarray:
+        """The torque [N·m] of the measured-map forces at ``angle`` [rad] (array or float) and the
+        muscles' gauge ``pressures`` [Pa].
+        """
+        f0, f1 = (t.force(p, L) for t, p, L in zip(self.truths, pressures, self._lengths(angle)))
+        return self.transmission.radius(angle) * (f0 - f1)
 
     def torque(self) -> float:
-        """The joint torque [N·m] of the measured-map forces."""
-        f0, f1 = self.forces()
-        return self.transmission.radius(self.angle) * (f0 - f1)
+        """The joint torque [N·m] at the present angle and pressures."""
+        return float(self.torque_at(self.angle, self.pressures))
 
     def step(self, now: float) -> float:
         """Advance to ``now`` [s]; the torque [N·m] there."""
