@@ -210,9 +210,9 @@ def test_a_reversal_beyond_the_deadband_sends_the_muscles_to_opposite_branches()
     assert finger_torque(0.14, p0, p1, 1.0, -1.0) == pytest.approx(0.2, abs=1e-8)
 
 
-def test_a_branch_can_follow_its_muscles_pressure():
-    """Muscle b's branch follows its gauge pressure (5 kPa deadband, inline beside its file);
-    muscle a's still follows its length and, the joint held still, stays unknown.
+def finger_following_pressure() -> Joint:
+    """Two DMSP-10-100 on a 10 mm pulley; muscle b's branch follows its gauge pressure (5 kPa
+    deadband, inline beside its file), muscle a's its length.
     """
     block = {
         'radius': [0.01],
@@ -227,6 +227,12 @@ def test_a_branch_can_follow_its_muscles_pressure():
         },
     }
     (joint,) = joints({'joints': ['finger'], 'finger': block}, REPO / 'config')
+    return joint
+
+
+def test_a_branch_can_follow_its_muscles_pressure():
+    """Muscle a, the joint held still, stays unknown."""
+    joint = finger_following_pressure()
     assert joint.follows == (Follow('length', 0.0005), Follow('pressure', 5000.0))
     e = engine(joint)
     steps = [  # b's gauge pressure [Pa] and its branch after it
@@ -246,6 +252,23 @@ def test_a_branch_can_follow_its_muscles_pressure():
         assert tau == pytest.approx(expected, rel=1e-9), p1
         # muscle a has not moved: the joint keeps warning
         assert e.status(0, 0.0)[:2] == (Level.WARN, 'hysteresis branch unknown (BRANCH_UNKNOWN)')
+
+
+def test_a_torque_command_after_a_pressure_turned_a_branch_uses_the_new_branch():
+    """The branch changes on a pressure message, with no joint_states after it: the command's
+    pressures give the wanted torque with muscle b on the venting branch (-1), a on the mean.
+    """
+    e = engine(finger_following_pressure())
+    for p1 in (400e3, 500e3):  # b filled: branch +1
+        feed(e, 0, 600e3, p1)
+    e.angle(0, 0.0, 0.0, 0.0)
+    feed(e, 0, 600e3, 490e3)  # 10 kPa back: venting, -1
+    # -0.3 N·m: a held at the 300 kPa level, b's pressure solved on its branch
+    p0, p1 = (p - AMBIENT for p in e.command(0, -0.3, 0.0))
+    assert p0 == pytest.approx(300e3) and force(SAROSI, p1, 0.0875, -1.0) > 0
+    assert 0.01 * (mean_force(p0, 0.0875) - force(SAROSI, p1, 0.0875, -1.0)) == pytest.approx(
+        -0.3, rel=1e-9
+    )
 
 
 def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_ends():

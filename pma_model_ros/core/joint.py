@@ -279,11 +279,24 @@ class Joint:
         the torque), the muscles on their hysteresis ``branches``.  Out of reach: the nearest
         reachable level, torque, then stiffness, flagged SATURATED.
         """
+        return self.pressures_at(self.at(theta, branches), torque, cocontraction, mode, stiffness)
+
+    def pressures_at(
+        self,
+        at: tuple[MuscleAt, MuscleAt, float, float],
+        torque: float,
+        cocontraction: float = 0.0,
+        mode: str = 'min',
+        stiffness: float | None = None,
+    ) -> Pressures:
+        """:meth:`pressures_one` with both muscles already at the angle (``at``: :meth:`at`), as
+        the joint engine keeps them between messages.
+        """
         if mode not in COCONTRACTION_MODES:
             raise ValueError(
                 f'co-contraction mode must be one of {COCONTRACTION_MODES}, got {mode!r}'
             )
-        m0, m1, r, r_slope = self.at(theta, branches)
+        m0, m1, r, r_slope = at
         want = torque / r  # wanted F0 - F1 [N]
         if stiffness is not None:
             p0, p1, span = _for_stiffness(m0, m1, r, r_slope, want, stiffness)

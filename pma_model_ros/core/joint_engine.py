@@ -162,9 +162,10 @@ class JointEngine:
         s.gauge[muscle], s.p_stamps[muscle] = gauge, stamp
         deadband = s.by_pressure[muscle]
         if deadband is not None:
-            s.branch[muscle], s.anchor[muscle] = play(
-                s.branch[muscle], s.anchor[muscle], gauge, deadband
-            )
+            before = s.branch[muscle]
+            s.branch[muscle], s.anchor[muscle] = play(before, s.anchor[muscle], gauge, deadband)
+            if s.branch[muscle] != before and s.at is not None:  # the muscles at the new branch
+                s.at = self.joints[k].at(s.theta, s.branch)
 
     def cocontraction(self, k: int, level: float, now: float) -> None:
         """Joint ``k``'s torque commands from now on: co-contraction ``level`` [Pa gauge] (its
@@ -191,13 +192,9 @@ class JointEngine:
         if s.at is None:
             return self.reject(k, 'torque command before any angle (joint_states)', now)
         if s.stiffness is not None:
-            result = self.joints[k].pressures_one(
-                s.theta, torque, stiffness=s.stiffness, branches=s.branch
-            )
+            result = self.joints[k].pressures_at(s.at, torque, stiffness=s.stiffness)
         else:
-            result = self.joints[k].pressures_one(
-                s.theta, torque, s.level, s.mode, branches=s.branch
-            )
+            result = self.joints[k].pressures_at(s.at, torque, s.level, s.mode)
         self._note(s, result.flags, now)
         s.counts['pressure commands'] += 1
         return result.pressures[0] + self.ambient, result.pressures[1] + self.ambient
