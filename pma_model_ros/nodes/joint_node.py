@@ -58,7 +58,7 @@ def declare(node: Node) -> None:
         for muscle in muscles or []:
             for spec in MUSCLE_PARAMETERS:
                 _declare(node, spec, f'{joint}.{muscle}.')
-            model_params._declare_muscle(node, f'{joint}.{muscle}.', defaults=False)
+            model_params.declare_muscle(node, f'{joint}.{muscle}.', defaults=False)
 
 
 class JointNode(Node):
@@ -69,7 +69,7 @@ class JointNode(Node):
         with refusing(self):
             declare(self)
             flat = model_params.values(self)
-            nested = model_params._nest(flat)
+            nested = model_params.nest(flat)
             found = joints(nested, Path(str(flat.get('config_dir') or '.')))
             settings = [
                 Settings(

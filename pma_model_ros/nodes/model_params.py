@@ -84,11 +84,11 @@ def declare(node: Node) -> tuple[list[str], str]:
         if not spec.per_muscle and spec.name not in ('muscles', 'input_mode', 'executor'):
             _declare(node, spec)
     for prefix in [f'{name}.' for name in names] or ['']:
-        _declare_muscle(node, prefix)
+        declare_muscle(node, prefix)
     return names, mode
 
 
-def _declare_muscle(node: Node, prefix: str, defaults: bool = True) -> None:
+def declare_muscle(node: Node, prefix: str, defaults: bool = True) -> None:
     """Declare one muscle's parameters under ``prefix``; without ``defaults`` unset ones stay
     unset (joint_node: a muscle ``file``'s values then apply).
     """
@@ -167,7 +167,7 @@ def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings
             get_model(flat[prefix + 'model'])
         except ValueError as err:
             raise ValueError(f"{where}parameter 'model': {err}") from None
-    return all_node_settings(_nest(flat))
+    return all_node_settings(nest(flat))
 
 
 def plain(value: object) -> object:
@@ -175,7 +175,7 @@ def plain(value: object) -> object:
     return list(value) if isinstance(value, (array.array, tuple)) else value
 
 
-def _nest(flat: dict[str, object]) -> dict:
+def nest(flat: dict[str, object]) -> dict:
     nested: dict = {}
     for name, value in flat.items():
         *parents, leaf = name.split('.')
