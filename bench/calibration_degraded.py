@@ -1,7 +1,7 @@
 """Identification on degraded maps: the shipped maps measured the way a user's are, with and
 without calibration.
 
-Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --nested | --write DIR]``
+Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --write DIR]``
 (docs/calibration.md). Not a test: it prints tables (``test/test_core_calibration.py`` asserts the
 issue's targets on the same kind of degradation with another seed and another missing length).
 
@@ -9,9 +9,9 @@ Degradation of a shipped map (Martens & Boblan 2017, Tables A1/A2) with the pape
 truth: the rest length L0 given ``dl`` wrong, the pressure sensor reading ``offset`` too high,
 Gaussian force noise of ``noise`` x the max force (fixed seed, clipped at 0 N), and one interior
 length missing.  Every error is eq. 23 against the *true* (noise-free) forces at the user's points
-(sensor pressures), normalised by the true max force; ``data`` columns (in-sample, held-out) judge
-against the noisy map itself, as the user sees it. Objectives and the default model are chosen as a
-user's are: by held-out error on their own map.
+(sensor pressures), normalised by the true max force.  Held-out errors are nested: the whole
+identification (calibration and, with several models, the model choice, made on the user's noisy
+map) re-run without each length.
 """
 
 from __future__ import annotations
@@ -27,14 +27,7 @@ from pma_model_ros.cli import describe_geometry
 from pma_model_ros.core.calibration import Calibration, OFF
 from pma_model_ros.core.force_map import ForceMap
 from pma_model_ros.core.geometry import MuscleSpec
-from pma_model_ros.core.identification import (
-    cross_validate_fit,
-    fit_best,
-    identify_all,
-    length_folds,
-    max_error_percent,
-    ModelReport,
-)
+from pma_model_ros.core.identification import Identification, identify_all, max_error_percent
 from pma_model_ros.core.models import get_model, TABLE3_MODELS
 from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 
@@ -56,7 +49,9 @@ class Degradation:
         )
 
 
-DEGRADED = tuple(Degradation(dl, 10e3, 0.01, True) for dl in (-0.004, +0.008, +0.004, -0.008))
+DEGRADED = tuple(
+    Degradation(dl, 10e3, 0.01, True) for dl in (-0.004, +0.008, +0.004, -0.008, -0.006)
+)
 SCENARIOS = (Degradation(), *DEGRADED)
 
 
@@ -83,100 +78,39 @@ def spec_given(muscle: str, d: Degradation) -> float:
     return shipped_spec(muscle).nominal_length + d.dl
 
 
-@dataclass(frozen=True)
-class Outcome:
-    #: identified as a user would (objective and default by held-out error on their map)
-    report: ModelReport
-    err_truth: float  #: in-sample eq. 23 against the true forces [%]
-    cv_truth: float  #: worst leave-one-length-out eq. 23 against the true forces [%]
-
-
 def identify(
     muscle: str, d: Degradation, calibration: Calibration, models: tuple[str, ...]
-) -> tuple[dict, str]:
-    """Every model of ``models`` identified on the degraded map: ({name: Outcome}, default by
-    held-out error).
+) -> tuple[Identification, float]:
+    """The models identified on the degraded map as a user would (least squares, default by
+    held-out error), held-out errors against the truth; and the default's in-sample err against
+    the truth [%].
     """
     spec, user, truth = degrade(muscle, d)
-    reports, default = identify_all(spec, user, tuple(get_model(m) for m in models), calibration)
-    out = {}
-    for name, rep in reports.items():
-        fit = rep.shipped
-        cv = cross_validate_fit(fit, user, (fit.objective,), truth)[fit.objective]
-        out[name] = Outcome(
-            rep,
-            max_error_percent(truth, fit.force(user.pressure, user.length), truth.max()),
-            float(cv.max()),
-        )
-    return out, default
-
-
-def martens_table(muscle: str) -> None:
-    truth = shipped_spec(muscle).nominal_length
-    print(
-        f'\n{muscle}, martens: err vs truth [%] (in-sample / worst held-out length); true L0 '
-        f'{truth:.3f} m, '
-        'true offset +10 kPa where degraded'
+    found = identify_all(
+        spec, user, tuple(get_model(m) for m in models), calibration, ('least_squares',), truth
     )
+    fit = found.reports[found.default].shipped
+    return found, max_error_percent(truth, fit.force(user.pressure, user.length), truth.max())
+
+
+def table(muscle: str, models: tuple[str, ...]) -> None:
+    """In-sample and nested held-out err against the truth, calibration off and on, per scenario."""
     print(
-        f'{"map given to the fit":<44}{"calibration":>12}{"in-sample":>10}{"held-out":>10}'
-        f'{"data":>10}'
-        f'{"data h-o":>10}  identified'
+        f'\n{muscle}, {"default of " + ", ".join(models) if len(models) > 1 else models[0]}: '
+        f'err vs truth [%]: in-sample, nested held-out per length and worst; true L0 '
+        f'{shipped_spec(muscle).nominal_length:.3f} m, true offset +10 kPa where degraded'
     )
     for d in SCENARIOS:
         for calibration in (OFF, Calibration()):
-            outcome = identify(muscle, d, calibration, ('martens',))[0]['martens']
-            rep = outcome.report
-            geometry = (
-                describe_geometry(rep.shipped, spec_given(muscle, d)) if calibration.any else ''
-            )
+            found, in_sample = identify(muscle, d, calibration, models)
+            fit = found.reports[found.default].shipped
+            geometry = describe_geometry(fit, spec_given(muscle, d)) if calibration.any else ''
             print(
-                f'{d.label():<44}{"ON" if calibration.any else "off":>12}'
-                f'{outcome.err_truth:>10.2f}'
-                f'{outcome.cv_truth:>10.2f}{rep.shipped.err:>10.2f}{rep.cv_err:>10.2f}  {geometry}'
+                f'{d.label():<44}{"ON" if calibration.any else "off":>4}{found.default:>9}'
+                f'{in_sample:>7.2f} |'
+                + ''.join(f'{e:>7.2f}' for e in found.held_out)
+                + f' | worst {np.nanmax(found.held_out):6.2f}  {geometry}'
             )
-
-
-def default_table(muscle: str) -> None:
-    print(
-        f'\n{muscle}: every Table 3 model, calibrated, on the degraded maps; default by held-out '
-        f'error'
-    )
-    print(
-        f'{"map given to the fit":<44}{"default":>10}{"in-sample":>10}{"held-out":>10}  identified'
-    )
-    for d in DEGRADED[:2]:
-        outcomes, default = identify(muscle, d, Calibration(), TABLE3_MODELS)
-        o = outcomes[default]
-        geometry = describe_geometry(o.report.shipped, spec_given(muscle, d))
-        print(f'{d.label():<44}{default:>10}{o.err_truth:>10.2f}{o.cv_truth:>10.2f}  {geometry}')
-
-
-def nested_table(muscle: str) -> None:
-    """Martens' worst held-out err when the whole calibrated identification (L0 search included) is
-    re-run without the held-out length: no held-out length ever influences its own prediction.
-    """
-    print(
-        f'\n{muscle}, martens calibrated, nested leave-one-length-out err vs truth [%] per '
-        f'held-out length'
-    )
-    for d in SCENARIOS:
-        spec, user, truth = degrade(muscle, d)
-        errors = []
-        for test in length_folds(user):
-            fit = fit_best(
-                get_model('martens'), spec, user.subset(~test), calibration=Calibration()
-            )
-            errors.append(
-                max_error_percent(
-                    truth[test], fit.force(user.pressure[test], user.length[test]), truth.max()
-                )
-            )
-        print(
-            f'{d.label():<44}'
-            + ''.join(f'{e:>8.2f}' for e in errors)
-            + f'   worst {max(errors):.2f}'
-        )
 
 
 def write(directory: Path) -> None:
@@ -204,9 +138,6 @@ def main() -> None:
         '--all-models', action='store_true', help='also the default model of every Table 3 model'
     )
     parser.add_argument(
-        '--nested', action='store_true', help="only Martens' nested held-out err (slow)"
-    )
-    parser.add_argument(
         '--write',
         type=Path,
         help='only write the first degraded map of each muscle into this '
@@ -216,15 +147,11 @@ def main() -> None:
     if args.write:
         write(args.write)
         return
-    if args.nested:
-        for muscle in reversed(MAPPED_MUSCLES):
-            nested_table(muscle)
-        return
     for muscle in reversed(MAPPED_MUSCLES):
-        martens_table(muscle)
+        table(muscle, ('martens',))
     if args.all_models:
         for muscle in reversed(MAPPED_MUSCLES):
-            default_table(muscle)
+            table(muscle, TABLE3_MODELS)
 
 
 if __name__ == '__main__':

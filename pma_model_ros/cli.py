@@ -21,23 +21,21 @@ from .core.calibration import Calibration
 from .core.flags import describe, Flag
 from .core.force_map import read_force_map_csv
 from .core.identification import (
-    cross_validate_fit,
     domain_of,
     Fit,
     fit_best,
-    fit_paper,
-    fold_lengths,
+    Identification,
     identify_all,
-    length_folds,
     ModelReport,
     OBJECTIVES,
     quality,
 )
 from .core.models import get_model, TABLE3_MODELS
-from .core.param_file import muscle_model, read_parameters
+from .core.param_file import held_out_band, muscle_model, read_parameters
 from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
 from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 from .core.user_files import read_spec_yaml
+from .core.validation import fold_lengths, length_folds
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
 PAPER_TABLE3 = {
@@ -65,19 +63,19 @@ class CliError(Exception):
 
 
 @functools.cache
-def identify_muscle(muscle: str) -> tuple[dict[str, ModelReport], str]:
-    """All Table 3 models identified on a shipped map, and the CV-chosen default."""
+def identify_muscle(muscle: str) -> Identification:
+    """All Table 3 models identified on a shipped map, judged by nested held-out error."""
     return identify_all(
         shipped_spec(muscle), shipped_force_map(muscle), tuple(get_model(m) for m in TABLE3_MODELS)
     )
 
 
-def table3(results: dict[str, tuple[dict[str, ModelReport], str]]) -> dict:
+def table3(results: dict[str, Identification]) -> dict:
     """The ``reproduce --json`` object."""
     out = {}
-    for muscle, (reports, default) in results.items():
-        out[muscle] = {'default': default}
-        for name, rep in reports.items():
+    for muscle, found in results.items():
+        out[muscle] = {'default': found.default, 'held_out': round(_worst(found.held_out), 4)}
+        for name, rep in found.reports.items():
             out[muscle][name] = {
                 'paper': PAPER_TABLE3[muscle][name],
                 'paper_protocol': round(rep.paper.err, 4),
@@ -87,24 +85,44 @@ def table3(results: dict[str, tuple[dict[str, ModelReport], str]]) -> dict:
     return {'table3': out}
 
 
-def _print_tables(results: dict[str, tuple[dict[str, ModelReport], str]]) -> None:
-    for muscle, (reports, default) in results.items():
-        print(f'\n{muscle}: err (eq. 23) in %; default model by cross-validation: {default}')
+def _worst(errors: np.ndarray) -> float:
+    """The worst of per-fold errors [%], NaN if no fold could be judged."""
+    return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else math.nan
+
+
+def _print_tables(results: dict[str, Identification]) -> None:
+    for muscle, found in results.items():
+        print(
+            f'\n{muscle}: err (eq. 23) in %; held_out: worst nested leave-one-length-out err '
+            f'(objective chosen again without each length)'
+        )
         print(
             f'{"model":<14}{"paper":>8}{"paper_protocol":>16}{"best_lsq":>10}{"best_minimax":>14}'
-            f'{"best":>8}{"cv_worst":>10}  shipped objective'
+            f'{"best":>8}{"held_out":>10}  objective (by held-out err)'
         )
-        for name, rep in reports.items():
+        for name, rep in found.reports.items():
             print(
                 f'{name:<14}{PAPER_TABLE3[muscle][name]:>8.2f}{rep.paper.err:>16.2f}'
                 f'{rep.best["least_squares"].err:>10.2f}{rep.best["minimax"].err:>14.2f}'
                 f'{rep.best_err:>8.2f}{rep.cv_err:>10.2f}  {rep.shipped_objective}'
             )
         print(
-            f'\n{muscle}: leave-one-length-out held-out err in % (shipped objective), per '
-            f'held-out length [m]'
+            f'\n{muscle}: nested held-out err in % per held-out length [m] (each length fitted '
+            f'without it)'
         )
-        _held_out_table(shipped_force_map(muscle).lengths, reports)
+        _held_out_table(shipped_force_map(muscle).lengths, found.reports)
+        print(_default_line(found))
+
+
+def _default_line(found: Identification) -> str:
+    """How the default model was chosen, with the nested figure of that choice."""
+    picks = ', '.join(
+        f'{name} x{found.chosen.count(name)}' for name in dict.fromkeys(found.chosen)
+    )
+    return (
+        f'default model (lowest worst held-out err): {found.default}; the choice made again '
+        f'without each length ({picks}) errs by {_worst(found.held_out):.2f} % at worst'
+    )
 
 
 def cmd_reproduce(args: argparse.Namespace) -> None:
@@ -129,21 +147,42 @@ def cmd_make_config(args: argparse.Namespace) -> None:
             'converted to SI.'
         )
     else:
-        reports, default = identify_muscle(args.muscle)
-        models = {name: model_entry(rep) for name, rep in reports.items()}
+        found = identify_muscle(args.muscle)
+        fmap = shipped_force_map(args.muscle)
+        models = {name: model_entry(rep, fmap) for name, rep in found.reports.items()}
         params = build_parameters(
-            shipped_spec(args.muscle), default, domain_of(shipped_force_map(args.muscle)), models
+            shipped_spec(args.muscle), found.default, domain_of(fmap), models
         )
-        header += '\nerr: eq. 23 on the whole map [%]; cv_err: worst leave-one-length-out err [%].'
+        header += f'\n{_FILE_LEGEND}'
     write_parameters(args.out, params, header)
     print(f'wrote {args.out}')
 
 
+_FILE_LEGEND = (
+    'err: eq. 23 on the whole map [%]; cv_err: worst nested leave-one-length-out err [%] (the fit, '
+    'calibration\nand choices included, re-run without each length); held_out: that err per '
+    'held-out length.'
+)
+
+
 def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
-    print(f'{"model":<14}' + ''.join(f'{L:>9.3f}' for L in lengths) + f'{"worst":>9}')
+    labels = _length_labels(lengths)
+    print(f'{"model":<14}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
     for name, rep in reports.items():
-        errs = rep.cv[rep.shipped_objective]
-        print(f'{name:<14}' + ''.join(f'{e:>9.2f}' for e in errs) + f'{errs.max():>9.2f}')
+        print(
+            f'{name:<14}'
+            + ''.join(f'{e:>9.2f}' for e in rep.nested)
+            + f'{_worst(rep.nested):>9.2f}'
+        )
+
+
+def _length_labels(lengths: np.ndarray) -> list[str]:
+    """Lengths [m] printed with as many decimals as it takes to tell them apart (3 to 6)."""
+    for decimals in range(3, 7):
+        labels = [f'{length:.{decimals}f}' for length in lengths]
+        if len(set(labels)) == len(labels):
+            break
+    return labels
 
 
 def describe_geometry(fit: Fit, given_length: float) -> str:
@@ -151,18 +190,24 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
     each stayed as given.
     """
     sigma, parts = fit.sigma, []
-    if 'nominal_length' in sigma:
-        spread = sigma['nominal_length']
+    if fit.calibration.length:
         parts.append(
-            f'L0 {fit.spec.nominal_length:.4f} ±{spread:.4f} m (given {given_length:.4f})'
-            if fit.calibration.length
-            else f'L0 kept {given_length:.4f} m: '
-            + (
-                'the model does not depend on it'
-                if math.isinf(spread)
-                else 'not identifiable (held-out RMSE within 10 % of its best over '
-                f'±{spread:.4f} m)'
-            )
+            f'L0 {fit.spec.nominal_length:.4f} ±{sigma["nominal_length"]:.4f} m (given '
+            f'{given_length:.4f} m: not longer than the slack length {fit.slack_length:.4f} m)'
+        )
+    elif math.isinf(sigma.get('nominal_length', 0.0)):
+        parts.append(
+            f'L0 kept {given_length:.4f} m: not longer than the slack length '
+            f'{fit.slack_length:.4f} m, but the model absorbs or ignores L0'
+        )
+    elif 'nominal_length' in sigma:
+        parts.append(
+            f'L0 kept {given_length:.4f} m: the slack length, where a threshold (the pressure '
+            'offset) fits the map better than a longer L0'
+        )
+    elif fit.slack_length is not None:
+        parts.append(
+            f'L0 kept {given_length:.4f} m (longer than the slack length {fit.slack_length:.4f} m)'
         )
     if 'pressure_offset' in sigma:
         parts.append(
@@ -182,38 +227,26 @@ def cmd_fit(args: argparse.Namespace) -> None:
     fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
     calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
     print(calibration.describe() + ' (switch off: --no-calibrate-length, --no-calibrate-pressure)')
-    if args.model == 'all':
-        reports, default = identify_all(
-            spec, fmap, tuple(get_model(m) for m in TABLE3_MODELS), calibration
-        )
-    else:
-        model, obj = get_model(args.model), args.objective
-        best = fit_best(model, spec, fmap, obj, calibration=calibration)
-        cv = cross_validate_fit(best, fmap, (obj,))
-        reports, default = (
-            {model.name: ModelReport(fit_paper(model, spec, fmap), {obj: best}, cv, obj)},
-            model.name,
-        )
-    print(
-        '\nin-sample err (eq. 23) [%], RMSE [N], R²; held-out: worst leave-one-length-out err [%]'
+    names = TABLE3_MODELS if args.model == 'all' else (args.model,)
+    found = identify_all(
+        spec, fmap, tuple(get_model(m) for m in names), calibration, (args.objective,)
     )
-    print(f'{"model":<14}{"objective":>14}{"err":>8}{"rmse":>9}{"r2":>10}{"held_out":>10}')
+    reports = found.reports
+    print(
+        f'\nin-sample err (eq. 23) [%], RMSE [N], R² ({args.objective}); held_out: worst nested '
+        'leave-one-length-out err [%]\n(each length predicted by the whole fit, calibration '
+        'included, re-run without it)'
+    )
+    print(f'{"model":<14}{"err":>8}{"rmse":>9}{"r2":>10}{"held_out":>10}')
     for name, rep in reports.items():
         fit = rep.shipped
-        print(
-            f'{name:<14}{fit.objective:>14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}'
-            f'{rep.cv_err:>10.2f}'
-        )
+        print(f'{name:<14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}')
     if calibration.any:
-        print(
-            '\nidentified geometry (L0 by held-out error, ± half the range whose held-out RMSE is '
-            'within 10 % of '
-            'the best;\n  pressure offset by least squares, ± 1-sigma from the Jacobian):'
-        )
+        print('\nidentified geometry (L0 ± its profile 1-sigma; pressure offset ± 1-sigma):')
         for name, rep in reports.items():
             print(f'  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}')
     print(
-        '\nleave-one-length-out held-out err [%] per held-out length [m]'
+        '\nnested held-out err [%] per held-out length [m]'
         + (
             ' (bands of lengths: their mean)'
             if len(length_folds(fmap)) < fmap.lengths.size
@@ -221,23 +254,28 @@ def cmd_fit(args: argparse.Namespace) -> None:
         )
     )
     _held_out_table(fold_lengths(fmap), reports)
-    chosen = reports[default].shipped
+    chosen = reports[found.default].shipped
     write_parameters(
         args.out,
         build_parameters(
             chosen.spec,
-            default,
+            found.default,
             chosen.domain,
-            {name: model_entry(rep) for name, rep in reports.items()},
+            {name: model_entry(rep, fmap) for name, rep in reports.items()},
         ),
         f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
         f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
-        'err: eq. 23 on the map [%]; cv_err: worst leave-one-length-out err [%].',
+        + _FILE_LEGEND,
     )
-    how = 'by held-out error' if len(reports) > 1 else 'the one fitted'
+    if len(reports) > 1:
+        print('\n' + _default_line(found))
+        how = f'by held-out err; {reports[found.default].cv_err:.2f} % is a selection figure'
+    else:
+        how = 'the one fitted'
     print(
-        f'\ndefault model ({how}): {default}  err {chosen.err:.3f} %  rmse {chosen.rmse:.3f} N  '
-        f'r2 {chosen.r2:.5f}  held-out worst {reports[default].cv_err:.2f} %  -> {args.out}'
+        f'\ndefault model ({how}): {found.default}  err {chosen.err:.3f} %  rmse '
+        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  held-out worst {_worst(found.held_out):.2f} %'
+        f'  -> {args.out}'
     )
 
 
@@ -322,11 +360,25 @@ def cmd_force(args: argparse.Namespace) -> None:
     pressure = _finite(
         '--pressure', args.pressure, -1e7, 1e7, 'Pa', 'gauge pressure in Pa (300000, not 3 bar)'
     )
-    result = _load(args).force(pressure, length, args.length_rate)
+    parameters = read_parameters(args.config)
+    result = muscle_model(parameters, args.model).force(pressure, length, args.length_rate)
     _check_geometry(int(result.flags), length)
     print(
         f'force {float(result.force):.6g} N  raw {float(result.raw):.6g} N  flags '
         f'{describe(int(result.flags))}'
+    )
+    band = held_out_band(parameters, args.model)
+    if band is None:
+        print('expected error: unknown (the parameter file has no held_out errors)')
+        return
+    percent, inside = band.at(length)
+    lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
+    print(
+        f'expected error: within ±{percent * band.max_force / 100:.3g} N ({percent:.2f} % of '
+        f'{band.max_force:.4g} N), the worst nested held-out err near this length'
+        if inside
+        else f'expected error: unknown: {length:g} m is outside the held-out lengths {lengths} '
+        f'(the nearest one erred by {percent:.2f} % of {band.max_force:.4g} N)'
     )
 
 

@@ -1,24 +1,28 @@
 """Geometry calibration: what a user cannot measure precisely, identified with the model
-parameters.
+parameters only where the map proves the given value wrong or identifies it.
 
-Two quantities, each switchable (:class:`Calibration`) and bounded, identified by the ``best``
-protocol (:func:`pma_model_ros.core.identification.fit_best_all`):
+The given geometry is the default, and a calibration must never make the held-out error worse
+(docs/calibration.md has the nested leave-one-length-out numbers behind each rule):
 
-* the pressure-sensor offset o [Pa], within +-:data:`PRESSURE_BOUND`: the sensor reads p = p_true +
-  o, and every model is evaluated at p_true = p - o (:func:`shifted`); identified by least squares
-  jointly with the model parameters, with a 1-sigma from the Jacobian at the optimum
-  (:func:`standard_errors`);
-* the effective rest length L0 (``muscle.nominal_length``), within +-:data:`LENGTH_BOUND` of the
-  given value: a tape between two clamps is not the length at which the membrane is stress-free,
-  and the Martens model (eq. 14) pins its force line at L0.  In-sample, the elastic terms absorb a
-  wrong L0, so L0 is chosen by held-out (leave-one-length-out) error, with the range of L0 within
-  10 % of the best held-out RMSE as its uncertainty.
+* the pressure offset o [Pa], within +-:data:`PRESSURE_BOUND`: the sensor reads p = p_true + o, or
+  the membrane takes o before the braid pulls (a threshold pressure, which Martens' eq. 14 lacks at
+  L0).  Every model is evaluated at p - o (:func:`shifted`).  It is identified by least squares
+  jointly with the model parameters and kept only if the map determines it: its 1-sigma from the
+  Jacobian at the optimum (:func:`standard_errors`) at most :data:`OFFSET_SIGMA`.  A map with its
+  rest-length row (Table A2) identifies it; elsewhere the elastic terms absorb it.
+* the rest length L0 (``muscle.nominal_length``): kept as given unless the map proves it too short.
+  A muscle that is slack at low pressure (its force line meets zero at a positive pressure) is not
+  stretched, so L0 is at least the longest such length (:func:`slack_length`).  (At that length
+  exactly, Martens' force line, eq. 14, meets zero at 0 Pa: a threshold there is the offset's.)
+  Only if the given L0 is shorter is L0 identified, on
+  (bound, bound (1 + :data:`LENGTH_BOUND`)], by the held-out error of fits without each length
+  (in-sample, the elastic terms absorb a wrong L0).  A held-out choice of L0 from the whole range
+  is not made: without the rows near L0 it picks a wrong one (20 % errors on the shipped maps,
+  nested; docs/calibration.md).
 
-A quantity the map cannot identify (the offset's 1-sigma above a quarter of its bound, an L0 the
-model does not depend on or whose held-out range spans more than half its bounds) stays as given,
-and is reported so.  A parameter file stores them per model (``models.<name>.nominal_length``,
-``.pressure_offset``); :func:`pma_model_ros.core.param_file.muscle_model` builds the model node's,
-the inverse's and the bag tools' muscle from them, so every consumer applies them.
+A parameter file stores them per model (``models.<name>.nominal_length``, ``.pressure_offset``);
+:func:`pma_model_ros.core.param_file.muscle_model` builds the model node's, the inverse's and the
+bag tools' muscle from them, so every consumer applies them.
 """
 
 from __future__ import annotations
@@ -28,39 +32,31 @@ import functools
 
 import numpy as np
 
+from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .models import Coefficients, Model
 
-LENGTH_BOUND = 0.05  #: largest relative correction of the given rest length L0 [-]
-PRESSURE_BOUND = 2e4  #: largest pressure-sensor offset [Pa]
+LENGTH_BOUND = 0.05  #: L0 searched up to this fraction above the slack bound [-]
+PRESSURE_BOUND = 5e4  #: largest pressure offset [Pa]
+OFFSET_SIGMA = 1.5e3  #: largest 1-sigma [Pa] of an identified offset (+-3 kPa at 95 %)
+_LENGTH_STEP = 0.002  #: grid step of the L0 search, relative [-]
+_PULLING = 0.03  #: a point pulls if its force exceeds this fraction of the map's max force (3 sigma of 1 % noise)
 
 
 @dataclass(frozen=True)
 class Calibration:
-    """Which geometry quantities the ``best`` identification calibrates (module docstring)."""
+    """Which geometry quantities the ``best`` identification may calibrate (module docstring)."""
 
     length: bool = True  #: the effective rest length L0
-    pressure: bool = True  #: the pressure-sensor offset
+    pressure: bool = True  #: the pressure offset
 
     @property
     def any(self) -> bool:
         return self.length or self.pressure
 
-    def identifiable(self, sigma: dict[str, float]) -> 'Calibration':
-        """What a joint least-squares fit's 1-sigma (``sigma``: "nominal_length" [m],
-        "pressure_offset" [Pa]) says the map can identify: the offset if its 1-sigma is at most a
-        quarter of its bound (a 95 % interval within half the bound), L0 if the model depends on it
-        at all (finite 1-sigma; its value and range are then chosen by held-out error,
-        :mod:`pma_model_ros.core.identification`).
-        """
-        return Calibration(
-            self.length and bool(np.isfinite(sigma['nominal_length'])),
-            self.pressure and sigma['pressure_offset'] <= PRESSURE_BOUND / 4,
-        )
-
     def describe(self) -> str:
-        parts = [f'rest length L0 (+-{100 * LENGTH_BOUND:g} %)'] * self.length + [
-            f'pressure offset (+-{PRESSURE_BOUND / 1e3:g} kPa)'
+        parts = ['rest length L0 (if the map proves the given one too short)'] * self.length + [
+            f'pressure offset (+-{PRESSURE_BOUND / 1e3:g} kPa, if the map identifies it)'
         ] * self.pressure
         return (
             'geometry calibration ON: ' + ', '.join(parts) if parts else 'geometry calibration OFF'
@@ -68,6 +64,15 @@ class Calibration:
 
 
 OFF = Calibration(False, False)
+
+
+def offset_identifiable(offset: float, sigma: float) -> bool:
+    """An offset [Pa] inside its bounds whose 1-sigma is at most :data:`OFFSET_SIGMA` is identified;
+    any other stays 0.  A looser offset sits in a flat valley of the sum of squares (Martens'
+    elastic polynomial absorbs most of it), where its value moves by kPa with the data's last
+    digits; one at a bound is what the map wants beyond physics, not a measurement.
+    """
+    return bool(sigma <= OFFSET_SIGMA and abs(offset) < 0.99 * PRESSURE_BOUND)
 
 
 @functools.cache
@@ -103,6 +108,32 @@ def with_length(spec: MuscleSpec, nominal_length: float) -> MuscleSpec:
         if nominal_length == spec.nominal_length
         else replace(spec, nominal_length=float(nominal_length))
     )
+
+
+def slack_length(fmap: ForceMap) -> float | None:
+    """The longest measured length [m] at which the muscle is slack at low pressure: its force line
+    (least squares over the pulling points of that length) meets zero at a positive pressure.  A
+    stretched muscle (L > L0) pulls at 0 Pa, so L0 is at least this length.  None: no length has
+    two pulling points and a positive zero-force pressure.
+    """
+    pulling = fmap.force > _PULLING * fmap.max_force
+    for length in fmap.lengths:  # descending
+        at = pulling & (fmap.length == length)
+        if np.unique(fmap.pressure[at]).size < 2:
+            continue
+        slope, intercept = np.polyfit(fmap.pressure[at], fmap.force[at], 1)
+        if slope > 0 and intercept < 0:
+            return float(length)
+    return None
+
+
+def length_grid(spec: MuscleSpec, bound: float) -> np.ndarray:
+    """The L0 candidates [m] above a slack bound: steps of :data:`_LENGTH_STEP` of the given L0
+    from half a step above ``bound`` to ``bound`` (1 + :data:`LENGTH_BOUND`).
+    """
+    step = _LENGTH_STEP * spec.nominal_length
+    count = int(round(LENGTH_BOUND / _LENGTH_STEP)) + 1
+    return bound + step / 2 + step * np.arange(count)
 
 
 def standard_errors(jac: np.ndarray, residuals: np.ndarray) -> np.ndarray:

@@ -12,13 +12,17 @@ Two protocols:
     Never calibrated: the paper's geometry as given.
 
 ``best``
-    What ships: bounded multi-start fits (scipy ``least_squares``, trust region
-    reflective) of the physical, clipped model on the whole map, with either
-    objective ``least_squares`` (eq. 22) or ``minimax`` (eq. 23 itself, by
-    SLSQP on the epigraph form, polished by Nelder-Mead).  Equal-cost
-    solutions (an under-determined fit) are resolved towards Table 1's start.
-    Optionally with geometry calibration (:mod:`pma_model_ros.core.calibration`):
-    the rest length L0 and a pressure offset identified with the parameters.
+    What ships: the physical, clipped model fitted on the whole map by variable
+    projection (:mod:`~pma_model_ros.core.separable`: the parameters a model is
+    affine in solved exactly, the others searched on a grid and refined), with
+    either objective ``least_squares`` (eq. 22) or ``minimax`` (eq. 23 itself).
+    Optionally with geometry calibration (:mod:`~pma_model_ros.core.calibration`):
+    the rest length L0 where the map proves the given one too short, a pressure
+    offset where the map identifies it.
+
+Every fit is judged by nested leave-one-length-out errors
+(:mod:`~pma_model_ros.core.validation`): the whole protocol, calibration and
+choices included, re-run without each measured length.
 """
 
 from __future__ import annotations
@@ -26,29 +30,27 @@ from __future__ import annotations
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from itertools import repeat
+import functools
+import math
 import multiprocessing
 import os
+import time
 from typing import Iterator
-import warnings
 
 import numpy as np
-from scipy.optimize import least_squares, minimize
+from scipy.optimize import minimize
 
 from . import calibration as cal
 from .calibration import Calibration, OFF
 from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .models import Domain, force_raw, get_model, Model
+from .separable import Separable, Solution
+from .validation import fit_or_none, HeldOut, length_folds, select
 
 OBJECTIVES = ('least_squares', 'minimax')
 #: The single-branch model each branch of a hysteresis model is.
 BRANCH_MODEL = {'sarosi_hysteresis': 'sarosi'}
-_N_RANDOM_STARTS = 4
-_TIE = 1e-6
-_LENGTH_GRID = 41  #: grid points of the held-out choice of L0 over its bounds (steps of 0.25 %)
-_MAX_FOLDS = 8  #: most held-out groups of a cross-validation
-_LENGTH_CANDIDATES = 5  #: of these, judged by the worst held-out err of multi-start fits
 #: Set in the worker processes of :func:`identify_all` (unless the user set them).  OpenBLAS's idle
 #: threads spin 2^28 cycles (~0.1 s) after each threaded call before they sleep: in a worker that
 #: spinning takes the shared cores from the other workers.  2^4 cycles: they sleep at once (same
@@ -73,9 +75,12 @@ class Fit:
     #: identified sensor offset [Pa] (0 unless ``calibration.pressure``)
     pressure_offset: float = 0.0
     #: uncertainty of the calibration: "pressure_offset": 1-sigma [Pa] from the Jacobian (inf: not
-    #: identifiable); "nominal_length": half the L0 range [m] whose held-out RMSE is within 10 % of
-    #: the best (inf: no L0 in model)
+    #: identifiable); "nominal_length": half the range of L0 [m] whose sum of squares is within one
+    #: residual variance of the best (present only where L0 was searched)
     sigma: dict[str, float] = field(default_factory=dict)
+    #: the longest length [m] the map shows slack at low pressure, a lower bound of L0
+    #: (:func:`~.calibration.slack_length`; None: none, or L0 not calibrated)
+    slack_length: float | None = None
 
     def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
         """The fitted model's physical force [N] at sensor pressure [Pa] and length [m], as
@@ -89,8 +94,10 @@ class Fit:
 
 def domain_of(fmap: ForceMap) -> Domain:
     """The identified length and pressure ranges of a map (not extrapolating until judged:
-    :class:`ModelReport`).
+    :class:`ModelReport`); a fit needs at least two lengths.
     """
+    if fmap.lengths.size < 2:
+        raise ValueError(f'a fit needs a force map of at least two lengths, got {fmap.lengths}')
     return Domain(float(fmap.length.min()), float(fmap.length.max()), float(fmap.pressure.max()))
 
 
@@ -138,6 +145,7 @@ def _fit_record(
     offset: float = 0.0,
     sigma: dict | None = None,
     branch: np.ndarray | float = 0.0,
+    slack: float | None = None,
 ) -> Fit:
     shifted = cal.shifted(model) if calibration.pressure else model
     f = force_raw(
@@ -161,6 +169,7 @@ def _fit_record(
         calibration,
         float(offset),
         sigma or {},
+        slack,
     )
 
 
@@ -200,19 +209,18 @@ def fit_best(
     spec: MuscleSpec,
     fmap: ForceMap,
     objective: str = 'least_squares',
-    seed: int = 0,
     calibration: Calibration = OFF,
 ) -> Fit:
     """The ``best`` protocol on the whole map with the clipped model (module docstring); a
     hysteresis model is :func:`fit_branches` (uncalibrated).
     """
     if model.hysteresis:
-        return fit_branches(model, spec, fmap, objective, seed)
-    return fit_best_all(model, spec, fmap, (objective,), seed, calibration)[objective]
+        return fit_branches(model, spec, fmap, objective)
+    return fit_best_all(model, spec, fmap, (objective,), calibration)[objective]
 
 
 def fit_branches(
-    model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = 'least_squares', seed: int = 0
+    model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = 'least_squares'
 ) -> Fit:
     """A two-branch model (``sarosi_hysteresis``: upper then lower Sárosi eq. 19 parameters) from a
     map whose points carry their ``direction``: the single-branch model fitted on each direction's
@@ -225,7 +233,7 @@ def fit_branches(
         )
     branch = get_model(BRANCH_MODEL[model.name])
     up, down = (
-        fit_best(branch, spec, fmap.subset(fmap.direction == d), objective, seed).theta
+        fit_best(branch, spec, fmap.subset(fmap.direction == d), objective).theta
         for d in (1.0, -1.0)
     )
     theta = np.concatenate([up, down])
@@ -248,371 +256,154 @@ def fit_best_all(
     spec: MuscleSpec,
     fmap: ForceMap,
     objectives: tuple[str, ...] = OBJECTIVES,
-    seed: int = 0,
     calibration: Calibration = OFF,
 ) -> dict[str, Fit]:
-    """:func:`fit_best` for several objectives; the least-squares multi-start runs once for all."""
+    """:func:`fit_best` for several objectives (the minimax fit starts from the least-squares one),
+    with the geometry calibration of :mod:`~pma_model_ros.core.calibration`: L0 first (only where
+    the map proves the given one too short), then the pressure offset (kept where identified).
+    """
     unknown = set(objectives) - set(OBJECTIVES)
     if unknown:
         raise ValueError(f'unknown objective {sorted(unknown)}; choose from {OBJECTIVES}')
     domain = domain_of(fmap)
-    problem = _Problem(model, spec, fmap, domain, calibration)
-    sigma, applied = {}, calibration
-    if calibration.any:  # identify only what the map can; the others stay as given
-        joint = _best_solutions(problem, ('least_squares',), seed)['least_squares']
-        sigma = problem.sigma(joint)
-        applied = calibration.identifiable(sigma)
-        if applied.length:
-            correction, low, high = _held_out_length(model, spec, fmap, applied, seed)
-            sigma['nominal_length'] = (high - low) / 2 * spec.nominal_length
-            if high - low <= cal.LENGTH_BOUND:  # a held-out optimum narrower than half the bounds
-                spec = cal.with_length(spec, spec.nominal_length * (1 + correction))
+    sigma: dict[str, float] = {}
+    slack = cal.slack_length(fmap) if calibration.length else None
+    offset = _offset(model, spec, domain, fmap, sigma) if calibration.pressure else None
+    found = offset if offset is not None and offset[2] else None
+    # A length slack at low pressure is not stretched: L0 is at least that long, and longer unless
+    # a threshold (the offset) makes that length L0 itself: then the better fit of the two wins.
+    moved = False
+    if slack is not None and spec.nominal_length <= slack:
+        longer, spread, moved = _rest_length(model, spec, fmap, domain, slack)
+        sigma['nominal_length'] = spread
+        if moved:
+            trial = Separable(model, longer, domain, fmap)
+            plain = (trial, trial.fit_least_squares(), False)
+            if calibration.pressure:
+                again = _offset(model, longer, domain, fmap, sigma)
+                plain = again if again[2] else plain
+            if found is None or plain[1].cost < found[1].cost:
+                spec, found = longer, plain
             else:
-                applied = Calibration(False, applied.pressure)
-        problem = _Problem(model, spec, fmap, domain, Calibration(False, applied.pressure))
-    solutions = _best_solutions(problem, objectives, seed)
-    everywhere = np.ones(fmap.force.size, bool)
-    fits = {}
-    for obj in objectives:
-        theta, offset = problem.unpack(solutions[obj])
-        fits[obj] = _fit_record(
+                moved = False
+    shifted = found is not None and found[2]
+    if found is not None:
+        fitted, solution = found[0], found[1]
+    else:
+        fitted = Separable(model, spec, domain, fmap)
+        solution = fitted.fit_least_squares()
+    solutions = {'least_squares': solution}
+    if 'minimax' in objectives:
+        solutions['minimax'] = fitted.fit_minimax(solution)
+    applied = Calibration(moved, shifted)
+    n = model.n_params
+    return {
+        obj: _fit_record(
             model,
             'best',
             obj,
-            theta,
+            solutions[obj].theta[:n],
             spec,
             domain,
             fmap,
-            everywhere,
+            np.ones(fmap.force.size, bool),
             True,
             applied,
-            offset,
-            sigma | problem.sigma(solutions[obj]),
+            float(solutions[obj].theta[n]) if shifted else 0.0,
+            dict(sigma),
+            slack=slack,
         )
-    return fits
+        for obj in objectives
+    }
 
 
-def _held_out_length(
-    model: Model, spec: MuscleSpec, fmap: ForceMap, calibration: Calibration, seed: int
-) -> tuple[float, float, float]:
-    """The relative correction of L0 [-] chosen by leave-one-length-out error of least-squares
-    fits, and the range [low, high] of corrections whose held-out RMSE is within 10 % of the
-    lowest.
-
-    In-sample, the elastic terms of a model absorb a wrong L0 (the sum of squares keeps falling
-    towards a bound); the force at a length left out does not, so L0 is chosen by held-out error,
-    on a grid of
-    :data:`_LENGTH_GRID` corrections over the bounds.  Each fold starts from its multi-start fit at
-    the given L0 and follows its optimum along the grid (one least-squares run from the
-    neighbouring grid point).  Of the :data:`_LENGTH_CANDIDATES` corrections with the lowest
-    held-out RMSE, the one whose multi-start fits (:func:`cross_validate`, least squares) have the
-    lowest worst held-out err (eq. 23) is chosen.
+def _rest_length(
+    model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain, slack: float
+) -> tuple[MuscleSpec, float, bool]:
+    """L0 identified above the slack bound (:mod:`~pma_model_ros.core.calibration`) by held-out
+    error: on the grid of :func:`~.calibration.length_grid`, the L0 whose least-squares fits
+    without each length predict it best (least sum of squares; each fold follows its optimum along
+    the grid).  In-sample, the elastic terms absorb a wrong L0.  Returns (spec, 1-sigma [m], whether
+    L0 moved): half the range of L0 whose held-out RMSE is within 10 % of the best; L0 stays as
+    given (inf) for a model whose force does not depend on it (Hildebrandt, Wickramatunge).
     """
-    within = Calibration(False, calibration.pressure)
-    folds = [(test, fmap.subset(~test)) for test in length_folds(fmap)]
-    grid = np.linspace(-cal.LENGTH_BOUND, cal.LENGTH_BOUND, _LENGTH_GRID)
-    given = int(np.argmin(np.abs(grid)))
-
-    def problem(correction: float, train: ForceMap) -> _Problem:
-        trial = cal.with_length(spec, spec.nominal_length * (1 + correction))
-        return _Problem(model, trial, train, domain_of(train), within)
-
-    starts = [
-        _best_solutions(problem(grid[given], train), ('least_squares',), seed)['least_squares']
-        for _, train in folds
-    ]
-    squares = np.full(grid.size, np.inf)
-    for path in (range(given, grid.size), range(given, -1, -1)):
-        x = list(starts)
-        for i in path:
-            total = 0.0
-            for k, (test, train) in enumerate(folds):
-                fold = problem(grid[i], train)
-                cost, x_k = min(_solve(fold, x[k]), _solve(fold, fold.start), key=lambda c: c[0])
-                if not np.isfinite(cost):
-                    total = np.inf
-                    break
-                x[k] = x_k
-                predicted = physical_force(
-                    fold.evaluated,
-                    x_k,
-                    fold.spec,
-                    fold.domain,
-                    fmap.pressure[test],
-                    fmap.length[test],
-                )
-                total += float(np.sum((fmap.force[test] - predicted) ** 2))
-            squares[i] = total
-    near = grid[squares <= squares.min() * 1.1**2]
-    step = grid[1] - grid[0]  # the range of a grid point is its cell
-    low, high = float(near.min() - step / 2), float(near.max() + step / 2)
-    if high - low > cal.LENGTH_BOUND:  # not identifiable (fit_best_all keeps L0): no need to judge
-        return float(grid[np.argmin(squares)]), low, high
-    candidates = grid[np.argsort(squares)[:_LENGTH_CANDIDATES]]
-    worst = [
-        cross_validate(model, problem(c, fmap).spec, fmap, ('least_squares',), within)[
-            'least_squares'
-        ].max()
-        for c in candidates
-    ]
-    return float(candidates[int(np.argmin(worst))]), low, high
-
-
-def _solve(problem: '_Problem', x0: np.ndarray) -> tuple[float, np.ndarray]:
-    """One bounded least-squares run (trust region reflective) from ``x0``: (sum of squares [N^2],
-    x); inf if the model is not finite there (a length beyond the fibre length).
-    """
-    span = problem.upper - problem.lower
-    x0 = np.clip(x0, problem.lower + 1e-9 * span, problem.upper - 1e-9 * span)
-    with np.errstate(all='ignore'):
-        residuals = problem.residuals(x0)
-    if not np.all(np.isfinite(residuals)):
-        return np.inf, x0
-    if x0.size == 0:
-        return float(np.sum(residuals**2)), x0
-    with np.errstate(all='ignore'), warnings.catch_warnings():
-        warnings.simplefilter('ignore')
-        result = least_squares(
-            problem.residuals,
-            x0,
-            bounds=(problem.lower, problem.upper),
-            x_scale='jac',
-            method='trf',
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
-            max_nfev=5000,
-        )
-    return float(np.sum(result.fun**2)), result.x
-
-
-class _Problem:
-    """The ``best`` fit's unknowns x = [model parameters, pressure offset [Pa]?, relative L0
-    correction?].
-
-    The L0 correction is an unknown of the joint fit only, whose Jacobian tells whether the model
-    depends on L0; its value is chosen by held-out error (:func:`_held_out_length`) and then fixed
-    in ``spec``.
-    """
-
-    def __init__(
-        self,
-        model: Model,
-        spec: MuscleSpec,
-        fmap: ForceMap,
-        domain: Domain,
-        calibration: Calibration,
-    ):
-        self.model, self.spec, self.fmap, self.domain, self.calibration = (
-            model,
-            spec,
-            fmap,
-            domain,
-            calibration,
-        )
-        self.evaluated = cal.shifted(model) if calibration.pressure else model
-        extra = [cal.LENGTH_BOUND] * calibration.length
-        self.lower = np.r_[self.evaluated.lower, [-b for b in extra]]
-        self.upper = np.r_[self.evaluated.upper, extra]
-        self.start = np.r_[self.evaluated.start, [0.0] * len(extra)]
-        n = model.n_params
-        #: size of each unknown for tie-breaking and difference steps: Table 1's start, else the
-        #: bound
-        self.scale = np.r_[
-            np.where(self.start[:n] != 0, np.abs(self.start[:n]), 1.0), self.upper[n:]
-        ]
-
-    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, float]:
-        """(model parameters, pressure offset [Pa]) of a solution with L0 fixed."""
-        n = self.model.n_params
-        return x[:n], float(x[n]) if self.calibration.pressure else 0.0
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        spec = (
-            cal.with_length(self.spec, self.spec.nominal_length * (1 + x[-1]))
-            if self.calibration.length
-            else self.spec
-        )
-        theta = x[:-1] if self.calibration.length else x
-        return self.fmap.force - physical_force(
-            self.evaluated, theta, spec, self.domain, self.fmap.pressure, self.fmap.length
-        )
-
-    def random_start(self, paper: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """The paper fit times 10^U(-0.5, 0.5); the calibrated quantities as given (the nearest
-        optimum is found).
-        """
-        return np.r_[
-            paper * 10 ** rng.uniform(-0.5, 0.5, paper.size),
-            [0.0] * (self.start.size - paper.size),
-        ]
-
-    def sigma(self, x: np.ndarray) -> dict[str, float]:
-        """1-sigma of the calibrated L0 [m] and pressure offset [Pa]
-        (:func:`calibration.standard_errors`).
-        """
-        if not self.calibration.any:
-            return {}
-        with np.errstate(all='ignore'):
-            errors = cal.standard_errors(
-                cal.jacobian(self.residuals, x, self.scale), self.residuals(x)
+    grid = cal.length_grid(spec, slack)
+    folds = length_folds(fmap)
+    if len(folds) < 3 or not _depends_on_length(model, spec, domain, fmap):
+        return spec, math.inf, False
+    squares = np.zeros(grid.size)
+    for test in folds:
+        train, near = fmap.subset(~test), None
+        for i, length in enumerate(grid):
+            trial = cal.with_length(spec, float(length))
+            near = Separable(model, trial, domain_of(train), train).fit_least_squares(near)
+            predicted = physical_force(
+                model, near.theta, trial, domain_of(train), fmap.pressure[test], fmap.length[test]
             )
-        out = {}
-        if self.calibration.pressure:
-            out['pressure_offset'] = float(errors[self.model.n_params])
-        if self.calibration.length:
-            out['nominal_length'] = float(errors[-1] * self.spec.nominal_length)
-        return out
+            squares[i] += float(np.sum((fmap.force[test] - predicted) ** 2))
+    best = int(np.argmin(squares))
+    near_best = grid[squares <= squares[best] * 1.1**2]
+    spread = float(near_best.max() - near_best.min() + (grid[1] - grid[0])) / 2
+    return cal.with_length(spec, float(grid[best])), spread, True
 
 
-def _best_solutions(
-    problem: _Problem, objectives: tuple[str, ...], seed: int
-) -> dict[str, np.ndarray]:
-    model, fmap, domain = problem.model, problem.fmap, problem.domain
-    if problem.start.size == 0:
-        return {obj: np.zeros(0) for obj in objectives}
-    lower, upper, start, scale = problem.lower, problem.upper, problem.start, problem.scale
-    n_extra = start.size - model.n_params
-    rng = np.random.default_rng(seed)
-    paper = _paper_theta(model, problem.spec, fmap.subset(fmap.force > 0), domain)
-    starts = [start, np.r_[paper, [0.0] * n_extra]] + [
-        problem.random_start(paper, rng) for _ in range(_N_RANDOM_STARTS)
-    ]
-    candidates = [c for c in (_solve(problem, x0) for x0 in starts) if np.isfinite(c[0])]
-    tied = _ties(candidates, start, scale)
-    solutions = {'least_squares': tied[0][1]}
-    if 'minimax' in objectives:
-        solutions['minimax'] = _ties(
-            [_minimax(problem.residuals, x, lower, upper) for _, x in tied], start, scale
-        )[0][1]
-    return solutions
+def _depends_on_length(model: Model, spec: MuscleSpec, domain: Domain, fmap: ForceMap) -> bool:
+    """Whether the model's force at its start parameters changes with L0 (1 % longer)."""
+    theta, longer = np.array(model.start, float), cal.with_length(spec, 1.01 * spec.nominal_length)
+    with np.errstate(all='ignore'):
+        forces = [
+            force_raw(model, theta, s, domain, fmap.pressure, fmap.length) for s in (spec, longer)
+        ]
+    return not np.allclose(forces[0], forces[1], rtol=1e-12, atol=0.0, equal_nan=True)
 
 
-def _ties(candidates: list, start: np.ndarray, scale: np.ndarray) -> list:
-    """Candidates within a relative _TIE of the best cost, nearest to ``start`` first."""
-    best = min(cost for cost, _ in candidates)
-    tied = [c for c in candidates if c[0] <= best * (1 + _TIE) + 1e-12]
-    return sorted(tied, key=lambda c: float(np.linalg.norm((c[1] - start) / scale)))
-
-
-def _minimax(
-    residuals, theta0: np.ndarray, lower: np.ndarray, upper: np.ndarray
-) -> tuple[float, np.ndarray]:
-    """Minimise max|r(theta)| from theta0 in variables scaled by theta0; returns (cost, theta)."""
-    scale = np.where(theta0 != 0, np.abs(theta0), 1.0)
-    z0 = theta0 / scale
-
-    def worst(z: np.ndarray) -> float:
-        theta = z * scale
-        if np.any(theta < lower) or np.any(theta > upper):
-            return np.inf
-        return float(np.max(np.abs(residuals(theta))))
-
-    t0 = worst(z0)
-
-    def within(y: np.ndarray) -> np.ndarray:
-        """Both sides of |r| <= t, [t - r, t + r] >= 0 at y = [z, t] [N]: r evaluated once."""
-        r = residuals(y[:-1] * scale)
-        return np.r_[y[-1] - r, y[-1] + r]
-
-    constraints = [{'type': 'ineq', 'fun': within}]
-    bounds = [
-        (lo / s, hi / s) if s > 0 else (None, None) for lo, hi, s in zip(lower, upper, scale)
-    ] + [(0, None)]
-    with np.errstate(all='ignore'), warnings.catch_warnings():
-        warnings.simplefilter('ignore')
-        slsqp = minimize(
-            lambda y: y[-1],
-            np.r_[z0, t0],
-            method='SLSQP',
-            constraints=constraints,
-            bounds=bounds,
-            options={'maxiter': 500, 'ftol': 1e-12},
-        )
-        z1 = slsqp.x[:-1] if worst(slsqp.x[:-1]) < t0 else z0
-        polish = minimize(
-            worst,
-            z1,
-            method='Nelder-Mead',
-            options={'xatol': 1e-10, 'fatol': 1e-10, 'maxiter': 4000, 'maxfev': 4000},
-        )
-    best = min((z0, z1, polish.x), key=worst)
-    return worst(best) ** 2, best * scale
-
-
-def length_folds(fmap: ForceMap) -> list[np.ndarray]:
-    """The held-out groups of points: each measured length, or, with more than :data:`_MAX_FOLDS`
-    lengths (the cells of a recording), :data:`_MAX_FOLDS` bands of neighbouring lengths, longest
-    first.
+def _offset(
+    model: Model, spec: MuscleSpec, domain: Domain, fmap: ForceMap, sigma: dict[str, float]
+) -> tuple[Separable, Solution, bool]:
+    """The least-squares fit with a pressure offset, its 1-sigma into ``sigma``, and whether the
+    offset is identified (:func:`~.calibration.offset_identifiable`).
     """
-    lengths = fmap.lengths
-    groups = (
-        [[length] for length in lengths]
-        if lengths.size <= _MAX_FOLDS
-        else np.array_split(lengths, _MAX_FOLDS)
+    fitted = Separable(cal.shifted(model), spec, domain, fmap)
+    solution = fitted.fit_least_squares()
+    sigma['pressure_offset'] = _offset_sigma(fitted, solution)
+    return (
+        fitted,
+        solution,
+        cal.offset_identifiable(float(solution.theta[-1]), sigma['pressure_offset']),
     )
-    return [np.isin(fmap.length, group) for group in groups]
 
 
-def fold_lengths(fmap: ForceMap) -> np.ndarray:
-    """The mean length [m] of each fold of :func:`length_folds`."""
-    return np.array([fmap.length[test].mean() for test in length_folds(fmap)])
-
-
-def cross_validate(
-    model: Model,
-    spec: MuscleSpec,
-    fmap: ForceMap,
-    objectives: tuple[str, ...] = OBJECTIVES,
-    calibration: Calibration = OFF,
-    truth: np.ndarray | None = None,
-) -> dict[str, np.ndarray]:
-    """Leave-one-length-out: eq. 23 on each held-out length, normalised by the whole map's max
-    force [%].
-
-    Returns, per objective, one error per fold of :func:`length_folds` (per measured length, in the
-    order of ``fmap.lengths``, on a table's map).  ``truth``: the forces [N] at the map's points to
-    judge against (e.g. noise-free ones); default the map's own.
+def _offset_sigma(fitted: Separable, solution: Solution) -> float:
+    """1-sigma [Pa] of the pressure offset (the last parameter of ``fitted``'s shifted model) from
+    the Jacobian of the clipped residuals at the least-squares optimum.
     """
-    truth = fmap.force if truth is None else truth
-    errors: dict[str, list[float]] = {obj: [] for obj in objectives}
-    for test in length_folds(fmap):
-        for obj, fit in fit_best_all(
-            model, spec, fmap.subset(~test), objectives, calibration=calibration
-        ).items():
-            predicted = fit.force(fmap.pressure[test], fmap.length[test])
-            errors[obj].append(max_error_percent(truth[test], predicted, truth.max()))
-    return {obj: np.array(errs) for obj, errs in errors.items()}
+    model, theta = fitted.model, solution.theta
+    scale = np.where(theta != 0, np.abs(theta), 1.0)
+    scale[-1] = cal.PRESSURE_BOUND
 
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return fitted.force - physical_force(
+            model, x, fitted.spec, fitted.domain, fitted.pressure, fitted.length
+        )
 
-def cross_validate_fit(
-    fit: Fit,
-    fmap: ForceMap,
-    objectives: tuple[str, ...] = OBJECTIVES,
-    truth: np.ndarray | None = None,
-) -> dict[str, np.ndarray]:
-    """:func:`cross_validate` of a fit's model with its geometry: its calibrated L0 (chosen on the
-    whole map by held-out error, :func:`_held_out_length`), the pressure offset identified again in
-    each fold.
-    """
-    return cross_validate(
-        get_model(fit.model),
-        fit.spec,
-        fmap,
-        objectives,
-        Calibration(False, fit.calibration.pressure),
-        truth,
-    )
+    with np.errstate(all='ignore'):
+        errors = cal.standard_errors(cal.jacobian(residuals, theta, scale), residuals(theta))
+    return float(errors[-1])
 
 
 @dataclass(frozen=True)
 class ModelReport:
-    """Everything the paper's Table 3 and our cross-validation say about one model."""
+    """Everything the paper's Table 3 and the held-out judgement say about one model."""
 
     paper: Fit  #: the paper protocol
-    best: dict[str, Fit]  #: best protocol, per objective
-    cv: dict[str, np.ndarray]  #: held-out err per length [%], per objective
-    shipped_objective: str  #: the objective with the lower worst held-out err
+    best: dict[str, Fit]  #: best protocol on the whole map, per objective
+    #: leave-one-length-out err per fold [%], per objective: the whole protocol (calibration
+    #: included) re-run without each fold
+    cv: dict[str, np.ndarray]
+    #: the objective with the lower worst ``cv`` err (a selection: its figure is ``nested``'s)
+    shipped_objective: str
+    #: nested held-out err per fold [%]: the objective chosen again without each fold
+    nested: np.ndarray
 
     @property
     def shipped(self) -> Fit:
@@ -625,40 +416,112 @@ class ModelReport:
 
     @property
     def cv_err(self) -> float:
-        """Worst held-out err of the shipped objective [%]."""
-        return float(self.cv[self.shipped_objective].max())
+        """Worst nested held-out err [%]."""
+        return float(np.nanmax(self.nested))
 
     @property
     def edge_cv_err(self) -> float:
-        """Worst held-out err of the shipped objective on the map's shortest and longest length
-        [%].
-        """
-        errors = self.cv[self.shipped_objective]
-        return float(max(errors[0], errors[-1]))
+        """Worst nested held-out err on the map's shortest and longest length [%]."""
+        return float(max(self.nested[0], self.nested[-1]))
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Every model of a map identified and judged, and the default model."""
+
+    reports: dict[str, ModelReport]
+    #: the model with the lowest worst held-out err (a selection on the whole map)
+    default: str
+    #: nested held-out err per fold of the whole protocol [%]: the model chosen again without
+    #: each fold, judged on it (the honest figure of ``default``)
+    held_out: np.ndarray
+    #: the model chosen in each fold
+    chosen: tuple[str, ...]
 
 
 def identify_all(
-    spec: MuscleSpec, fmap: ForceMap, models: tuple[Model, ...], calibration: Calibration = OFF
-) -> tuple[dict[str, ModelReport], str]:
-    """Identify every model both ways, cross-validate, and pick the default model.
+    spec: MuscleSpec,
+    fmap: ForceMap,
+    models: tuple[Model, ...],
+    calibration: Calibration = OFF,
+    objectives: tuple[str, ...] = OBJECTIVES,
+    truth: np.ndarray | None = None,
+) -> Identification:
+    """Identify every model, judge each by nested held-out error and pick the default.
 
-    The shipped objective of each model and the default model are chosen by the
-    worst leave-one-length-out error, not by in-sample error.  ``calibration``
-    applies to the ``best`` protocol only (held out: :func:`cross_validate_fit`); the paper
-    protocol keeps the given geometry.
+    Each model's objective (among ``objectives``) and the default model are chosen by the worst
+    leave-one-length-out error, and every such choice is made again inside each fold for the
+    held-out figures (:func:`~pma_model_ros.core.validation.select`).  ``calibration`` applies to the
+    ``best`` protocol only; the paper protocol keeps the given geometry.  ``truth``: forces [N] at
+    the map's points to report held-out errors against (choices use the map's own).
     """
-    # The models are independent: one process each, as many at once as there are cores (spawned,
-    # not forked: the caller may hold threads).
-    workers = min(len(models), os.cpu_count() or 1)
-    if workers > 1:
+    held = {
+        model.name: HeldOut(
+            fmap,
+            functools.partial(
+                fit_best_all, model, spec, objectives=objectives, calibration=calibration
+            ),
+            truth,
+        )
+        for model in models
+    }
+    pairs = len(models) * len(objectives) > 1
+    jobs = [(name, s) for name, h in held.items() for s in h.needed(pairs)]
+    papers = _fit_everything(held, jobs, models, spec, fmap)
+    reports, candidates = {}, {}
+    against = truth is not None
+    for model, paper in zip(models, papers):
+        h = held[model.name]
+        shipped, nested, _ = select({obj: (h, obj) for obj in objectives}, against)
+        reports[model.name] = ModelReport(
+            paper,
+            h.fits_without(frozenset()),
+            {obj: h.errors(obj, against) for obj in objectives},
+            shipped,
+            nested,
+        )
+        candidates |= {(model.name, obj): (h, obj) for obj in objectives}
+    (default, _), held_out, chosen = select(candidates, against)
+    return Identification(reports, default, held_out, tuple(name for name, _ in chosen))
+
+
+#: Expected fitting time [s] above which an identification spreads its fits over the cores.
+_PARALLEL_ABOVE = 1.0
+
+
+def _fit_everything(
+    held: dict[str, HeldOut],
+    jobs: list[tuple[str, frozenset[int]]],
+    models: tuple[Model, ...],
+    spec: MuscleSpec,
+    fmap: ForceMap,
+) -> list[Fit]:
+    """Every fit the judgement needs, into each model's :class:`HeldOut`; returns the paper fits.
+
+    The whole-map fits run here; if they announce more than :data:`_PARALLEL_ABOVE` of work for the
+    rest (as long, per model, times the fits left), the rest run in worker processes, one per core
+    (spawned, not forked: the caller may hold threads).  The fits are the same either way.
+    """
+    started = time.perf_counter()
+    for name in held:
+        held[name].fits_without(frozenset())
+    rest = [(name, s) for name, s in jobs if s]
+    expected = (time.perf_counter() - started) * len(rest) / len(held)
+    workers = os.cpu_count() or 1
+    if workers > 1 and expected > _PARALLEL_ABOVE:
         pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn'))
         with _environment(_WORKER_ENVIRONMENT), pool:
-            done = list(pool.map(_report, models, repeat(spec), repeat(fmap), repeat(calibration)))
-    else:
-        done = [_report(model, spec, fmap, calibration) for model in models]
-    reports = {model.name: report for model, report in zip(models, done)}
-    default = min(reports, key=lambda name: reports[name].cv_err)
-    return reports, default
+            fits = pool.map(
+                fit_or_none,
+                [held[n].identify for n, _ in rest],
+                [held[n].training_map(s) for n, s in rest],
+            )
+            for (n, s), result in zip(rest, fits):
+                held[n].store(s, result)
+            return list(pool.map(fit_paper, models, *zip(*[(spec, fmap)] * len(models))))
+    for n, s in rest:
+        held[n].fits_without(s)
+    return [fit_paper(model, spec, fmap) for model in models]
 
 
 @contextmanager
@@ -673,13 +536,3 @@ def _environment(values: dict[str, str]) -> Iterator[None]:
     finally:
         for key in added:
             del os.environ[key]
-
-
-def _report(
-    model: Model, spec: MuscleSpec, fmap: ForceMap, calibration: Calibration
-) -> ModelReport:
-    """One model of :func:`identify_all`: both protocols, cross-validated."""
-    best = fit_best_all(model, spec, fmap, calibration=calibration)
-    cv = cross_validate_fit(best['least_squares'], fmap)
-    shipped = min(OBJECTIVES, key=lambda obj: cv[obj].max())
-    return ModelReport(fit_paper(model, spec, fmap), best, cv, shipped)

@@ -83,6 +83,9 @@ class Model:
     upper: tuple[float, ...]
     coefficients: Callable[..., Coefficients]
     hysteresis: bool = False
+    #: indices of the parameters the force is affine in at fixed others (the separable fit,
+    #: :mod:`~pma_model_ros.core.separable`; test_core_models checks each)
+    linear: tuple[int, ...] = ()
 
     @property
     def n_params(self) -> int:
@@ -230,6 +233,7 @@ MODELS: dict[str, Model] = {
             (0.0, 0.0),
             (10.0, 10.0),
             _andrikopoulos,
+            linear=(0,),
         ),
         Model(
             'wickramatunge',
@@ -239,6 +243,7 @@ MODELS: dict[str, Model] = {
             (-_BIG,) * 4,
             (_BIG,) * 4,
             _wickramatunge,
+            linear=(0, 1, 2, 3),
         ),
         Model(
             'hildebrandt',
@@ -248,6 +253,7 @@ MODELS: dict[str, Model] = {
             (-_BIG,) * 8,
             (_BIG,) * 8,
             _hildebrandt,
+            linear=tuple(range(8)),
         ),
         Model(
             'sarosi',
@@ -257,6 +263,7 @@ MODELS: dict[str, Model] = {
             (-_BIG, -_BIG, -100.0, -_BIG, -_BIG, -_BIG),
             (_BIG, _BIG, 100.0, _BIG, _BIG, _BIG),
             _sarosi,
+            linear=(0, 1, 3, 4, 5),
         ),
         Model(
             'martens',
@@ -266,6 +273,7 @@ MODELS: dict[str, Model] = {
             (-_BIG,) * 4 + (-0.35,),
             (_BIG,) * 4 + (0.35,),
             _martens,
+            linear=(0, 1, 2, 3),
         ),
         Model(
             'sarosi_hysteresis',

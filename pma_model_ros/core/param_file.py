@@ -33,6 +33,7 @@ from .models import Domain, get_model
 from .muscle_model import MuscleModel
 from .node_parameters import SPECS
 from .user_files import load_yaml_mapping, read_user_file
+from .validation import HeldOutBand
 
 #: Node settings written into generated files, beside the muscle (documented in the README).
 NODE_DEFAULTS = {
@@ -104,6 +105,27 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
             [*params, offset] if isinstance(params, list) else params,
         )
     return MuscleModel(spec, model, params, domain)
+
+
+def held_out_band(parameters: dict, model: str | None = None) -> HeldOutBand | None:
+    """The nested held-out error per identified length of the model (``models.<name>.held_out``,
+    written by ``pma-model fit`` and ``make-config``); None where the file has none.
+    """
+    name = get_model(model if model is not None else parameters.get('model', '')).name
+    entry = (parameters.get('models') or {}).get(name) or {}
+    held = entry.get('held_out')
+    if held is None:
+        return None
+    try:
+        return HeldOutBand(
+            tuple(float(v) for v in held['lengths']),
+            tuple(float(v) for v in held['err']),
+            float(held['max_force']),
+        )
+    except (KeyError, TypeError, ValueError) as err:
+        raise ValueError(
+            f'models.{name}.held_out must map lengths [m], err [%] and max_force [N]: {err}'
+        ) from None
 
 
 def hysteresis_follow(parameters: dict) -> Follow:

@@ -5,12 +5,15 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import yaml
 
+from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .identification import Fit, ModelReport
 from .models import Domain, EDGE_CV_LIMIT
 from .param_file import NODE_DEFAULTS
+from .validation import fold_lengths
 
 _ROUND = 12  # significant digits written; far below any fit's resolution
 
@@ -32,16 +35,24 @@ def fit_entry(fit: Fit) -> dict:
     return entry
 
 
-def model_entry(report: ModelReport) -> dict:
-    """:func:`fit_entry` of the shipped fit plus its worst held-out errors, overall (``cv_err``)
-    and on the map's edge lengths (``edge_cv_err``), and whether that lets it extrapolate
-    (:class:`~.models.Domain`).
+def model_entry(report: ModelReport, fmap: ForceMap) -> dict:
+    """:func:`fit_entry` of the shipped fit plus its worst nested held-out errors, overall
+    (``cv_err``) and on the map's edge lengths (``edge_cv_err``), whether that lets it extrapolate
+    (:class:`~.models.Domain`), and the error per held-out length (``held_out``: ``lengths`` [m],
+    ``err`` [%] and the ``max_force`` [N] they are a share of), when every length was judged.
     """
-    return fit_entry(report.shipped) | {
+    entry = fit_entry(report.shipped) | {
         'cv_err': _num(report.cv_err),
         'edge_cv_err': _num(report.edge_cv_err),
-        'extrapolates': report.edge_cv_err <= EDGE_CV_LIMIT,
+        'extrapolates': bool(report.edge_cv_err <= EDGE_CV_LIMIT),
     }
+    if report.nested.size and np.all(np.isfinite(report.nested)):
+        entry['held_out'] = {
+            'lengths': [_num(v) for v in fold_lengths(fmap)],
+            'err': [_num(v) for v in report.nested],
+            'max_force': _num(fmap.max_force),
+        }
+    return entry
 
 
 def build_parameters(

@@ -1,0 +1,208 @@
+"""Held-out judgement of an identification: nested leave-one-length-out cross-validation.
+
+A fit is judged on each measured length it did not see (eq. 23 on that length, in % of the whole
+map's max force).  Every choice an identification makes from the data (model parameters,
+calibrated geometry, and, among several candidates, the model and objective) is made again without
+that length, so the figure is what a user can expect at a length they did not measure.  A figure
+that was used to choose something (the plain leave-one-length-out error of each candidate, by
+which the whole map's fit is chosen) is a *selection* figure, never reported as held-out.
+
+Choosing among candidates inside fold k needs each candidate judged without k: its fits without
+{k, j} judged on j.  :class:`HeldOut` caches a candidate's fits by the set of lengths left out, so
+a whole nested table of c candidates on m lengths costs c (1 + m + m (m - 1) / 2) fits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import numpy as np
+
+from .force_map import ForceMap
+
+_MAX_FOLDS = 8  #: most held-out groups of a map
+
+
+class Predictor(Protocol):
+    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray: ...
+
+
+def length_folds(fmap: ForceMap) -> list[np.ndarray]:
+    """The held-out groups of points: each measured length, longest first, or, with more than
+    :data:`_MAX_FOLDS` lengths (the cells of a recording), :data:`_MAX_FOLDS` bands of
+    neighbouring lengths.
+    """
+    lengths = fmap.lengths
+    groups = (
+        [[length] for length in lengths]
+        if lengths.size <= _MAX_FOLDS
+        else np.array_split(lengths, _MAX_FOLDS)
+    )
+    return [np.isin(fmap.length, group) for group in groups]
+
+
+def fold_lengths(fmap: ForceMap) -> np.ndarray:
+    """The mean length [m] of each fold of :func:`length_folds`."""
+    return np.array([fmap.length[test].mean() for test in length_folds(fmap)])
+
+
+class HeldOut:
+    """One identification protocol's fits of a map without some of its folds, cached.
+
+    ``identify(train)`` returns a mapping of candidates (e.g. objectives) to fits; ``truth``: the
+    forces [N] at the map's points to report errors against (e.g. noise-free ones; default the
+    map's own).  Choices are always made against the map's own forces.
+    """
+
+    def __init__(
+        self,
+        fmap: ForceMap,
+        identify: Callable[[ForceMap], dict[str, Predictor]],
+        truth: np.ndarray | None = None,
+    ):
+        self.fmap, self.identify = fmap, identify
+        self.folds = length_folds(fmap)
+        self.truth = fmap.force if truth is None else truth
+        self._fits: dict[frozenset[int], dict[str, Predictor]] = {}
+
+    def training_map(self, held: frozenset[int]) -> ForceMap:
+        """The map without the folds ``held``."""
+        return (
+            self.fmap.subset(~np.any([self.folds[k] for k in held], axis=0))
+            if held
+            else (self.fmap)
+        )
+
+    def store(self, held: frozenset[int], fits: dict[str, Predictor] | None) -> None:
+        """Keep fits made elsewhere (e.g. in a worker process) of :meth:`training_map` (held)."""
+        self._fits[held] = fits
+
+    def fits_without(self, held: frozenset[int]) -> dict[str, Predictor] | None:
+        """The protocol's fits without the folds ``held``; None if what is left cannot be fitted
+        (fewer than two lengths).
+        """
+        if held not in self._fits:
+            self.store(held, fit_or_none(self.identify, self.training_map(held)))
+        return self._fits[held]
+
+    def needed(self, pairs: bool) -> list[frozenset[int]]:
+        """The sets of folds left out of the fits a judgement needs: none, each fold, and (for a
+        nested choice among candidates) each pair.
+        """
+        n = len(self.folds)
+        singles = [frozenset({k}) for k in range(n)]
+        return [frozenset(), *singles] + (
+            [frozenset({k, j}) for k in range(n) for j in range(k + 1, n)] if pairs else []
+        )
+
+    def error(
+        self, candidate: str, fold: int, held: frozenset[int], against_truth: bool = False
+    ) -> float:
+        """Eq. 23 [%] on ``fold`` of the candidate's fit without the folds ``held`` (NaN: no fit)."""
+        test, fits = self.folds[fold], self.fits_without(held)
+        if fits is None:
+            return float('nan')
+        forces = self.truth if against_truth else self.fmap.force
+        predicted = fits[candidate].force(self.fmap.pressure[test], self.fmap.length[test])
+        return float(100 * np.max(np.abs(forces[test] - predicted)) / forces.max())
+
+    def errors(self, candidate: str, against_truth: bool = False) -> np.ndarray:
+        """Leave-one-length-out: the candidate's error on each fold, fitted without it [%]."""
+        return np.array(
+            [
+                self.error(candidate, k, frozenset({k}), against_truth)
+                for k in range(len(self.folds))
+            ]
+        )
+
+    def inner_worst(self, candidate: str, outer: int) -> float:
+        """The candidate's worst leave-one-length-out error on the map without fold ``outer``
+        (inf: that map is too small to judge it).
+        """
+        errors = [
+            self.error(candidate, j, frozenset({outer, j}))
+            for j in range(len(self.folds))
+            if j != outer
+        ]
+        finite = [e for e in errors if np.isfinite(e)]
+        return max(finite) if finite else np.inf
+
+
+def select(
+    candidates: dict[str, tuple[HeldOut, str]], against_truth: bool = False
+) -> tuple[str, np.ndarray, list[str]]:
+    """Choose among candidates (name -> (its :class:`HeldOut`, its key there)) by the worst
+    leave-one-length-out error, and judge that choice honestly.
+
+    Returns the whole map's choice, the nested errors per fold [%] (in fold k the choice is made by
+    each candidate's worst error without k, then judged on k) and the candidate chosen in each fold.
+    """
+    names = list(candidates)
+
+    def worst(name: str) -> float:
+        held, key = candidates[name]
+        errors = held.errors(key)
+        return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else np.inf
+
+    chosen = names[0] if len(names) == 1 else min(names, key=worst)
+    n_folds = len(next(iter(candidates.values()))[0].folds)
+    per_fold, errors = [], []
+    for k in range(n_folds):
+        name = (
+            names[0]
+            if len(names) == 1
+            else min(names, key=lambda n: candidates[n][0].inner_worst(candidates[n][1], k))
+        )
+        held, key = candidates[name]
+        per_fold.append(name)
+        errors.append(held.error(key, k, frozenset({k}), against_truth))
+    return chosen, np.array(errors), per_fold
+
+
+@dataclass(frozen=True)
+class HeldOutBand:
+    """How far to trust a fit at a length: the nested held-out err of each held-out length.
+
+    ``lengths`` [m] (descending, as :func:`fold_lengths`), ``errors`` [% of ``max_force``], the
+    map's ``max_force`` [N].
+    """
+
+    lengths: tuple[float, ...]
+    errors: tuple[float, ...]
+    max_force: float
+
+    def __post_init__(self) -> None:
+        if not (
+            len(self.lengths) == len(self.errors) >= 1
+            and all(np.isfinite(self.lengths))
+            and all(np.isfinite(self.errors))
+            and all(e >= 0 for e in self.errors)
+            and np.isfinite(self.max_force)
+            and self.max_force > 0
+        ):
+            raise ValueError(
+                'held_out needs as many finite lengths as errors (>= 0) and a max_force > 0, got '
+                f'{self.lengths}, {self.errors}, {self.max_force}'
+            )
+
+    def at(self, length: float) -> tuple[float, bool]:
+        """(expected worst error [%] at ``length`` [m], whether it lies within the held-out
+        lengths): the larger error of the two held-out lengths around it; outside them, the
+        nearest one's (an extrapolation, which the figure does not cover).
+        """
+        order = np.argsort(self.lengths)
+        lengths, errors = np.asarray(self.lengths)[order], np.asarray(self.errors)[order]
+        if length < lengths[0] or length > lengths[-1]:
+            return float(errors[0] if length < lengths[0] else errors[-1]), False
+        i = int(np.searchsorted(lengths, length))
+        if lengths[i] == length:
+            return float(errors[i]), True
+        return float(max(errors[i - 1], errors[i])), True
+
+
+def fit_or_none(
+    identify: Callable[[ForceMap], dict[str, Predictor]], train: ForceMap
+) -> dict[str, Predictor] | None:
+    """``identify(train)``, or None for a map of fewer than two lengths (nothing to fit)."""
+    return identify(train) if train.lengths.size >= 2 else None
