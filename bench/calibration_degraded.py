@@ -94,7 +94,7 @@ def identify(
 
 
 def table(muscle: str, models: tuple[str, ...]) -> None:
-    """In-sample and nested held-out err against the truth, calibration off and on, per scenario."""
+    """In-sample and nested held-out err vs the truth, calibration off and on, per scenario."""
     print(
         f'\n{muscle}, {"default of " + ", ".join(models) if len(models) > 1 else models[0]}: '
         f'err vs truth [%]: in-sample, nested held-out per length and worst; true L0 '

@@ -159,9 +159,9 @@ def cmd_make_config(args: argparse.Namespace) -> None:
 
 
 _FILE_LEGEND = (
-    'err: eq. 23 on the whole map [%]; cv_err: worst nested leave-one-length-out err [%] (the fit, '
-    'calibration\nand choices included, re-run without each length); held_out: that err per '
-    'held-out length.'
+    'err: eq. 23 on the whole map [%]; cv_err: worst nested leave-one-length-out err [%] (the '
+    'fit, calibration\nand choices included, re-run without each length); held_out: that err '
+    'per held-out length.'
 )
 
 

@@ -1,4 +1,4 @@
-"""Identification: the paper's Table 3, our best fits, nested held-out judgement, shipped configs."""
+"""Identification: the paper's Table 3, our best fits, nested held-out errors, shipped configs."""
 
 import math
 import os

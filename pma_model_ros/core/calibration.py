@@ -40,7 +40,8 @@ LENGTH_BOUND = 0.05  #: L0 searched up to this fraction above the slack bound [-
 PRESSURE_BOUND = 5e4  #: largest pressure offset [Pa]
 OFFSET_SIGMA = 1.5e3  #: largest 1-sigma [Pa] of an identified offset (+-3 kPa at 95 %)
 _LENGTH_STEP = 0.002  #: grid step of the L0 search, relative [-]
-_PULLING = 0.03  #: a point pulls if its force exceeds this fraction of the map's max force (3 sigma of 1 % noise)
+#: a point pulls if its force exceeds this fraction of the map's max force (3 sigma of 1 % noise)
+_PULLING = 0.03
 
 
 @dataclass(frozen=True)
@@ -67,10 +68,10 @@ OFF = Calibration(False, False)
 
 
 def offset_identifiable(offset: float, sigma: float) -> bool:
-    """An offset [Pa] inside its bounds whose 1-sigma is at most :data:`OFFSET_SIGMA` is identified;
-    any other stays 0.  A looser offset sits in a flat valley of the sum of squares (Martens'
-    elastic polynomial absorbs most of it), where its value moves by kPa with the data's last
-    digits; one at a bound is what the map wants beyond physics, not a measurement.
+    """An offset [Pa] inside its bounds with a 1-sigma of at most :data:`OFFSET_SIGMA` is
+    identified; any other stays 0.  A looser offset sits in a flat valley of the sum of squares
+    (Martens' elastic polynomial absorbs most of it), where its value moves by kPa with the data's
+    last digits; one at a bound is what the map wants beyond physics, not a measurement.
     """
     return bool(sigma <= OFFSET_SIGMA and abs(offset) < 0.99 * PRESSURE_BOUND)
 

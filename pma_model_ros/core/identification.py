@@ -323,9 +323,9 @@ def _rest_length(
     """L0 identified above the slack bound (:mod:`~pma_model_ros.core.calibration`) by held-out
     error: on the grid of :func:`~.calibration.length_grid`, the L0 whose least-squares fits
     without each length predict it best (least sum of squares; each fold follows its optimum along
-    the grid).  In-sample, the elastic terms absorb a wrong L0.  Returns (spec, 1-sigma [m], whether
-    L0 moved): half the range of L0 whose held-out RMSE is within 10 % of the best; L0 stays as
-    given (inf) for a model whose force does not depend on it (Hildebrandt, Wickramatunge).
+    the grid).  In-sample, the elastic terms absorb a wrong L0.  Returns (spec, 1-sigma [m],
+    whether L0 moved): half the range of L0 whose held-out RMSE is within 10 % of the best; L0
+    stays as given (inf) for a model whose force does not depend on it (Hildebrandt, Wickramatunge).
     """
     grid = cal.length_grid(spec, slack)
     folds = length_folds(fmap)
@@ -451,9 +451,9 @@ def identify_all(
 
     Each model's objective (among ``objectives``) and the default model are chosen by the worst
     leave-one-length-out error, and every such choice is made again inside each fold for the
-    held-out figures (:func:`~pma_model_ros.core.validation.select`).  ``calibration`` applies to the
-    ``best`` protocol only; the paper protocol keeps the given geometry.  ``truth``: forces [N] at
-    the map's points to report held-out errors against (choices use the map's own).
+    held-out figures (:func:`~pma_model_ros.core.validation.select`).  ``calibration`` applies to
+    the ``best`` protocol only; the paper protocol keeps the given geometry.  ``truth``: forces [N]
+    at the map's points to report held-out errors against (choices use the map's own).
     """
     held = {
         model.name: HeldOut(

@@ -2,17 +2,19 @@
 
 Every model of :mod:`~pma_model_ros.core.models` is affine in some of its parameters
 (``Model.linear``: Martens' elastic polynomial c0..c3 of eq. 15, all of Hildebrandt's eq. 20 and
-Wickramatunge's eq. 21, five of Sárosi's eq. 19).  At fixed nonlinear parameters phi (Martens' angle
-correction d0 of eq. 16, Sárosi's c2, Andrikopoulos' c1, a pressure offset) the force on a map is
+Wickramatunge's eq. 21, five of Sárosi's eq. 19).  At fixed nonlinear parameters phi (Martens'
+angle correction d0 of eq. 16, Sárosi's c2, Andrikopoulos' c1, a pressure offset) the force on a
+map is
 
     F(phi, c) = b(phi) + A(phi) c        [N],
 
 so the best linear parameters c are a linear least-squares (or linear-programming) solution, and
 only phi (0 to 2 numbers) is searched: on a grid over its bounds, then refined by scipy's bounded
-``least_squares`` on the projected residual.  The ``best`` protocol fits the physical, clipped force
-max(F, 0) (a muscle cannot push): at fixed phi that is linear least squares on the points where the
-model pulls, iterated until that set is stable (a semismooth Newton step; the best iterate is
-kept).  The grid makes the result a deterministic global search, not a random multi-start.
+``least_squares`` on the projected residual.  The ``best`` protocol fits the physical, clipped
+force max(F, 0) (a muscle cannot push): at fixed phi that is linear least squares on the points
+where the model pulls, iterated until that set is stable (a semismooth Newton step; the best
+iterate is kept).  The grid makes the result a deterministic global search, not a random
+multi-start.
 
 Equal-cost linear parameters (an elastic polynomial the map cannot determine, e.g. three lengths
 for a cubic) are resolved by the minimum-norm solution in columns scaled to unit norm

@@ -99,7 +99,7 @@ class HeldOut:
     def error(
         self, candidate: str, fold: int, held: frozenset[int], against_truth: bool = False
     ) -> float:
-        """Eq. 23 [%] on ``fold`` of the candidate's fit without the folds ``held`` (NaN: no fit)."""
+        """Eq. 23 [%] on ``fold`` of the candidate's fit without the folds ``held`` (NaN: none)."""
         test, fits = self.folds[fold], self.fits_without(held)
         if fits is None:
             return float('nan')
@@ -136,7 +136,7 @@ def select(
     leave-one-length-out error, and judge that choice honestly.
 
     Returns the whole map's choice, the nested errors per fold [%] (in fold k the choice is made by
-    each candidate's worst error without k, then judged on k) and the candidate chosen in each fold.
+    each candidate's worst error without k, then judged on k) and the candidate chosen per fold.
     """
     names = list(candidates)
 
