@@ -325,7 +325,8 @@ def _rest_length(
     without each length predict it best (least sum of squares; each fold follows its optimum along
     the grid).  In-sample, the elastic terms absorb a wrong L0.  Returns (spec, 1-sigma [m],
     whether L0 moved): half the range of L0 whose held-out RMSE is within 10 % of the best; L0
-    stays as given (inf) for a model whose force does not depend on it (Hildebrandt, Wickramatunge).
+    stays as given (inf) for a model whose force does not depend on it (Hildebrandt,
+    Wickramatunge).
     """
     grid = cal.length_grid(spec, slack)
     folds = length_folds(fmap)
