@@ -382,6 +382,8 @@ def test_live(row, live):
 # ----------------------------------------------------------------------------
 
 GOOD_FILE = CONFIG.read_text()
+#: Martens' first parameter as the shipped file writes it (its params line starts with it)
+MARTENS_C0 = read_parameters(CONFIG)['models']['martens']['params'][0]
 
 
 def edited(old: str, new: str) -> Callable[[Path], Path]:
@@ -437,7 +439,7 @@ FILES = {
         'Parameter muscle.inner_diameter out of range',
     ),
     'file-wrong-parameter-count': (
-        edited('params: [116867130.487, ', 'params: ['),
+        edited(f'params: [{MARTENS_C0!r}, ', 'params: ['),
         "model 'martens' needs 5",
         "model 'martens' needs 5",
     ),
