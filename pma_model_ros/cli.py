@@ -374,8 +374,8 @@ def cmd_force(args: argparse.Namespace) -> None:
     percent, inside = band.at(length)
     lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
     print(
-        f'expected error: within ±{percent * band.max_force / 100:.3g} N ({percent:.2f} % of '
-        f'{band.max_force:.4g} N), the worst nested held-out err near this length'
+        f'expected error: about ±{percent * band.max_force / 100:.3g} N ({percent:.2f} % of '
+        f'{band.max_force:.4g} N: the worst held-out err of the identified lengths around it)'
         if inside
         else f'expected error: unknown: {length:g} m is outside the held-out lengths {lengths} '
         f'(the nearest one erred by {percent:.2f} % of {band.max_force:.4g} N)'
