@@ -1,14 +1,19 @@
-"""Identification speed: the ``best`` protocol for every model of the paper's Table 3, on both
-shipped maps.
+"""Identification speed: the ``best`` protocol for every model of the paper's Table 3 on both
+shipped maps, and the ``pma-model fit`` commands a user runs, with the nested held-out table.
 
 Usage: ``.venv/bin/python bench/identification_speed.py [--quick]`` (or ``bench/run``).  Not a
 test: it prints tables.  Absolute times depend on the machine's load; the ratios, each taken within
-one row of one run, are what to compare.
+one row of one run, are what to compare.  The command table's baseline is the same interpreter
+importing the CLI (what every command pays before fitting).
 """
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+import subprocess
+import sys
+import tempfile
 import time
 
 from pma_model_ros.core.identification import (
@@ -35,7 +40,7 @@ def per_fit_table() -> dict[str, float]:
     [s].
     """
     print(
-        f'\nbest protocol, one fit = fit_best_all (multi-start least_squares + minimax; '
+        f'\nbest protocol, one fit = fit_best_all (variable projection, least_squares + minimax; '
         f'objectives {OBJECTIVES}).'
     )
     print(
@@ -75,45 +80,71 @@ def per_fit_table() -> dict[str, float]:
 def identify_all_table(fit_totals: dict[str, float]) -> None:
     """``identify_all`` per muscle: what ``pma-model reproduce`` computes."""
     print(
-        '\nidentify_all (= pma-model reproduce): per model the paper protocol, one best fit on '
-        'the map and'
-    )
-    print(
-        'one per held-out length (cross-validation). fits = fit_best_all calls; s per fit '
-        'includes the paper'
-    )
-    print(
-        "protocol. x fits = identify_all time / that muscle's six fits in the table above (same "
-        'run); about'
-    )
-    print(
-        '1 + lengths if a fit on a map with one length held out costs as much as one on the whole '
-        'map.'
+        '\nidentify_all (= pma-model reproduce): per model and both objectives the paper '
+        'protocol and best fits\nwithout no, one and each pair of lengths (the nested choice of '
+        'objective and model). fits =\nfit_best_all calls; x fits = identify_all time / that '
+        "muscle's six fits in the table above (same run)."
     )
     print(f'{"muscle":<13}{"lengths":>8}{"fits":>6}{"total s":>9}{"s per fit":>11}{"x fits":>8}')
     grand = 0.0
     for muscle in MAPPED_MUSCLES:
         spec, fmap = shipped_spec(muscle), shipped_force_map(muscle)
         _, t_all = timed(lambda: identify_all(spec, fmap, MODELS))
-        n_fits = len(MODELS) * (1 + fmap.lengths.size)
+        m = fmap.lengths.size
+        n_fits = len(MODELS) * (1 + m + m * (m - 1) // 2)
         grand += t_all
         print(
-            f'{muscle:<13}{fmap.lengths.size:>8d}{n_fits:>6d}{t_all:>9.1f}{t_all / n_fits:>11.2f}'
+            f'{muscle:<13}{m:>8d}{n_fits:>6d}{t_all:>9.1f}{t_all / n_fits:>11.3f}'
             f'{t_all / fit_totals[muscle]:>8.1f}'
         )
     print(f'total {grand:.1f} s')
 
 
+def command_table(repeat: int) -> None:
+    """Wall time of ``pma-model fit`` as a user runs it (nested held-out table included), best of
+    ``repeat``, next to the same interpreter importing the CLI.
+    """
+    data = Path(__file__).resolve().parents[1] / 'pma_model_ros' / 'core' / 'data'
+    python = sys.executable
+
+    def best(argv: list[str]) -> float:
+        times = []
+        for _ in range(repeat):
+            start = time.perf_counter()
+            subprocess.run(argv, check=True, capture_output=True)
+            times.append(time.perf_counter() - start)
+        return min(times)
+
+    base = best([python, '-c', 'import pma_model_ros.cli'])
+    print(
+        f'\npma-model fit, wall time best of {repeat} [s]; import of the CLI alone: {base:.2f} s'
+    )
+    print(f'{"muscle":<13}{"--model":<9}{"fit s":>7}{"x import":>10}')
+    with tempfile.TemporaryDirectory() as tmp:
+        for muscle in MAPPED_MUSCLES:
+            stem = muscle.lower().replace('-', '_')
+            for model in ('martens', 'all'):
+                argv = [
+                    python, '-m', 'pma_model_ros.cli', 'fit',
+                    '--data', str(data / f'{stem}_force_map.csv'),
+                    '--muscle', str(data / f'{stem}.yaml'),
+                    '--model', model, '--out', str(Path(tmp) / 'fit.yaml'),
+                ]  # fmt: skip
+                t = best(argv)
+                print(f'{muscle:<13}{model:<9}{t:>7.2f}{t / base:>10.1f}')
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        '--quick', action='store_true', help='only the per-fit table (skips identify_all, ~30 s)'
+        '--quick', action='store_true', help='only the per-fit and command tables (one run each)'
     )
     args = parser.parse_args()
     print('identification speed: pma_model_ros.core.identification, best protocol, Table 3 models')
     fit_totals = per_fit_table()
     if not args.quick:
         identify_all_table(fit_totals)
+    command_table(1 if args.quick else 3)
 
 
 if __name__ == '__main__':

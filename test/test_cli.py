@@ -168,7 +168,7 @@ def test_joint_torque_prints_the_worked_example(capsys):
         == 0
     )
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == 'torque -0.69331 N·m  stiffness 3.83917 N·m/rad'
+    assert lines[0] == 'torque -0.691819 N·m  stiffness 3.83797 N·m/rad'
     assert lines[1].startswith('flexor: length 0.2265 m') and lines[2].startswith(
         'extensor: length 0.2415 m'
     )

@@ -120,7 +120,7 @@ def test_three_joints_estimate_r_times_the_force_difference():
         assert stiffness == pytest.approx(stiffness_of(torque, theta, *pair), rel=1e-6)
         assert e.status(k, 10.02)[:2] == (Level.OK, 'OK')
     # the README's rounded numbers of the worked example
-    assert (round(e.state[0].torque, 3), round(e.state[0].stiffness_estimate, 2)) == (-0.693, 3.84)
+    assert (round(e.state[0].torque, 3), round(e.state[0].stiffness_estimate, 2)) == (-0.692, 3.84)
     # counts of joint 1 alone: its two pressures, one angle, one estimate
     values = e.status(1, 10.02)[2]
     assert (values['pressures'], values['joint_states'], values['estimates']) == ('2', '1', '1')

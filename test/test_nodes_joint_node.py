@@ -90,7 +90,7 @@ def test_estimate_is_the_worked_example(make_node):
     assert torques[-1].name == ['elbow'] and torques[-1].header.stamp == state.header.stamp
     assert torques[-1].effort[0] == pytest.approx(float(expected.torque), rel=1e-9)
     assert (
-        round(torques[-1].effort[0], 3) == -0.693 and round(stiffnesses[-1].effort[0], 2) == 3.84
+        round(torques[-1].effort[0], 3) == -0.692 and round(stiffnesses[-1].effort[0], 2) == 3.84
     )
     assert stiffnesses[-1].effort[0] == pytest.approx(float(expected.stiffness), rel=1e-9)
 

@@ -144,7 +144,7 @@ def test_a_new_parameter_file_at_runtime_never_mixes_old_and_new(ros, processes,
         return [
             Parameter(k, value=v).to_parameter_msg()
             for k, v in flat(params).items()
-            if k.rsplit('.', 1)[-1] not in MODEL_INFO
+            if not any(k.endswith(f'.{entry}') for entry in MODEL_INFO)
         ]
 
     reach('A')

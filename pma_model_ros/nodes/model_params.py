@@ -46,6 +46,9 @@ MODEL_INFO = {
     'r2': Parameter.Type.DOUBLE,
     'cv_err': Parameter.Type.DOUBLE,
     'edge_cv_err': Parameter.Type.DOUBLE,
+    'held_out.lengths': Parameter.Type.DOUBLE_ARRAY,
+    'held_out.err': Parameter.Type.DOUBLE_ARRAY,
+    'held_out.max_force': Parameter.Type.DOUBLE,
 }
 
 
@@ -97,7 +100,7 @@ def declare_muscle(node: Node, prefix: str, defaults: bool = True) -> None:
             _declare(node, spec, prefix + spec.name, defaults)
     params, info = (
         SPECS['models.<model>.params'],
-        SPECS['models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err}'],
+        SPECS['models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out.*}'],
     )
     extrapolates = SPECS['models.<model>.extrapolates']
     for model in MODELS.values():
