@@ -237,7 +237,9 @@ def bag_force_map(
         two_branches,
     )
     print(
-        f'{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static, '
+        f'{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static '
+        f'(|dL/dt| <= {criterion.max_length_rate:g} m/s, |dp/dt| <= '
+        f'{criterion.max_pressure_rate:g} Pa/s over {criterion.window:g} s), '
         f'{calibration.force_map.force.size} cells'
     )
     return calibration.force_map

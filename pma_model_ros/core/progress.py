@@ -15,7 +15,11 @@ Progress goes to stderr only: stdout stays the command's result (``reproduce --j
 from __future__ import annotations
 
 import sys
+import time
 from typing import TextIO
+
+#: [s] Work that ends sooner shows no :class:`Meter` lines.
+QUIET = 1.0
 
 
 def step(done: int, total: int, what: str, stream: TextIO | None = None) -> None:
@@ -30,17 +34,18 @@ def step(done: int, total: int, what: str, stream: TextIO | None = None) -> None
 
 
 class Meter:
-    """Progress of ``total`` small items: ten :func:`step` lines, one per tenth done.
+    """Progress of ``total`` small items: a :func:`step` line per tenth done, once the work has
+    taken :data:`QUIET` seconds (short work stays silent).
 
     ``what`` names the work, e.g. ``'reading run1'``; :meth:`update` takes the count done so far.
     """
 
     def __init__(self, total: int, what: str, stream: TextIO | None = None) -> None:
         self.total, self.what, self.stream = max(int(total), 1), what, stream
-        self._tenths = 0
+        self._tenths, self._start = 0, time.monotonic()
 
     def update(self, done: int) -> None:
         tenths = min(10, 10 * done // self.total)
-        if tenths > self._tenths:
+        if tenths > self._tenths and (self._tenths or time.monotonic() - self._start >= QUIET):
             self._tenths = tenths
             step(tenths, 10, f'{self.what}: {done:,} of {self.total:,}', self.stream)
