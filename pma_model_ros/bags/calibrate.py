@@ -52,9 +52,10 @@ from .bag_io import (
 from .estimate import muscle_namespace
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope
-#: simulator_node's settings of a recording that fits (the README's, tested verbatim there): four
-#: lengths held 15 s each while the pressure sweeps the map's range in 14 s (46 kPa/s).
-SIMULATOR_SETTINGS = '-p trajectory:=steps -p steps:=4 -p period:=15.0 -p sweep_period:=28.0'
+#: simulator_node's settings of a recording that fits (the README's, run verbatim by a test): five
+#: lengths, each held 7.5 s of every 10 s, while the pressure sweeps the map's range in 14 s
+#: (46 kPa/s); about 70 s.
+SIMULATOR_SETTINGS = '-p trajectory:=steps -p steps:=5 -p period:=10.0 -p sweep_period:=28.0'
 PRESSURE_CELL = 5e3  #: [Pa] pressure side of an averaging cell
 LENGTH_CELL = 0.5e-3  #: [m] length side of an averaging cell
 
