@@ -159,6 +159,17 @@ def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
         print(f'{name:<14}' + ''.join(f'{e:>9.2f}' for e in errs) + f'{errs.max():>9.2f}')
 
 
+def length_headers(lengths: Sequence[float]) -> list[str]:
+    """Column headers of lengths [m]: 3 decimals, or as many more (up to 6) as make neighbouring
+    ones differ (bands of a recording's lengths round alike at 3).
+    """
+    for digits in range(3, 7):
+        texts = [f'{L:.{digits}f}' for L in lengths]
+        if len(set(texts)) == len(texts):
+            break
+    return texts
+
+
 def describe_geometry(fit: Fit, given_length: float) -> str:
     """The identified L0 and pressure offset of a calibrated fit with their uncertainty, or why
     each stayed as given.

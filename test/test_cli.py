@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pma_model_ros.cli import main
+from pma_model_ros.cli import length_headers, main
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
@@ -525,3 +525,8 @@ def test_evaluate_bad_input_is_one_line_exit_2(tmp_path, capsys, data, config, m
     )
     err = capsys.readouterr().err
     assert message in err and err.count('\n') == 1
+
+
+def test_length_headers_differ_where_lengths_do():
+    assert length_headers([0.25, 0.234, 0.219]) == ['0.250', '0.234', '0.219']
+    assert length_headers([0.23271, 0.23268, 0.215]) == ['0.23271', '0.23268', '0.21500']
