@@ -52,10 +52,12 @@ class MuscleSpec:
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and 0 < value < _FLOAT_MAX):
                 raise ValueError(f'muscle.{field} must be a positive finite number, got {value!r}')
-        if not (isinstance(self.fiber_angle, (int, float)) and 0 < self.fiber_angle < math.pi / 2):
+        angle = self.fiber_angle
+        if not (isinstance(angle, (int, float)) and 0 < angle < math.pi / 2):
+            degrees = isinstance(angle, (int, float)) and 1.6 < angle < 90
             raise ValueError(
-                f'muscle.fiber_angle must be in (0, pi/2) rad, got {self.fiber_angle!r}'
-                + ('; degrees? multiply by pi/180' if 1.6 < self.fiber_angle < 90 else '')
+                f'muscle.fiber_angle must be in (0, pi/2) rad, got {angle!r}'
+                + ('; degrees? multiply by pi/180' if degrees else '')
             )
         for field, most in _LARGEST.items():
             if getattr(self, field) > most:
