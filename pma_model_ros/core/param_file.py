@@ -185,7 +185,9 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
 
 
 def load_muscle(path: str | Path, model: str | None = None) -> MuscleModel:
-    """:func:`muscle_model` of the parameter file ``path``; errors name the file."""
+    """:func:`muscle_model` of the parameter file ``path``; errors of the file name it."""
+    if model is not None:
+        get_model(model)  # an unknown override is the caller's, not the file's
     parameters = read_parameters(path)
     try:
         return muscle_model(parameters, model)
