@@ -23,6 +23,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+        ('share/' + PACKAGE + '/config/muscles', glob('config/muscles/*.yaml')),
     ],
     python_requires='>=3.11',
     install_requires=['numpy', 'scipy', 'PyYAML'],

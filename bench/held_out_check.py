@@ -43,7 +43,17 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / 'fit.yaml'
         text = run(
-            ['fit', '--data', args.data, '--muscle', args.muscle, *fit_options, '--out', str(out)]
+            [
+                'fit',
+                '--data',
+                args.data,
+                '--muscle',
+                args.muscle,
+                *fit_options,
+                '--out',
+                str(out),
+                '--force',
+            ]
         )
         print(text.rstrip())
         default = read_parameters(out)['model']
@@ -76,7 +86,18 @@ def main() -> None:
                 ]
             )
             if fmap.force[fmap.length == length].max() > 0:
-                run(['evaluate', '--config', str(out), '--data', str(held), '--csv', str(points)])
+                run(
+                    [
+                        'evaluate',
+                        '--config',
+                        str(out),
+                        '--data',
+                        str(held),
+                        '--csv',
+                        str(points),
+                        '--force',
+                    ]
+                )
                 errors = [abs(float(r.split(',')[4])) for r in points.read_text().splitlines()[1:]]
                 check = f'{100 * max(errors) / fmap.max_force:>9.2f}'
             else:  # a slack length: no force for evaluate's eq. 23

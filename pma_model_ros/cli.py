@@ -31,8 +31,10 @@ from .core.identification import (
     quality,
 )
 from .core.models import get_model, TABLE3_MODELS
-from .core.param_file import held_out_band, muscle_model, read_parameters
+from .core.node_parameters import STANDARD_ATMOSPHERE
+from .core.param_file import held_out_band, load_muscle, muscle_model, read_parameters
 from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
+from .core.progress import step
 from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 from .core.user_files import read_spec_yaml
 from .core.validation import fold_lengths, length_folds
@@ -125,8 +127,19 @@ def _default_line(found: Identification) -> str:
     )
 
 
+def identify_shipped(muscles: Sequence[str]) -> dict[str, Identification]:
+    """:func:`identify_muscle` of each muscle, one progress line each (stderr)."""
+    results = {}
+    for k, muscle in enumerate(muscles, 1):
+        step(
+            k, len(muscles), f'identifying {muscle} ({len(TABLE3_MODELS)} models, nested held-out)'
+        )
+        results[muscle] = identify_muscle(muscle)
+    return results
+
+
 def cmd_reproduce(args: argparse.Namespace) -> None:
-    results = {m: identify_muscle(m) for m in MAPPED_MUSCLES}
+    results = identify_shipped(MAPPED_MUSCLES)
     if args.json:
         print(json.dumps(table3(results)))
     else:
@@ -147,7 +160,7 @@ def cmd_make_config(args: argparse.Namespace) -> None:
             'converted to SI.'
         )
     else:
-        found = identify_muscle(args.muscle)
+        found = identify_shipped([args.muscle])[args.muscle]
         fmap = shipped_force_map(args.muscle)
         models = {name: model_entry(rep, fmap) for name, rep in found.reports.items()}
         params = build_parameters(
@@ -166,7 +179,7 @@ _FILE_LEGEND = (
 
 
 def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
-    labels = _length_labels(lengths)
+    labels = length_headers(lengths)
     print(f'{"model":<14}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
     for name, rep in reports.items():
         print(
@@ -176,13 +189,15 @@ def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
         )
 
 
-def _length_labels(lengths: np.ndarray) -> list[str]:
-    """Lengths [m] printed with as many decimals as it takes to tell them apart (3 to 6)."""
-    for decimals in range(3, 7):
-        labels = [f'{length:.{decimals}f}' for length in lengths]
-        if len(set(labels)) == len(labels):
+def length_headers(lengths: Sequence[float]) -> list[str]:
+    """Column headers of lengths [m]: 3 decimals, or as many more (up to 6) as make neighbouring
+    ones differ (bands of a recording's lengths round alike at 3).
+    """
+    for digits in range(3, 7):
+        texts = [f'{L:.{digits}f}' for L in lengths]
+        if len(set(texts)) == len(texts):
             break
-    return labels
+    return texts
 
 
 def describe_geometry(fit: Fit, given_length: float) -> str:
@@ -341,28 +356,54 @@ def _finite(name: str, value: float, low: float, high: float, unit: str, hint: s
     return value
 
 
+def _pressure(name: str, value: float) -> float:
+    """A gauge pressure [Pa] of the command line; refused below vacuum and where its magnitude
+    says bar or kPa (no muscle works below 1 kPa).
+    """
+    _finite(name, value, -1e7, 1e7, 'Pa', 'gauge pressure in Pa')
+    if value < -STANDARD_ATMOSPHERE:
+        raise CliError(
+            f'{name} {value:g} Pa gauge is below vacuum (-{STANDARD_ATMOSPHERE:g} Pa gauge = 0 Pa '
+            'absolute); gauge pressure = absolute - ambient'
+        )
+    if 0 < abs(value) < 1e3:
+        unit, scale = ('bar', 1e5) if abs(value) <= 20 else ('kPa', 1e3)
+        raise CliError(
+            f'{name} {value:g} Pa is below 1 kPa, no working pressure of a muscle: gauge '
+            f'pressure in Pa; {unit}? {value:g} {unit} = {value * scale:g} Pa'
+        )
+    return value
+
+
+def _length(value: float) -> float:
+    """A muscle length [m] of the command line; refused where its magnitude says mm or cm."""
+    if math.isfinite(value) and 10 < value <= 1e4:
+        unit, scale = ('cm', 1e-2) if value <= 100 else ('mm', 1e-3)
+        raise CliError(
+            f'--length {value:g} m is longer than any muscle: lengths are in metres; {unit}? '
+            f'{value:g} {unit} = {value * scale:g} m'
+        )
+    return _finite('--length', value, 1e-4, 10.0, 'm', 'lengths are in metres')
+
+
 def _load(args: argparse.Namespace):
-    return muscle_model(read_parameters(args.config), args.model)
+    return load_muscle(args.config, args.model)
 
 
-def _check_geometry(flags: int, length: float) -> None:
+def _check_geometry(flags: int, length: float, muscle) -> None:
     if flags & Flag.INVALID_INPUT:
         raise CliError(
-            f"length {length:g} m is beyond what this muscle's geometry allows (0 < L < "
-            f'L0/cos(Theta0))'
+            f'length {length:g} m is beyond what the geometry of {muscle.spec.name} allows: '
+            f'0 < L < {muscle.max_length:.6g} m (L0/cos(Theta0), its fibre length)'
         )
 
 
 def cmd_force(args: argparse.Namespace) -> None:
-    length = _finite(
-        '--length', args.length, 1e-4, 10.0, 'm', 'lengths are in metres (0.23, not 230)'
-    )
-    pressure = _finite(
-        '--pressure', args.pressure, -1e7, 1e7, 'Pa', 'gauge pressure in Pa (300000, not 3 bar)'
-    )
+    length, pressure = _length(args.length), _pressure('--pressure', args.pressure)
     parameters = read_parameters(args.config)
-    result = muscle_model(parameters, args.model).force(pressure, length, args.length_rate)
-    _check_geometry(int(result.flags), length)
+    muscle = _load(args)
+    result = muscle.force(pressure, length, args.length_rate)
+    _check_geometry(int(result.flags), length, muscle)
     print(
         f'force {float(result.force):.6g} N  raw {float(result.raw):.6g} N  flags '
         f'{describe(int(result.flags))}'
@@ -383,12 +424,11 @@ def cmd_force(args: argparse.Namespace) -> None:
 
 
 def cmd_pressure(args: argparse.Namespace) -> None:
-    length = _finite(
-        '--length', args.length, 1e-4, 10.0, 'm', 'lengths are in metres (0.23, not 230)'
-    )
+    length = _length(args.length)
     force = _finite('--force', args.force, -1e7, 1e7, 'N', 'force in newtons')
-    result = _load(args).pressure(force, length, args.length_rate)
-    _check_geometry(int(result.flags), length)
+    muscle = _load(args)
+    result = muscle.pressure(force, length, args.length_rate)
+    _check_geometry(int(result.flags), length, muscle)
     print(f'pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}')
 
 
@@ -416,10 +456,7 @@ def _angle(joint, angle: float) -> float:
 def cmd_joint_torque(args: argparse.Namespace) -> None:
     joint = _joint(args)
     theta = _angle(joint, args.angle)
-    p = [
-        _finite('--pressures', v, -1e7, 1e7, 'Pa', 'gauge pressures in Pa (300000, not 3 bar)')
-        for v in args.pressures
-    ]
+    p = [_pressure('--pressures', v) for v in args.pressures]
     velocity = args.velocity
     sign = math.copysign(1.0, velocity) if velocity and math.isfinite(velocity) else 0.0
     # one shot, no memory: muscle 0 shortens while θ rises (branch -1), muscle 1 lengthens (+1)
@@ -452,7 +489,14 @@ def cmd_joint_pressures(args: argparse.Namespace) -> None:
         level = (
             block.get('cocontraction', 0.0) if args.cocontraction is None else args.cocontraction
         )
-        level = _finite('--cocontraction', level, 0.0, 1e7, 'Pa', 'gauge pressure in Pa')
+        level = _finite(
+            '--cocontraction',
+            _pressure('--cocontraction', level),
+            0.0,
+            1e7,
+            'Pa',
+            'gauge pressure in Pa',
+        )
         result = joint.pressures_one(
             theta, torque, level, args.mode or block.get('cocontraction_mode', 'min')
         )
@@ -578,46 +622,67 @@ def cmd_plot(args: argparse.Namespace) -> None:
             raise CliError(f'plot {name} needs {PLOTS[name]}')
         print(f'skipped {name}: no {PLOTS[name]}')
         wanted.remove(name)
-    written = []
+    jobs = {}  # file stem: a function drawing the figure (inputs read and checked first)
     for config in args.config or ():
-        if 'joints' in read_parameters(
-            config
-        ):  # a joint file (config/example_joint.yaml): its joint figures
+        source = Path(config).stem
+        if 'joints' in read_parameters(config):  # a joint file: its joint figures
             if 'joint' not in wanted:
                 continue
             from .core.joint_file import load_joints
 
             for joint in load_joints(config):
-                written += figures.save(
-                    figures.joint_figure(joint), args.out_dir, f'joint_{joint.name}', args.format
+                jobs[f'joint_{source}_{joint.name}'] = functools.partial(
+                    figures.joint_figure, joint
                 )
             continue
         if args.figure == 'joint':
             raise CliError(f"plot joint needs a joint file (with 'joints:'), got {config}")
-        model = muscle_model(read_parameters(config), args.model)
+        model = load_muscle(config, args.model)
         fmap = shipped_force_map(model.spec.name)
-        stem = f'{model.spec.name.lower().replace("-", "_")}_{model.model.name}'
         for name, draw in (
             ('force-map', figures.force_map_figure),
             ('error-map', figures.error_map_figure),
         ):
             if name in wanted:
-                file_stem = f'{name.replace("-", "_")}_{stem}'
-                written += figures.save(draw(fmap, model), args.out_dir, file_stem, args.format)
+                stem = f'{name.replace("-", "_")}_{source}_{model.model.name}'
+                jobs[stem] = functools.partial(draw, fmap, model)
     if 'timeseries' in wanted:
         name = Path(args.bag).stem
         series = figures.read_force_series(args.bag, args.namespace)
-        written += figures.save(
-            figures.timeseries_figure(*series, f'{name}: estimated vs measured force'),
-            args.out_dir,
-            f'timeseries_{name}',
-            args.format,
+        jobs[f'timeseries_{name}'] = functools.partial(
+            figures.timeseries_figure, *series, f'{name}: estimated vs measured force'
         )
     if 'models' in wanted:
-        table = table3({m: identify_muscle(m) for m in MAPPED_MUSCLES})['table3']
-        written += figures.save(figures.models_figure(table), args.out_dir, 'models', args.format)
+        jobs['models'] = lambda: figures.models_figure(
+            table3(identify_shipped(MAPPED_MUSCLES))['table3']
+        )
+    if not args.force:
+        _refuse_existing(
+            [args.out_dir / f'{stem}.{fmt}' for stem in jobs for fmt in args.format], 'plot'
+        )
+    written = []
+    for k, (stem, draw) in enumerate(jobs.items(), 1):
+        step(k, len(jobs), f'plotting {stem}')
+        written += figures.save(draw(), args.out_dir, stem, args.format)
     for path in written:
         print(f'wrote {path}')
+
+
+def _refuse_existing(paths: Sequence[str | Path], what: str) -> None:
+    """CliError naming the first of ``paths`` that exists (outputs are overwritten only with
+    ``--force``).
+    """
+    for path in paths:
+        if os.path.lexists(path):
+            raise CliError(f'{what}: {path} exists; not overwriting it (--force overwrites)')
+
+
+def add_force_option(p: argparse.ArgumentParser, *outputs: str) -> None:
+    """``--force``; the options in ``outputs`` name files that must not exist without it
+    (checked by :func:`main` before the command runs).
+    """
+    p.add_argument('--force', action='store_true', help='overwrite existing output files')
+    p.set_defaults(outputs=outputs)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -631,6 +696,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('make-config', help='write the ROS parameter file of a shipped muscle')
     p.add_argument('muscle', choices=(*MAPPED_MUSCLES, 'DMSP-10-100'))
     p.add_argument('--out', required=True, help='output YAML path')
+    add_force_option(p, '--out')
     p.set_defaults(func=cmd_make_config)
     p = sub.add_parser(
         'fit', help='identify a model from a force map CSV (pressure_pa,length_m,force_n) or a bag'
@@ -659,6 +725,7 @@ def build_parser() -> argparse.ArgumentParser:
         '--no-calibrate-pressure', action='store_true', help='assume no pressure-sensor offset'
     )
     p.add_argument('--out', required=True, help='output ROS parameter YAML')
+    add_force_option(p, '--out')
     add_fit_bag_options(p)
     p.set_defaults(func=cmd_fit)
     p = sub.add_parser(
@@ -669,6 +736,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--data', required=True, help='force map CSV (pressure_pa,length_m,force_n)')
     p.add_argument('--model', default=None, help="override the file's default model")
     p.add_argument('--csv', help='write each point: measured, model, error [N] and flags')
+    add_force_option(p, '--csv')
     p.set_defaults(func=cmd_evaluate)
     add_bag_commands(sub)
     add_joint_commands(sub)
@@ -713,6 +781,7 @@ def build_parser() -> argparse.ArgumentParser:
         '--out-dir', type=Path, default=Path('.'), help='directory to write into (default: .)'
     )
     p.add_argument('--format', nargs='+', choices=('png', 'svg'), default=('png', 'svg'))
+    add_force_option(p)
     p.set_defaults(func=cmd_plot)
     return parser
 
@@ -720,6 +789,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        for option in () if getattr(args, 'force', True) else args.outputs:
+            _refuse_existing(
+                [getattr(args, option[2:])] if getattr(args, option[2:]) else [], option
+            )
         args.func(args)
     except BrokenPipeError:  # the reader stopped early (`| head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the Python docs' idiom

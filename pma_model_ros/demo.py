@@ -24,9 +24,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
+from .core.muscle_model import MuscleModel
 from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import muscle_model, read_parameters
-from .core.shipped_data import shipped_force_map
+from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map
 from .tools import node_process
 
 NAMESPACE = '/pma_demo'
@@ -138,10 +139,31 @@ def _line(t: float, c: Comparison) -> str:
     )
 
 
-def run(duration: float, config: Path) -> int:
+def demo_muscle(config: Path) -> tuple[dict, MuscleModel]:
+    """The parameters and muscle of ``config``; ValueError (one line, naming the file) for a file
+    the demo cannot run: a joint file, several muscles, a muscle without a shipped map.
+    """
     params = read_parameters(config)
-    model = muscle_model(params)
-    identified = params['models'][model.model.name]['err']
+    one = 'the demo runs one muscle: --config config/dmsp_10_250.yaml or config/dmsp_20_300.yaml'
+    if 'joints' in params:
+        raise ValueError(f"{config} is a joint file ('joints:', for joint_node); {one}")
+    if params.get('muscles'):
+        raise ValueError(f"{config} has several muscles ('muscles:'); {one}")
+    try:
+        model = muscle_model(params)
+    except ValueError as err:
+        raise ValueError(f'{config}: {err}') from None
+    if model.spec.name not in MAPPED_MUSCLES:
+        raise ValueError(
+            f'{config}: muscle.name {model.spec.name}: the simulator needs a shipped force map '
+            f'({", ".join(MAPPED_MUSCLES)})'
+        )
+    return params, model
+
+
+def run(duration: float, config: Path) -> int:
+    params, model = demo_muscle(config)
+    identified = params['models'][model.model.name].get('err', float('nan'))
     comparison = Comparison(shipped_force_map(model.spec.name).max_force)
     print(
         f'pma_model_ros demo: simulated {model.spec.name} (truth = its measured map) vs '
@@ -239,9 +261,7 @@ def _summary(c: Comparison, monitor: Monitor, codes: dict[str, int], identified:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog='python -m pma_model_ros.demo', description=__doc__.splitlines()[0]
-    )
+    parser = argparse.ArgumentParser(prog='scripts/demo', description=__doc__.splitlines()[0])
     parser.add_argument('--duration', type=float, default=20.0, help='run time [s] (default 20)')
     parser.add_argument(
         '--config',
@@ -252,7 +272,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.duration <= 0:
         parser.error('--duration must be > 0')
-    return run(args.duration, args.config or default_config())
+    config = args.config or default_config()
+    try:
+        demo_muscle(config)  # a file the demo cannot run: one line, before any node starts
+    except (ValueError, OSError) as err:
+        print(f'{parser.prog}: error: {err}', file=sys.stderr)
+        return 2
+    return run(args.duration, config)
 
 
 if __name__ == '__main__':

@@ -410,7 +410,7 @@ def text(content: str) -> Callable[[Path], Path]:
 FILES = {
     'file-missing-key': (
         edited('inner_diameter: 0.01, ', ''),
-        "missing keys ['inner_diameter']",
+        "'muscle.inner_diameter' is missing",
         "'muscle.inner_diameter' is not set",
     ),
     'file-wrong-type': (

@@ -49,6 +49,18 @@ def test_round_trip_and_storage(tmp_path, storage):
     assert storage_of(file) == storage and len(list(read(file))) == 5
 
 
+@pytest.mark.parametrize('name, storage', [('run1.mcap', 'mcap'), ('run1.db3', 'sqlite3')])
+def test_a_name_with_a_storage_suffix_is_that_one_file(tmp_path, name, storage):
+    """``--record run1.mcap`` makes run1.mcap (it made run1.mcap/run1.mcap.mcap)."""
+    with BagWriter(tmp_path / name) as bag:
+        conn = bag.topic('/m/pressure', FLUID_PRESSURE, [SENSOR_DATA])
+        bag.write(conn, 10**9, pressure_msg(TYPESTORE, 1, 2e5))
+    assert [p.name for p in tmp_path.iterdir()] == [name] and (tmp_path / name).is_file()
+    assert storage_of(tmp_path / name) == storage and len(list(read(tmp_path / name))) == 1
+    with pytest.raises(BagError, match='run2.mcap: a .mcap file cannot hold sqlite3'):
+        BagWriter(tmp_path / 'run2.mcap', 'sqlite3')
+
+
 def test_storage_for_new_bags():
     assert storage_for('run.mcap') == 'mcap' and storage_for('run.db3') == 'sqlite3'
     assert storage_for('run') == 'mcap' and storage_for('run.mcap', 'sqlite3') == 'sqlite3'

@@ -11,6 +11,7 @@ from pma_model_ros.bags.calibrate import (
     quasi_static,
     QuasiStatic,
     Samples,
+    SIMULATOR_SETTINGS,
     window_slopes,
 )
 from pma_model_ros.bags.synthetic import record_simulation
@@ -125,9 +126,12 @@ def test_cli_fit_from_bag(tmp_path, capsys):
 
 
 def test_cli_fit_from_bad_bag(tmp_path, capsys):
-    bag = record_simulation(
-        tmp_path / 'run', 5.0, '/cal', rate=50.0
-    )  # the default sweep never holds still
+    """30 s of the default sweep (the README's old recording): 6 samples pass, at the ends of the
+    pressure ramps (65 kPa/s, over the bound), which used to fail inside the fit ('a force map
+    needs at least 3 points'); the error says which bounds fail and which settings record a run
+    that fits.
+    """
+    bag = record_simulation(tmp_path / 'run', 30.0, '/cal')
     out = tmp_path / 'fit.yaml'
     assert (
         main(
@@ -146,7 +150,15 @@ def test_cli_fit_from_bad_bag(tmp_path, capsys):
         == 2
     )
     err = capsys.readouterr().err
-    assert err.count('\n') == 1 and 'are quasi-static' in err and not out.exists()
+    assert err.count('\n') == 1 and not out.exists()
+    assert err.startswith(
+        f'pma-model: error: {bag}: 6 of 3000 samples are quasi-static over 1 s windows (|dp/dt| > '
+        '50000 Pa/s at 2880 of them (median 64500 Pa/s), |dL/dt| > 0.001 m/s at 2958 of them'
+    )  # 650 kPa over a 10 s half-sweep; 52 mm over a 2 s half-period
+    assert err.endswith(
+        f'(simulator_node: {SIMULATOR_SETTINGS}), or loosen --max-pressure-rate / '
+        '--max-length-rate\n'
+    )
     assert (
         main(
             [

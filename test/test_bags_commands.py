@@ -3,6 +3,9 @@
 What a user mistypes gets one line and exit code 2.
 """
 
+import subprocess
+import sys
+
 import pytest
 
 from pma_model_ros.cli import main
@@ -60,3 +63,24 @@ def test_missing_bag_is_one_line_exit_2(capsys, tmp_path):
     )
     err = capsys.readouterr().err
     assert code == 2 and err.count('\n') == 1 and not (tmp_path / 'out').exists()
+
+
+def test_estimate_replaces_an_existing_output_only_with_force(tmp_path):
+    """In a process of its own: estimate_bag's progress bar holds the sys.stderr of its import."""
+    from pma_model_ros.bags.bag_io import read
+    from pma_model_ros.bags.synthetic import record_simulation
+
+    bag = record_simulation(tmp_path / 'run', 1.0, '/m1', rate=50.0)
+    out = tmp_path / 'est.mcap'
+    out.write_text('an older result')
+    argv = [sys.executable, '-m', 'pma_model_ros.cli', 'bag', 'estimate', str(bag)]
+    argv += ['--config', str(CONFIGS['DMSP-10-250']), '--out', str(out)]
+    refused = subprocess.run(argv, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == 2 and refused.stderr == (
+        f'pma-model: error: --out: {out} exists; not overwriting it (--force overwrites)\n'
+    )
+    assert subprocess.run([*argv, '--force'], timeout=60).returncode == 0
+    assert (
+        sum(1 for topic, *_ in read(out) if topic == '/m1/force_estimate') == 99
+    )  # 2 x 50 inputs, the first unpaired
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['est.mcap', 'run']

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pma_model_ros.cli import main
+from pma_model_ros.cli import length_headers, main
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
@@ -30,6 +30,42 @@ def test_reproduce_json(capsys):
             assert set(row) == {'paper', 'paper_protocol', 'best', 'cv'}
             assert row['best'] <= row['paper'] + 0.05
     assert table['DMSP-20-300']['martens']['paper_protocol'] == pytest.approx(2.35, abs=0.05)
+
+
+@pytest.mark.parametrize('muscle', list(CONFIGS))
+def test_make_config_writes_the_shipped_config_byte_for_byte(tmp_path, muscle):
+    """config/*.yaml are what make-config writes (after test_reproduce_json: identification is
+    cached, so this costs a file write).
+    """
+    out = tmp_path / 'config.yaml'
+    assert main(['make-config', muscle, '--out', str(out)]) == 0
+    assert out.read_bytes() == CONFIGS[muscle].read_bytes()
+
+
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['fit', '--data', 'MAP', '--muscle', 'SPEC', '--model', 'martens', '--out', 'OUT'],
+        ['make-config', 'DMSP-10-250', '--out', 'OUT'],
+        ['evaluate', '--config', 'CONFIG', '--data', 'MAP', '--csv', 'OUT'],
+    ],
+)
+def test_outputs_are_never_overwritten_without_force(tmp_path, capsys, argv):
+    """Refused before any work, the file untouched; the option is named."""
+    out = tmp_path / 'out'
+    out.write_text('mine')
+    paths = {
+        'MAP': REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv',
+        'SPEC': REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml',
+        'CONFIG': CONFIGS['DMSP-10-250'],
+        'OUT': out,
+    }
+    assert main([str(paths.get(a, a)) for a in argv]) == 2
+    option = argv[argv.index('OUT') - 1]
+    assert capsys.readouterr().err == (
+        f'pma-model: error: {option}: {out} exists; not overwriting it (--force overwrites)\n'
+    )
+    assert out.read_text() == 'mine'
 
 
 def test_force_and_pressure_round_trip(capsys):
@@ -129,6 +165,43 @@ def test_bad_queries_exit_2_without_traceback(args, message):
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and message in proc.stderr
     assert 'Traceback' not in proc.stderr and proc.stderr.count('\n') == 1
+
+
+@pytest.mark.parametrize(
+    'args, message',
+    [
+        (
+            ['--pressure', '3'],
+            '--pressure 3 Pa is below 1 kPa, no working pressure of a muscle: '
+            'gauge pressure in Pa; bar? 3 bar = 300000 Pa',
+        ),
+        (
+            ['--pressure', '450'],
+            '--pressure 450 Pa is below 1 kPa, no working pressure of a muscle: gauge pressure '
+            'in Pa; kPa? 450 kPa = 450000 Pa',
+        ),
+        (
+            ['--pressure', '-300000'],
+            '--pressure -300000 Pa gauge is below vacuum (-101325 Pa '
+            'gauge = 0 Pa absolute); gauge pressure = absolute - ambient',
+        ),
+        (
+            ['--length', '23'],
+            '--length 23 m is longer than any muscle: lengths are in metres; cm? 23 cm = 0.23 m',
+        ),
+        (
+            ['--length', '0.3'],
+            'length 0.3 m is beyond what the geometry of DMSP-10-250 allows: '
+            '0 < L < 0.284744 m (L0/cos(Theta0), its fibre length)',
+        ),
+    ],
+)
+def test_a_value_in_the_wrong_unit_is_refused_with_the_hint_of_its_case(capsys, args, message):
+    """L0/cos(Theta0) of the DMSP-10-250: 0.25 m / cos(28.6 deg) = 0.284744 m."""
+    values = {'--pressure': '300000', '--length': '0.23'} | dict([args])
+    argv = ['force', '--config', str(CONFIGS['DMSP-10-250'])]
+    assert main(argv + [a for kv in values.items() for a in kv]) == 2
+    assert capsys.readouterr().err == f'pma-model: error: {message}\n'
 
 
 @pytest.mark.parametrize(
@@ -304,7 +377,8 @@ def test_joint_envelope_is_symmetric_for_a_symmetric_joint(capsys):
     'args, message',
     [
         (['torque', '--angle', '30', '--pressures', '1e5', '1e5'], 'radians, not degrees'),
-        (['torque', '--angle', '0', '--pressures', '3', 'nan'], 'gauge pressures in Pa'),
+        (['torque', '--angle', '0', '--pressures', '3e5', 'nan'], '--pressures nan is outside'),
+        (['torque', '--angle', '0', '--pressures', '4', '3'], '--pressures 4 Pa is below 1 kPa'),
         (
             ['pressures', '--angle', '0', '--torque', '1', '--cocontraction', '-5'],
             '--cocontraction',
@@ -421,7 +495,7 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
     """
     spec = str(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml')
     fmap = shipped_force_map('DMSP-10-250')
-    flags = ['--no-calibrate-length', '--model', 'martens', '--muscle', spec]
+    flags = ['--no-calibrate-length', '--model', 'martens', '--muscle', spec, '--force']
     out = tmp_path / 'all.yaml'
     assert (
         main(['fit', '--data', _map_csv(tmp_path / 'map.csv', fmap), *flags, '--out', str(out)])
@@ -451,7 +525,12 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
         )
         assert main(['fit', '--data', rest, *flags, '--out', str(out)]) == 0
         points = tmp_path / 'points.csv'
-        assert main(['evaluate', '--config', str(out), '--data', held, '--csv', str(points)]) == 0
+        assert (
+            main(
+                ['evaluate', '--config', str(out), '--data', held, '--csv', str(points), '--force']
+            )
+            == 0
+        )
         capsys.readouterr()
         errors = [float(row.split(',')[4]) for row in points.read_text().splitlines()[1:]]
         assert 100 * max(map(abs, errors)) / fmap.max_force == pytest.approx(printed, abs=0.006)
@@ -535,3 +614,8 @@ def test_evaluate_bad_input_is_one_line_exit_2(tmp_path, capsys, data, config, m
     )
     err = capsys.readouterr().err
     assert message in err and err.count('\n') == 1
+
+
+def test_length_headers_differ_where_lengths_do():
+    assert length_headers([0.25, 0.234, 0.219]) == ['0.250', '0.234', '0.219']
+    assert length_headers([0.23271, 0.23268, 0.215]) == ['0.23271', '0.23268', '0.21500']

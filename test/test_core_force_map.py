@@ -56,3 +56,21 @@ def test_millimetres_are_refused():
 def test_a_subset_keeps_the_chosen_points():
     fmap = ForceMap([0, 1e5, 2e5, 3e5], [0.2, 0.2, 0.25, 0.25], [0, 50, 90, 120])
     assert fmap.subset(np.array([False, True, True, True])).force.tolist() == [50, 90, 120]
+
+
+@pytest.mark.parametrize(
+    ('pressures', 'lengths', 'hint'),
+    [
+        ([0, 3, 6.5], [0.2, 0.2, 0.25], r'reaches only 6.5 Pa.*; bar\? multiply by 1e5$'),
+        ([0, 300, 650], [0.2, 0.2, 0.25], r'reaches only 650 Pa.*; kPa\? multiply by 1e3$'),
+        ([-5e3, 3e5, 6e5], [0.2, 0.2, 0.25], r'>= 0 Pa \(absolute - ambient\), got -5000$'),
+        ([-6e5, 3e5, 6e5], [0.2, 0.2, 0.25], r'got -600000; that is below vacuum$'),
+        ([0, 3e5, 6e5], [20, 20, 25], r'got 20..25; centimetres\? divide by 100$'),
+    ],
+)
+def test_a_csv_in_other_units_gets_the_hint_of_its_case(pressures, lengths, hint):
+    text = 'pressure_pa,length_m,force_n\n' + ''.join(
+        f'{p},{L},{F}\n' for p, L, F in zip(pressures, lengths, [0, 50, 90])
+    )
+    with pytest.raises(ValueError, match=hint):
+        parse_force_map_csv(text, 'map.csv')

@@ -46,16 +46,29 @@ def test_dmsp_10_250_numbers():
     'change, message',
     [
         ({'nominal_length': -0.25}, 'nominal_length'),
-        ({'inner_diameter': 10.0}, 'metres'),
-        ({'fiber_angle': 28.6}, 'fiber_angle'),
+        ({'inner_diameter': 10.0}, 'inner_diameter must be in metres .* millimetres'),
+        ({'membrane_thickness': 1.8}, 'membrane_thickness must be in metres .* millimetres'),
+        ({'fiber_angle': 28.6}, r'fiber_angle .*; degrees\? multiply by pi/180'),
         ({'max_pressure': '8 bar'}, 'max_pressure'),
-        ({'colour': 'black'}, 'unknown keys'),
+        ({'max_pressure': 8}, r'max_pressure .* got 8; bar\? multiply by 1e5'),
+        ({'max_pressure': 800}, r'max_pressure .* got 800; kPa\? multiply by 1e3'),
+        ({'colour': 'black'}, "unknown key 'muscle.colour'$"),
     ],
 )
 def test_bad_specs_are_rejected(change, message):
     data = shipped_spec('DMSP-10-250').to_mapping() | change
     with pytest.raises(ValueError, match=message):
         MuscleSpec.from_mapping(data)
+
+
+def test_a_misspelled_spec_key_is_named_once_with_the_right_one():
+    data = shipped_spec('DMSP-10-250').to_mapping()
+    data['nominal_lenght'] = data.pop('nominal_length')
+    with pytest.raises(ValueError) as err:
+        MuscleSpec.from_mapping(data)
+    assert str(err.value) == (
+        "unknown key 'muscle.nominal_lenght' (did you mean 'muscle.nominal_length'?)"
+    )
 
 
 def test_user_spec_yaml(tmp_path):

@@ -43,7 +43,7 @@ def test_node_settings_default_to_the_standard_atmosphere_and_the_muscles_name(p
 @pytest.mark.parametrize(
     ('change', 'message'),
     [
-        (lambda p: p['models'].pop('martens'), 'models.martens is missing'),
+        (lambda p: p['models'].pop('martens'), "'models.martens' is missing"),
         (lambda p: p.update(length_range=[0.2]), 'length_range must be'),
         (lambda p: p.update(pressure_range=[1e5, 6e5]), 'pressure_range must be'),
         (lambda p: p['models']['martens'].update(pressure_offset=1e6), 'pressure_offset must be'),
@@ -66,3 +66,65 @@ def test_many_muscles_each_under_its_name(params):
         all_node_settings(both | {'right': one | {'joint_name': 'left'}})
     with pytest.raises(ValueError, match="muscle 'right': no parameters"):
         all_node_settings({'muscles': ['left', 'right'], 'left': one})
+
+
+@pytest.mark.parametrize(
+    ('file', 'edit', 'named'),
+    [
+        (
+            'dmsp_10_250.yaml',
+            ('    model: martens', '    modle: martens'),
+            "unknown key 'modle' (did you mean 'model'?)",
+        ),
+        (
+            'dmsp_10_250.yaml',
+            ('    length_range:', '    lenght_range:'),
+            "unknown key 'lenght_range' (did you mean 'length_range'?)",
+        ),
+        (
+            'dmsp_10_250.yaml',
+            ('    max_input_age: 0.1', '    max_input_agee: 0.1'),
+            "unknown key 'max_input_agee' (did you mean 'max_input_age'?)",
+        ),
+        (
+            'dmsp_10_250.yaml',
+            ('      martens:', '      martins:'),
+            "unknown key 'models.martins' (did you mean 'models.martens'?)",
+        ),
+        (
+            'example_multi_muscle.yaml',
+            ('    biceps:\n      muscle:', '    biceps:\n      muscel:'),
+            "unknown key 'biceps.muscel' (did you mean 'biceps.muscle'?)",
+        ),
+        (
+            'example_joint.yaml',
+            ('      radius:', '      raduis:'),
+            "unknown key 'elbow.raduis' (did you mean 'elbow.radius'?)",
+        ),
+        (
+            'example_joint.yaml',
+            ('length_at_zero: 0.234}\n      extensor', 'length_at_zeroo: 0.234}\n      extensor'),
+            "unknown key 'elbow.flexor.length_at_zeroo' "
+            "(did you mean 'elbow.flexor.length_at_zero'?)",
+        ),
+    ],
+)
+def test_a_misspelled_key_is_named_with_the_file_and_the_right_key(tmp_path, file, edit, named):
+    text = (REPO / 'config' / file).read_text()
+    assert edit[0] in text
+    path = tmp_path / file
+    path.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(ValueError) as err:
+        read_parameters(path)
+    assert str(err.value) == f'{path}: {named}'
+
+
+def test_the_shipped_files_have_no_unknown_key():
+    for path in (REPO / 'config').glob('*.yaml'):
+        read_parameters(path)
+
+
+def test_a_muscle_spec_given_as_parameter_file_is_named_so():
+    spec = REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml'
+    with pytest.raises(ValueError, match='is a muscle spec, not a ROS parameter file'):
+        read_parameters(spec)

@@ -14,6 +14,8 @@ from pma_model_ros.core.shipped_data import (
     shipped_spec,
 )
 
+from conftest import REPO
+
 
 @pytest.mark.parametrize(
     # Festo's catalogue name DMSP-<inner diameter mm>-<nominal length mm>.
@@ -47,3 +49,12 @@ def test_unknown_or_unmapped_muscles_are_named():
 
 def test_sarosi_tables_are_a_mapping():
     assert isinstance(sarosi_tables(), dict) and sarosi_tables()
+
+
+@pytest.mark.parametrize('muscle', SHIPPED_MUSCLES)
+def test_the_spec_files_in_config_are_the_shipped_specs(muscle):
+    """config/muscles/ holds, where a user looks, the very spec files of core/data."""
+    name = f'{SHIPPED_MUSCLES[muscle]}.yaml'
+    assert (REPO / 'config' / 'muscles' / name).read_bytes() == (
+        resources.files('pma_model_ros.core').joinpath('data', name).read_bytes()
+    )

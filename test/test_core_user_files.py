@@ -11,6 +11,8 @@ from pma_model_ros.core.user_files import (
     read_user_file,
 )
 
+from conftest import REPO
+
 
 def test_reads_utf8_text(tmp_path):
     path = tmp_path / 'note.yaml'
@@ -70,3 +72,13 @@ def test_a_spec_file_top_level_or_under_muscle(tmp_path):
     for path in (flat, nested):
         read = read_spec_yaml(path)
         assert (read.name, read.nominal_length, read.inner_diameter) == ('DMSP-20-300', 0.3, 0.02)
+
+
+def test_a_ros_parameter_file_as_spec_names_the_spec_file():
+    config = REPO / 'config' / 'dmsp_20_300.yaml'
+    with pytest.raises(ValueError) as err:
+        read_spec_yaml(config)
+    assert str(err.value) == (
+        f'{config} is a ROS parameter file, not a muscle spec; the spec of its muscle '
+        f'DMSP-20-300 is {REPO / "config" / "muscles" / "dmsp_20_300.yaml"}'
+    )

@@ -205,11 +205,14 @@ def test_plot_joint_writes_the_joint_figure(tmp_path, capsys):
     assert main(['plot', 'joint', '--config', joint_file, '--out-dir', str(tmp_path)]) == 0
     assert capsys.readouterr().out.split() == [
         'wrote',
-        str(tmp_path / 'joint_elbow.png'),
+        str(tmp_path / 'joint_example_joint_elbow.png'),
         'wrote',
-        str(tmp_path / 'joint_elbow.svg'),
+        str(tmp_path / 'joint_example_joint_elbow.svg'),
     ]
-    assert_written([tmp_path / 'joint_elbow.png', tmp_path / 'joint_elbow.svg'], 'joint_elbow')
+    assert_written(
+        [tmp_path / 'joint_example_joint_elbow.png', tmp_path / 'joint_example_joint_elbow.svg'],
+        'joint_example_joint_elbow',
+    )
     assert (
         main(
             ['plot', 'joint', '--config', str(CONFIGS['DMSP-10-250']), '--out-dir', str(tmp_path)]
@@ -217,3 +220,26 @@ def test_plot_joint_writes_the_joint_figure(tmp_path, capsys):
         == 2
     )
     assert 'plot joint needs a joint file' in capsys.readouterr().err
+
+
+def test_plot_names_carry_the_input_and_never_overwrite_without_force(tmp_path, capsys):
+    """A user's fit of the DMSP-10-250 plotted next to the shipped figures keeps its own name; an
+    existing figure is refused (nothing drawn) unless --force.
+    """
+    mine = tmp_path / 'mine.yaml'
+    mine.write_bytes(CONFIGS['DMSP-10-250'].read_bytes())
+    args = ['plot', 'force-map', '--config', str(mine), '--out-dir', str(tmp_path)]
+    (tmp_path / 'force_map_mine_martens.svg').write_text('mine')
+    assert main([*args, '--format', 'png']) == 0
+    assert capsys.readouterr().out.split() == [
+        'wrote',
+        str(tmp_path / 'force_map_mine_martens.png'),
+    ]
+    assert main(args) == 2
+    assert capsys.readouterr().err == (
+        f'pma-model: error: plot: {tmp_path / "force_map_mine_martens.png"} exists; not '
+        'overwriting it (--force overwrites)\n'
+    )
+    assert (tmp_path / 'force_map_mine_martens.svg').read_text() == 'mine'
+    assert main([*args, '--force']) == 0
+    assert (tmp_path / 'force_map_mine_martens.svg').read_text() != 'mine'

@@ -14,9 +14,11 @@ files; ``header.stamp.sec``, ``.nanosec``).  Every user error (missing or damage
 bag, a topic that is absent or of another type, message definitions that differ from
 Jazzy's) raises :class:`BagError`, whose text is one line.
 
-:class:`BagWriter` writes a new bag directory atomically: it is written under a
-temporary name beside the target and renamed on :meth:`BagWriter.close`, so an
-interrupted or failed run never leaves a partial bag at the target path.
+:class:`BagWriter` writes a new bag atomically: a bag directory (``run1``: ``run1/run1.mcap``
+and ``metadata.yaml``), or the one storage file a name ending in ``.mcap`` / ``.db3`` asks for
+(``run1.mcap``).  It is written under a temporary name beside the target and renamed on
+:meth:`BagWriter.close`, so an interrupted or failed run never leaves a partial bag at the target
+path.
 """
 
 from __future__ import annotations
@@ -267,7 +269,8 @@ class BagWriter:
     """A new rosbag2 bag at ``out``, written under a temporary name beside it; renamed by
     :meth:`close`.
 
-    ``out`` must not exist.  Use as a context manager (an exception aborts: nothing is
+    ``out`` must not exist; a name ending in ``.mcap`` or ``.db3`` gets that storage file alone,
+    any other name a bag directory.  Use as a context manager (an exception aborts: nothing is
     left at ``out``) or call :meth:`close` / :meth:`abort` yourself.
     """
 
@@ -278,11 +281,15 @@ class BagWriter:
             raise BagError(f'{self.out} exists already; not overwriting it')
         if not self.out.parent.is_dir():
             raise BagError(f'directory {self.out.parent} does not exist')
+        self._file = self.out.suffix in _SUFFIXES  # one storage file, not a directory
+        if self._file and _SUFFIXES[self.out.suffix] != self.storage:
+            raise BagError(f'{self.out}: a {self.out.suffix} file cannot hold {self.storage}')
         self._tmp = Path(
             tempfile.mkdtemp(prefix=f'.{self.out.name}.', suffix='.partial', dir=self.out.parent)
         )
+        self._bag = self._tmp / (self.out.stem if self._file else self.out.name)
         self._writer = Writer(
-            self._tmp / self.out.name,
+            self._bag,
             version=Writer.VERSION_LATEST,
             storage_plugin=STORAGES[self.storage],
         )
@@ -328,7 +335,8 @@ class BagWriter:
         """Finish the bag and move it to ``out``; the path."""
         try:
             self._writer.close()
-            (self._tmp / self.out.name).rename(self.out)
+            storage_file = next(p for p in self._bag.iterdir() if p.name != 'metadata.yaml')
+            (storage_file if self._file else self._bag).rename(self.out)
         except (WriterError, OSError) as err:
             self.abort()
             raise BagError(f'cannot write {self.out}: {_one_line(err)}') from None

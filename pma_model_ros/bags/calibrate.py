@@ -37,6 +37,7 @@ from ..core.engine import seconds
 from ..core.force_map import ForceMap
 from ..core.hysteresis import branches
 from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
+from ..core.progress import Meter
 from .bag_io import (
     BagError,
     connections_of,
@@ -51,6 +52,10 @@ from .bag_io import (
 from .estimate import muscle_namespace
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope
+#: simulator_node's settings of a recording that fits (the README's, run verbatim by a test): five
+#: lengths, each held 7.5 s of every 10 s, while the pressure sweeps the map's range in 14 s
+#: (46 kPa/s); about 70 s.
+SIMULATOR_SETTINGS = '-p trajectory:=steps -p steps:=5 -p period:=10.0 -p sweep_period:=28.0'
 PRESSURE_CELL = 5e3  #: [Pa] pressure side of an averaging cell
 LENGTH_CELL = 0.5e-3  #: [m] length side of an averaging cell
 
@@ -144,7 +149,10 @@ def read_samples(
             reader, {pressure, state, force_topic}, {pressure: FLUID_PRESSURE, state: JOINT_STATE}
         )
         series: dict[str, list[tuple[float, float]]] = {'pressure': [], 'length': [], 'force': []}
-        for connection, _, data in messages(reader, connections):
+        meter = Meter(sum(c.msgcount for c in connections), f'reading {Path(bag).name} (messages)')
+        for count, (connection, _, data) in enumerate(messages(reader, connections), 1):
+            if count % 1000 == 0:
+                meter.update(count)
             msg = deserialize(data, connection)
             stamp = seconds(msg.header.stamp)
             if connection.topic == pressure:
@@ -157,6 +165,7 @@ def read_samples(
                     series['length'].append((stamp, msg.position[i]))
                 if connection.topic == force_topic and i < len(msg.effort):
                     series['force'].append((stamp, msg.effort[i]))
+        meter.update(meter.total)
     return _align(series, str(bag), joint, force_topic)
 
 
@@ -234,11 +243,44 @@ def force_map_from_bag(
     mask = quasi_static(samples, criterion)
     if two_branches:
         mask &= samples.direction != 0
-    if mask.sum() < 3:
-        raise BagError(
-            f'{bag}: only {int(mask.sum())} of {mask.size} samples are quasi-static '
-            f'(|dL/dt| <= {criterion.max_length_rate:g} m/s and |dp/dt| <= '
-            f'{criterion.max_pressure_rate:g} Pa/s over {criterion.window:g} s); record slower or '
-            'loosen the criterion'
-        )
-    return Calibration(cell_means(samples, mask), int(mask.size), int(mask.sum()))
+    try:
+        force_map = cell_means(samples, mask)
+        force_map.subset(force_map.force > 0)  # the fit's points: force at two lengths or more
+    except ValueError:
+        raise BagError(_too_few(str(bag), samples, mask, criterion)) from None
+    return Calibration(force_map, int(mask.size), int(mask.sum()))
+
+
+def _too_few(bag: str, samples: Samples, mask: np.ndarray, criterion: QuasiStatic) -> str:
+    """Why the quasi-static samples cannot be fitted, and which recording would give more."""
+    pulling = mask & (samples.force > 0)
+    held = np.unique(np.round(samples.length[pulling] / LENGTH_CELL)) * LENGTH_CELL
+    at = ', '.join(f'{v:.4f}' for v in held[:6]) + (' ...' if held.size > 6 else '')
+    return (
+        f'{bag}: {int(mask.sum())} of {mask.size} samples are quasi-static over '
+        f'{criterion.window:g} s windows ({_why_not(samples, criterion)}); '
+        f'{int(pulling.sum())} of them with force, at {held.size} length(s)'
+        f'{f" ({at} m)" if held.size else ""}: too few to fit (force in 3 or more cells of '
+        f'{PRESSURE_CELL / 1e3:g} kPa x {LENGTH_CELL * 1e3:g} mm, over 2 lengths or more). '
+        'Record holding each length while the pressure ramps at most '
+        f'{criterion.max_pressure_rate:g} Pa/s (simulator_node: {SIMULATOR_SETTINGS}), or loosen '
+        '--max-pressure-rate / --max-length-rate'
+    )
+
+
+def _why_not(samples: Samples, criterion: QuasiStatic) -> str:
+    """Which rate bound the samples fail, how many, and their median rate."""
+    dl, _ = window_slopes(samples.time, samples.length, criterion.window)
+    dp, _ = window_slopes(samples.time, samples.pressure, criterion.window)
+    reasons = []
+    for rate, bound, what, unit, digits in (
+        (np.abs(dp), criterion.max_pressure_rate, '|dp/dt|', 'Pa/s', '.0f'),
+        (np.abs(dl), criterion.max_length_rate, '|dL/dt|', 'm/s', '.2g'),
+    ):
+        over = rate > bound
+        if over.any():
+            reasons.append(
+                f'{what} > {bound:g} {unit} at {int(over.sum())} of them (median '
+                f'{np.nanmedian(rate):{digits}} {unit})'
+            )
+    return ', '.join(reasons) or 'the rates are within the bounds'

@@ -7,6 +7,11 @@ so the rest of ``pma-model`` works without them.
 from __future__ import annotations
 
 import argparse
+from contextlib import contextmanager
+from pathlib import Path
+import shutil
+import tempfile
+from typing import Iterator
 
 from ..core.force_map import ForceMap
 from ..core.geometry import MuscleSpec
@@ -15,6 +20,8 @@ from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     """Add ``bag estimate`` and ``bag play`` to the ``pma-model`` subparsers."""
+    from ..cli import add_force_option
+
     bag = sub.add_parser(
         'bag', help='rosbag2 recordings (mcap, sqlite3): offline estimation, replay'
     )
@@ -33,8 +40,13 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         '--config', required=True, help='model_node parameter file, e.g. config/dmsp_10_250.yaml'
     )
-    p.add_argument('--out', required=True, help='output bag directory (must not exist)')
+    p.add_argument(
+        '--out',
+        required=True,
+        help='output bag: a directory, or one storage file if it ends in .mcap or .db3',
+    )
     p.add_argument('--csv', help='also write the estimates to this CSV file')
+    add_force_option(p, '--out', '--csv')
     p.add_argument(
         '--storage', choices=('mcap', 'sqlite3'), help="output storage (default: the input's)"
     )
@@ -96,16 +108,17 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
     if args.pressure_reference:
         parameters['pressure_reference'] = args.pressure_reference
     settings = all_node_settings(parameters, args.model)
-    summary = estimate_bag(
-        args.bag,
-        settings,
-        args.out,
-        names=parameters.get('muscles') or [],
-        combined=parameters.get('input_mode') == 'combined',
-        storage=args.storage,
-        namespace=args.namespace,
-        csv=args.csv,
-    )
+    with replacing(Path(args.out)) as out:
+        summary = estimate_bag(
+            args.bag,
+            settings,
+            out,
+            names=parameters.get('muscles') or [],
+            combined=parameters.get('input_mode') == 'combined',
+            storage=args.storage,
+            namespace=args.namespace,
+            csv=args.csv,
+        )
     rejected = sum(n for key, n in summary.counts.items() if key.startswith('rejected'))
     print(
         f'{summary.namespace}: {summary.messages} messages read; wrote {summary.estimates} '
@@ -114,6 +127,26 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
         f'inputs rejected) '
         f'-> {args.out}' + (f' and {args.csv}' if args.csv else '')
     )
+
+
+@contextmanager
+def replacing(out: Path) -> Iterator[Path]:
+    """Where to write a new bag that replaces ``out`` (``--force``): a fresh path beside it, moved
+    to ``out`` only when the writing succeeded; ``out`` itself if it does not exist.
+    """
+    if not (out.exists() or out.is_symlink()):
+        yield out
+        return
+    tmp = Path(tempfile.mkdtemp(prefix=f'.{out.name}.', suffix='.replacing', dir=out.parent))
+    try:
+        yield tmp / out.name
+        if out.is_dir() and not out.is_symlink():
+            shutil.rmtree(out)
+        else:
+            out.unlink()
+        (tmp / out.name).rename(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def cmd_bag_play(args: argparse.Namespace) -> None:
@@ -204,7 +237,9 @@ def bag_force_map(
         two_branches,
     )
     print(
-        f'{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static, '
+        f'{args.bag}: {calibration.kept} of {calibration.samples} samples quasi-static '
+        f'(|dL/dt| <= {criterion.max_length_rate:g} m/s, |dp/dt| <= '
+        f'{criterion.max_pressure_rate:g} Pa/s over {criterion.window:g} s), '
         f'{calibration.force_map.force.size} cells'
     )
     return calibration.force_map

@@ -13,6 +13,7 @@ estimate`` assumes) and at ``clock`` Hz in between.  Only this module needs rclp
 from __future__ import annotations
 
 import importlib
+import sys
 import time
 from typing import Collection
 
@@ -23,6 +24,7 @@ from .bag_io import BagError, connections_of, messages, open_bag
 _SENSOR_TOPICS = ('pressure', 'muscle_state')
 _FLUSH_TIMEOUT = 2.0  # [s] to wait for reliable subscribers' acks at the end
 _LINGER = 1.0  # [s] the player stays after its last message (best effort has no acknowledgement)
+_SETTLE = 1.0  # [s] with --wait-for-subscribers: no new subscriber for this long, the rest unread
 
 
 def _message_class(msgtype: str) -> type:
@@ -128,13 +130,29 @@ def play(
 
 
 def _wait_for_subscribers(publishers: dict, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while timeout > 0:
-        missing = [name for name, pub in publishers.items() if pub.get_subscription_count() < 1]
-        if not missing:
+    """Wait until every played topic has a subscriber, or, once some have, until no new one has
+    matched for :data:`_SETTLE` s: a node subscribes what it reads, not every recorded topic
+    (model_node reads no ``force``), and the topics without one are named on stderr.  BagError if
+    none has a subscriber after ``timeout`` [s].
+    """
+    if timeout <= 0:
+        return
+    deadline, matched, since = time.monotonic() + timeout, set(), time.monotonic()
+    while True:
+        now = {name for name, pub in publishers.items() if pub.get_subscription_count() >= 1}
+        if now == set(publishers):
+            return
+        if now != matched:
+            matched, since = now, time.monotonic()
+        if matched and (time.monotonic() - since >= _SETTLE or time.monotonic() > deadline):
+            unread = ', '.join(sorted(set(publishers) - matched))
+            print(f'bag play: no subscriber on {unread}; played all the same', file=sys.stderr)
             return
         if time.monotonic() > deadline:
-            raise BagError(f'no subscriber after {timeout:g} s on {", ".join(sorted(missing))}')
+            raise BagError(
+                f'no subscriber after {timeout:g} s on any of {", ".join(sorted(publishers))} '
+                '(a node in another network namespace? see scripts/netns-run --shell)'
+            )
         time.sleep(0.01)
 
 

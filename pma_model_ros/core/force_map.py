@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .node_parameters import STANDARD_ATMOSPHERE
 from .user_files import read_user_file
 
 COLUMNS = ('pressure_pa', 'length_m', 'force_n')
@@ -52,15 +53,17 @@ class ForceMap:
             raise ValueError('force map has NaN or infinite values')
         if np.any(L <= 0) or np.any(L > 10):
             raise ValueError(
-                f'length_m must be in metres (0 < L <= 10), got {L.min():g}..{L.max():g}; '
-                'millimetres? divide by 1000'
+                f'length_m must be in metres (0 < L <= 10), got {L.min():g}..{L.max():g}'
+                + ('; centimetres? divide by 100' if 10 < L.max() <= 100 else '')
+                + ('; millimetres? divide by 1000' if L.max() > 100 else '')
             )
-        if np.any(p < 0) or np.any(p > 5e6):
+        if np.any(p < 0):
             raise ValueError(
-                f'pressure_pa must be gauge pressure in Pa (0..5e6), got '
-                f'{p.min():g}..{p.max():g}; '
-                'bar? multiply by 1e5'
+                f'pressure_pa must be gauge pressure >= 0 Pa (absolute - ambient), got {p.min():g}'
+                + ('; that is below vacuum' if p.min() < -STANDARD_ATMOSPHERE else '')
             )
+        if np.any(p > 5e6):
+            raise ValueError(f'pressure_pa must be gauge pressure in Pa (0..5e6), got {p.max():g}')
         if np.any(F < 0):
             raise ValueError('force_n must be >= 0 (a muscle only pulls)')
         if F.max() <= 0:
@@ -115,6 +118,13 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
     if not rows:
         raise ValueError(f'{source}: no data rows')
     data = np.array(rows)
+    top = data[:, 0].max()
+    if 0 < top < 1e3:
+        raise ValueError(
+            f'{source}: pressure_pa reaches only {top:g} Pa, no working pressure of a muscle: '
+            'gauge pressure in Pa; '
+            + ('bar? multiply by 1e5' if top <= 20 else 'kPa? multiply by 1e3')
+        )
     try:
         return ForceMap(
             data[:, 0], data[:, 1], data[:, 2], data[:, 3] if data.shape[1] == 4 else None

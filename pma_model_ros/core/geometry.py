@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import elementwise as ew
+from .typos import missing_key, unknown_keys
 
 
 @dataclass(frozen=True)
@@ -51,31 +52,46 @@ class MuscleSpec:
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and 0 < value < _FLOAT_MAX):
                 raise ValueError(f'muscle.{field} must be a positive finite number, got {value!r}')
-        if not (isinstance(self.fiber_angle, (int, float)) and 0 < self.fiber_angle < math.pi / 2):
+        angle = self.fiber_angle
+        if not (isinstance(angle, (int, float)) and 0 < angle < math.pi / 2):
+            degrees = isinstance(angle, (int, float)) and 1.6 < angle < 90
             raise ValueError(
-                f'muscle.fiber_angle must be in (0, pi/2) rad, got {self.fiber_angle!r}'
+                f'muscle.fiber_angle must be in (0, pi/2) rad, got {angle!r}'
+                + ('; degrees? multiply by pi/180' if degrees else '')
             )
-        if self.nominal_length > 10 or self.inner_diameter > 1:
+        for field, most in _LARGEST.items():
+            if getattr(self, field) > most:
+                raise ValueError(
+                    f'muscle.{field} must be in metres (at most {most:g} m), got '
+                    f'{getattr(self, field)!r}; millimetres? divide by 1000'
+                )
+        if self.max_pressure < 1e3:
             raise ValueError(
-                'muscle dimensions must be in metres (nominal_length <= 10 m, inner_diameter <= 1 '
-                'm)'
+                f'muscle.max_pressure must be a gauge pressure in Pa, got {self.max_pressure:g}'
+                + (
+                    '; bar? multiply by 1e5'
+                    if self.max_pressure <= 20
+                    else '; kPa? multiply by 1e3'
+                )
             )
         if not isinstance(self.name, str) or not self.name:
             raise ValueError('muscle.name must be a non-empty string')
 
     @classmethod
-    def from_mapping(cls, data: object) -> 'MuscleSpec':
-        """Build a spec from a mapping with exactly the dataclass's keys."""
+    def from_mapping(cls, data: object, where: str = 'muscle.') -> 'MuscleSpec':
+        """Build a spec from a mapping with exactly the dataclass's keys (``where`` prefixes them
+        in errors).
+        """
         if not isinstance(data, dict):
             raise ValueError(
                 f"muscle spec (key 'muscle') must be a mapping, got {type(data).__name__}"
             )
-        expected = set(cls.__dataclass_fields__)
-        missing, unknown = expected - set(data), set(data) - expected
-        if missing or unknown:
-            raise ValueError(
-                f'muscle spec: missing keys {sorted(missing)}, unknown keys {sorted(unknown)}'
-            )
+        expected = list(cls.__dataclass_fields__)
+        problems = unknown_keys(data, expected, where) + [
+            missing_key(k, data, expected, where) for k in expected if k not in data
+        ]
+        if problems:
+            raise ValueError('; '.join(dict.fromkeys(problems)))
         values = {k: data[k] if k == 'name' else _as_float(k, data[k]) for k in expected}
         return cls(**values)
 
@@ -84,6 +100,8 @@ class MuscleSpec:
 
 
 _FLOAT_MAX = sys.float_info.max  # an int above it (YAML reads 400 digits as int) is no float
+#: [m] Largest dimensions a muscle spec takes: beyond them, millimetres were meant.
+_LARGEST = {'nominal_length': 10.0, 'inner_diameter': 1.0, 'membrane_thickness': 0.1}
 
 
 def _as_float(key: str, value: object) -> float:

@@ -45,6 +45,7 @@ from .calibration import Calibration, OFF
 from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .models import Domain, force_raw, get_model, Model
+from .progress import Meter
 from .separable import Separable, Solution
 from .validation import fit_or_none, HeldOut, length_folds, select
 
@@ -507,6 +508,7 @@ def _fit_everything(
     for name in held:
         held[name].fits_without(frozenset())
     rest = [(name, s) for name, s in jobs if s]
+    meter = Meter(len(rest), f'{len(held)} model(s), fits without held-out lengths')
     expected = (time.perf_counter() - started) * len(rest) / len(held)
     workers = os.cpu_count() or 1
     if workers > 1 and expected > _PARALLEL_ABOVE:
@@ -517,11 +519,13 @@ def _fit_everything(
                 [held[n].identify for n, _ in rest],
                 [held[n].training_map(s) for n, s in rest],
             )
-            for (n, s), result in zip(rest, fits):
+            for done, ((n, s), result) in enumerate(zip(rest, fits), 1):
                 held[n].store(s, result)
+                meter.update(done)
             return list(pool.map(fit_paper, models, *zip(*[(spec, fmap)] * len(models))))
-    for n, s in rest:
+    for done, (n, s) in enumerate(rest, 1):
         held[n].fits_without(s)
+        meter.update(done)
     return [fit_paper(model, spec, fmap) for model in models]
 
 

@@ -34,7 +34,14 @@ from .hysteresis import Follow
 from .joint import Joint, Transmission
 from .muscle_model import MuscleModel
 from .node_parameters import ParameterSpec, SPECS
-from .param_file import hysteresis_follow, muscle_model, read_parameters
+from .param_file import (
+    hysteresis_follow,
+    muscle_model,
+    read_parameters,
+    ROS_PARAMETERS,
+    unknown_muscle_parameters,
+)
+from .typos import missing_key, unknown_keys
 
 #: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle
 #: (``<joint>.<muscle>.``).
@@ -112,6 +119,9 @@ def joint(name: str, parameters: dict, base: Path) -> Joint:
     where = f"joint '{name}'"
     if not isinstance(parameters, dict):
         raise ValueError(f"{where}: no parameters under '{name}:'")
+    for key in ('radius', 'limits', 'muscles', 'positive'):
+        if key not in parameters:
+            raise ValueError(f'{where}: {missing_key(key, parameters, _names(JOINT_PARAMETERS))}')
     radius = parameters.get('radius')
     radius = (
         [radius] if isinstance(radius, (int, float)) and not isinstance(radius, bool) else radius
@@ -184,6 +194,33 @@ def _muscle(block: dict, base: Path) -> tuple[MuscleModel, Follow]:
         path = Path(file) if Path(file).is_absolute() else base / file
         own = read_parameters(path) | own
     return muscle_model(own), hysteresis_follow(own)
+
+
+def _names(table: tuple[ParameterSpec, ...]) -> tuple[str, ...]:
+    return tuple(p.name for p in table)
+
+
+def unknown_joint_parameters(parameters: dict) -> list[str]:
+    """One message per key of a joint file's ``ros__parameters`` that joint_node does not read,
+    naming the known key it looks like (a muscle given by ``file`` is checked when it is read).
+    """
+    names = parameters.get('joints')
+    names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
+    every_node = (SPECS['executor'].name, *ROS_PARAMETERS)  # nodes/startup.py declares executor
+    problems = unknown_keys(parameters, (*_names(NODE_PARAMETERS), *every_node, *names))
+    for name in names:
+        block = parameters.get(name)
+        if not isinstance(block, dict):
+            continue
+        muscles = block.get('muscles')
+        muscles = [m for m in muscles if isinstance(m, str)] if isinstance(muscles, list) else []
+        problems += unknown_keys(block, (*_names(JOINT_PARAMETERS), *muscles), f'{name}.')
+        for muscle in muscles:
+            if isinstance(block.get(muscle), dict):
+                problems += unknown_muscle_parameters(
+                    block[muscle], _names(MUSCLE_PARAMETERS), f'{name}.{muscle}.'
+                )
+    return problems
 
 
 def _number(value: object) -> bool:

@@ -23,6 +23,7 @@ import numpy as np
 from . import elementwise as ew
 from . import geometry as geo
 from .geometry import MuscleSpec
+from .typos import did_you_mean
 
 Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -303,7 +304,9 @@ def get_model(name: object) -> Model:
     key = ALIASES.get(key, key)
     if key not in MODELS:
         known = sorted(MODELS) + sorted(ALIASES)
-        raise ValueError(f'unknown model {name!r}; known models: {", ".join(known)}')
+        raise ValueError(
+            f'unknown model {name!r}{did_you_mean(key, known)}; known models: {", ".join(known)}'
+        )
     return MODELS[key]
 
 

@@ -182,13 +182,13 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         per_muscle=True,
     ),
     ParameterSpec(
-        'models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out.*}',
+        'models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out}',
         'string, double, double[]',
         None,
         'identification results: objective, max error on the map (eq. 23) [% of max force], RMSE '
         '[N], R², worst nested leave-one-length-out error, the same on the shortest and longest '
-        'length [% of max force]; held_out: the identified lengths [m], the nested error at each '
-        '[%] and the max force [N] it is a share of',
+        'length [% of max force]; held_out: {lengths [m], err [%], max_force [N]}, the nested '
+        'error at each identified length and the max force it is a share of',
         per_muscle=True,
         read_only=True,
     ),

@@ -24,14 +24,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 from pathlib import Path
+import re
 
 from . import calibration
 from .engine import Config
 from .geometry import MuscleSpec
 from .hysteresis import Follow
-from .models import Domain, get_model
+from .models import ALIASES, Domain, get_model, MODELS
 from .muscle_model import MuscleModel
-from .node_parameters import SPECS
+from .node_parameters import PARAMETERS, SPECS
+from .typos import missing_key, unknown_keys
 from .user_files import load_yaml_mapping, read_user_file
 from .validation import HeldOutBand
 
@@ -40,6 +42,25 @@ NODE_DEFAULTS = {
     name: SPECS[name].default
     for name in ('ambient_pressure', 'pressure_reference', 'max_input_age')
 }
+
+
+#: Parameters rclpy gives every node; a file may set them.
+ROS_PARAMETERS = ('use_sim_time', 'qos_overrides', 'start_type_description_service')
+#: Keys of a file's top level that model_node reads (with ``muscles:``: beside their blocks).
+NODE_KEYS = (*dict.fromkeys(s.name.split('.')[0] for s in PARAMETERS if not s.per_muscle),)
+#: Keys of one muscle: a single-muscle file's top level, or a block of a ``muscles:`` file.
+MUSCLE_KEYS = (*dict.fromkeys(s.name.split('.')[0] for s in PARAMETERS if s.per_muscle),)
+#: Keys of one entry of ``models:`` and of ``hysteresis:``.
+MODEL_ENTRY_KEYS = tuple(
+    key
+    for s in PARAMETERS
+    if s.name.startswith('models.<model>.')
+    for key in re.split(r'[{}, ]+', s.name.removeprefix('models.<model>.'))
+    if key
+)
+HYSTERESIS_KEYS = tuple(
+    s.name.removeprefix('hysteresis.') for s in PARAMETERS if s.name.startswith('hysteresis.')
+)
 
 
 @dataclass(frozen=True)
@@ -52,21 +73,78 @@ class NodeSettings:
 
 
 def read_parameters(path: str | Path) -> dict:
-    """The ``ros__parameters`` mapping of a parameter file (the first node entry)."""
+    """The ``ros__parameters`` mapping of a parameter file (the first node entry).
+
+    ValueError names each key no node of this package reads, with the known key it looks like
+    (:func:`unknown_parameters`): a typo would otherwise be silently ignored.
+    """
     data = load_yaml_mapping(read_user_file(path, 'parameter file'), str(path))
     for entry in data.values():
         if isinstance(entry, dict) and isinstance(entry.get('ros__parameters'), dict):
-            return entry['ros__parameters']
+            parameters = entry['ros__parameters']
+            problems = unknown_parameters(parameters)
+            if problems:
+                raise ValueError(f'{path}: ' + '; '.join(problems))
+            return parameters
+    if set(data) <= set(MuscleSpec.__dataclass_fields__) | {'muscle'}:
+        raise ValueError(
+            f'{path} is a muscle spec, not a ROS parameter file '
+            f"('<node>: ros__parameters:'); make one with pma-model fit --muscle {path}"
+        )
     raise ValueError(f"{path}: no '<node>: ros__parameters:' mapping found")
+
+
+def unknown_parameters(parameters: dict) -> list[str]:
+    """One message per key of ``ros__parameters`` (nested) that no node of this package reads,
+    naming the known key it looks like: single- or multi-muscle files (model_node), joint files
+    (``joints:``, joint_node).
+    """
+    if 'joints' in parameters:
+        from .joint_file import unknown_joint_parameters
+
+        return unknown_joint_parameters(parameters)
+    names = parameters.get('muscles') or []
+    names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
+    if not names:
+        return unknown_muscle_parameters(parameters, (*NODE_KEYS, *ROS_PARAMETERS))
+    problems = unknown_keys(parameters, (*NODE_KEYS, *ROS_PARAMETERS, *names))
+    for name in names:
+        if isinstance(parameters.get(name), dict):
+            problems += unknown_muscle_parameters(parameters[name], (), f'{name}.')
+    return problems
+
+
+def unknown_muscle_parameters(block: dict, others: tuple[str, ...], where: str = '') -> list[str]:
+    """:func:`unknown_parameters` of one muscle's keys (``others``: also allowed beside them)."""
+    problems = unknown_keys(block, (*MUSCLE_KEYS, *others), where)
+    models = block.get('models')
+    if isinstance(models, dict):
+        problems += unknown_keys(models, (*MODELS, *ALIASES), f'{where}models.')
+        for name, entry in models.items():
+            if isinstance(entry, dict):
+                problems += unknown_keys(entry, MODEL_ENTRY_KEYS, f'{where}models.{name}.')
+    if isinstance(block.get('hysteresis'), dict):
+        problems += unknown_keys(block['hysteresis'], HYSTERESIS_KEYS, f'{where}hysteresis.')
+    return problems
 
 
 def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     """Build the identified muscle from ``ros__parameters``; ``model`` overrides the default."""
-    spec = MuscleSpec.from_mapping(parameters.get('muscle'))
-    name = get_model(model if model is not None else parameters.get('model', '')).name
-    models = parameters.get('models')
-    if not isinstance(models, dict) or name not in models or not isinstance(models[name], dict):
-        raise ValueError(f'models.{name} is missing from the parameter file')
+    for key in ('muscle', 'length_range', 'models', *(('model',) if model is None else ())):
+        if key not in parameters:
+            raise ValueError(missing_key(key, parameters, MUSCLE_KEYS))
+    spec = MuscleSpec.from_mapping(parameters['muscle'])
+    name = get_model(model if model is not None else parameters['model']).name
+    models = parameters['models']
+    if not isinstance(models, dict) or not isinstance(models.get(name), dict):
+        raise ValueError(
+            missing_key(name, models if isinstance(models, dict) else {}, MODELS, 'models.')
+            + (
+                ' from the parameter file'
+                if isinstance(models, dict)
+                else ': models must be a mapping'
+            )
+        )
     length_range = parameters.get('length_range')
     if not (isinstance(length_range, list) and len(length_range) == 2):
         raise ValueError(f'length_range must be [min, max] in m, got {length_range!r}')
@@ -105,6 +183,17 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
             [*params, offset] if isinstance(params, list) else params,
         )
     return MuscleModel(spec, model, params, domain)
+
+
+def load_muscle(path: str | Path, model: str | None = None) -> MuscleModel:
+    """:func:`muscle_model` of the parameter file ``path``; errors of the file name it."""
+    if model is not None:
+        get_model(model)  # an unknown override is the caller's, not the file's
+    parameters = read_parameters(path)
+    try:
+        return muscle_model(parameters, model)
+    except ValueError as err:
+        raise ValueError(f'{path}: {err}') from None
 
 
 def held_out_band(parameters: dict, model: str | None = None) -> HeldOutBand | None:

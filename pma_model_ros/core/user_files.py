@@ -55,9 +55,31 @@ def load_yaml_mapping(text: str, source: str) -> dict:
 
 
 def read_spec_yaml(path: str | Path) -> MuscleSpec:
-    """Read a user's muscle spec YAML (keys of :class:`MuscleSpec`, SI units)."""
+    """Read a user's muscle spec YAML (keys of :class:`MuscleSpec`, SI units).
+
+    A ROS parameter file (``<node>: ros__parameters:``) is refused with the spec file to use
+    instead: the shipped ``muscles/<name>.yaml`` beside it if there is one.
+    """
     data = load_yaml_mapping(read_user_file(path, 'muscle spec file'), str(path))
+    nodes = [v for v in data.values() if isinstance(v, dict) and 'ros__parameters' in v]
+    if nodes:
+        raise ValueError(
+            f'{path} is a ROS parameter file, not a muscle spec; {_spec_hint(path, nodes[0])}'
+        )
     try:
-        return MuscleSpec.from_mapping(data.get('muscle', data))
+        return MuscleSpec.from_mapping(*((data['muscle'],) if 'muscle' in data else (data, '')))
     except ValueError as err:
         raise ValueError(f'{path}: {err}') from None
+
+
+def _spec_hint(path: str | Path, node: dict) -> str:
+    """Where the spec of the muscle of a ROS parameter file is: a file beside it, or its keys."""
+    muscle = (node.get('ros__parameters') or {}).get('muscle')
+    name = muscle.get('name') if isinstance(muscle, dict) else None
+    spec = Path(path).parent / 'muscles' / f'{str(name).lower().replace("-", "_")}.yaml'
+    if name and spec.is_file():
+        return f'the spec of its muscle {name} is {spec}'
+    return (
+        f'a spec file holds {", ".join(MuscleSpec.__dataclass_fields__)} '
+        '(e.g. config/muscles/dmsp_10_250.yaml)'
+    )

@@ -100,7 +100,7 @@ def declare_muscle(node: Node, prefix: str, defaults: bool = True) -> None:
             _declare(node, spec, prefix + spec.name, defaults)
     params, info = (
         SPECS['models.<model>.params'],
-        SPECS['models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out.*}'],
+        SPECS['models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out}'],
     )
     extrapolates = SPECS['models.<model>.extrapolates']
     for model in MODELS.values():

@@ -1,0 +1,47 @@
+"""The README's recording-to-fit commands, run verbatim: a simulated calibration run recorded by
+simulator_node (over DDS, 75 s) that `pma-model fit --bag` fits.
+"""
+
+import re
+import subprocess
+
+import pytest
+
+from pma_model_ros.bags.calibrate import SIMULATOR_SETTINGS
+from pma_model_ros.core.identification import max_error_percent
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
+
+from conftest import REPO
+
+pytestmark = pytest.mark.ros
+
+
+def readme_commands() -> str:
+    """The sh block after the README's sentence naming this test."""
+    readme = (REPO / 'README.md').read_text(encoding='utf-8')
+    after = readme[readme.index('`test/test_readme_recording.py` runs these two commands') :]
+    return re.search(r'```sh\n(.*?)```', after, re.DOTALL).group(1)
+
+
+def test_the_readme_recording_is_fitted(tmp_path):
+    commands = readme_commands()
+    assert ' '.join(SIMULATOR_SETTINGS.split()) in ' '.join(commands.split())  # fit --bag's hint
+    for name in ('scripts', '.venv', 'config'):  # the README's paths, relative to a clone
+        (tmp_path / name).symlink_to(REPO / name)
+    run = subprocess.run(
+        ['bash', '-c', commands], cwd=tmp_path, capture_output=True, text=True, timeout=240
+    )
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert sorted(p.name for p in (tmp_path / 'run1').iterdir()) == ['metadata.yaml', 'run1.mcap']
+    kept, samples = map(
+        int, re.search(r'run1: (\d+) of (\d+) samples quasi-static', run.stdout).groups()
+    )
+    assert samples >= 6500 and kept > 0.6 * samples, run.stdout  # 100 Hz for about 70 s
+    assert 'default model (the one fitted): martens' in run.stdout
+    fmap = shipped_force_map('DMSP-10-250')  # the measured map, never seen by the fit
+    fitted = muscle_model(read_parameters(tmp_path / 'run1.yaml'))
+    error = max_error_percent(
+        fmap.force, fitted.force(fmap.pressure, fmap.length).force, fmap.max_force
+    )
+    assert error < 5.0, error  # README: 3.19 %; the map's own Martens fit: 4.20 %
