@@ -3,7 +3,10 @@
 For each measured length: ``pma-model fit`` on the map without it (same options), then
 ``pma-model evaluate --csv`` of that fit on the held-back length; its worst |error| in % of the
 whole map's max force is that length's nested held-out error (a slack length has no force for
-evaluate's eq. 23 and is skipped).  Prints the fit's column beside the check's.
+evaluate's eq. 23 and is skipped).  Prints the fit's column beside the check's.  The column judges
+the model's own prediction; ``evaluate`` serves as model_node does, so at a held-out edge length a
+fit whose file does not extrapolate (``extrapolates: false``) is served at its nearest identified
+length instead, and the check says so.
 
 Usage: ``.venv/bin/python bench/held_out_check.py --data map.csv --muscle spec.yaml [options]``
 with ``pma-model fit``'s options (default ``--model martens``).  Not a test
@@ -24,10 +27,12 @@ from pma_model_ros.core.param_file import read_parameters
 
 
 def run(argv: list[str]) -> str:
-    """``pma-model argv`` in this process; its standard output (exit code 0 asserted)."""
+    """``pma-model argv --force`` (outputs are rewritten) in this process; its standard output
+    (exit code 0 asserted).
+    """
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        code = pma_model(argv)
+        code = pma_model([*argv, '--force'])
     if code != 0:
         raise SystemExit(f'pma-model {" ".join(argv)}: exit {code}')
     return out.getvalue()
@@ -98,8 +103,11 @@ def main() -> None:
                         '--force',
                     ]
                 )
-                errors = [abs(float(r.split(',')[4])) for r in points.read_text().splitlines()[1:]]
+                rows = [r.split(',') for r in points.read_text().splitlines()[1:]]
+                errors = [abs(float(r[4])) for r in rows]
                 check = f'{100 * max(errors) / fmap.max_force:>9.2f}'
+                if any('LENGTH_OUT_OF_RANGE' in r[5] for r in rows):
+                    check += '  (served at the nearest identified length: that fit does not extrapolate)'
             else:  # a slack length: no force for evaluate's eq. 23
                 check = f'{"(slack)":>9}'
             print(f'{length:>10.4f}{shown:>13.2f}{check}')
