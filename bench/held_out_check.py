@@ -107,7 +107,7 @@ def main() -> None:
                 errors = [abs(float(r[4])) for r in rows]
                 check = f'{100 * max(errors) / fmap.max_force:>9.2f}'
                 if any('LENGTH_OUT_OF_RANGE' in r[5] for r in rows):
-                    check += '  (served at the nearest identified length: that fit does not extrapolate)'
+                    check += '  (served at the nearest identified length: no extrapolation)'
             else:  # a slack length: no force for evaluate's eq. 23
                 check = f'{"(slack)":>9}'
             print(f'{length:>10.4f}{shown:>13.2f}{check}')
