@@ -35,7 +35,7 @@ import math
 import multiprocessing
 import os
 import time
-from typing import Iterator
+from typing import Callable, Iterator
 
 import numpy as np
 from scipy.optimize import minimize
@@ -325,38 +325,62 @@ def _rest_length(
     error: on the grid of :func:`~.calibration.length_grid`, the L0 whose least-squares fits
     without each length predict it best (least sum of squares; each fold follows its optimum along
     the grid).  In-sample, the elastic terms absorb a wrong L0.  Returns (spec, 1-sigma [m],
-    whether L0 moved): half the range of L0 whose held-out RMSE is within 10 % of the best; L0
-    stays as given (inf) for a model whose force does not depend on it (Hildebrandt,
-    Wickramatunge).
+    whether L0 moved): half the range of L0 whose held-out RMSE is within 10 % of the best (a flat
+    choice says so by its spread).  L0 stays as given (inf) for a model that ignores or absorbs it
+    (Hildebrandt, Wickramatunge; Sárosi, whose exp(c2 kappa) and d0 kappa take any L0) and on a
+    map of fewer than three lengths.
     """
     grid = cal.length_grid(spec, slack)
     folds = length_folds(fmap)
-    if len(folds) < 3 or not _depends_on_length(model, spec, domain, fmap):
+    if len(folds) < 3 or _absorbs_length(model, spec, domain, fmap, grid[-1]):
         return spec, math.inf, False
-    squares = np.zeros(grid.size)
-    for test in folds:
-        train, near = fmap.subset(~test), None
-        for i, length in enumerate(grid):
-            trial = cal.with_length(spec, float(length))
-            near = Separable(model, trial, domain_of(train), train).fit_least_squares(near)
+    # every other grid point first (each fold following its optimum), then the two beside the best
+    squares = np.full(grid.size, np.inf)
+    trains = [fmap.subset(~test) for test in folds]
+    solved: list[dict[int, Solution]] = [{} for _ in folds]
+
+    def judge(i: int, start: Callable[[int], Solution | None]) -> None:
+        trial, total = cal.with_length(spec, float(grid[i])), 0.0
+        for k, (test, train) in enumerate(zip(folds, trains)):
+            solution = Separable(model, trial, domain_of(train), train).fit_least_squares(start(k))
+            solved[k][i] = solution
             predicted = physical_force(
-                model, near.theta, trial, domain_of(train), fmap.pressure[test], fmap.length[test]
+                model,
+                solution.theta,
+                trial,
+                domain_of(train),
+                fmap.pressure[test],
+                fmap.length[test],
             )
-            squares[i] += float(np.sum((fmap.force[test] - predicted) ** 2))
+            total += float(np.sum((fmap.force[test] - predicted) ** 2))
+        squares[i] = total
+
+    coarse = range(0, grid.size, 2)
+    for j, i in enumerate(coarse):
+        judge(i, lambda k, j=j: solved[k][coarse[j - 1]] if j else None)
+    middle = int(np.argmin(squares))
+    for i in (middle - 1, middle + 1):
+        if 0 <= i < grid.size:
+            judge(i, lambda k: solved[k][middle])
+    step, evaluated = grid[1] - grid[0], np.isfinite(squares)
+    grid, squares = grid[evaluated], squares[evaluated]
     best = int(np.argmin(squares))
     near_best = grid[squares <= squares[best] * 1.1**2]
-    spread = float(near_best.max() - near_best.min() + (grid[1] - grid[0])) / 2
+    spread = float(near_best.max() - near_best.min() + step) / 2
     return cal.with_length(spec, float(grid[best])), spread, True
 
 
-def _depends_on_length(model: Model, spec: MuscleSpec, domain: Domain, fmap: ForceMap) -> bool:
-    """Whether the model's force at its start parameters changes with L0 (1 % longer)."""
-    theta, longer = np.array(model.start, float), cal.with_length(spec, 1.01 * spec.nominal_length)
-    with np.errstate(all='ignore'):
-        forces = [
-            force_raw(model, theta, s, domain, fmap.pressure, fmap.length) for s in (spec, longer)
-        ]
-    return not np.allclose(forces[0], forces[1], rtol=1e-12, atol=0.0, equal_nan=True)
+def _absorbs_length(
+    model: Model, spec: MuscleSpec, domain: Domain, fmap: ForceMap, longer: float
+) -> bool:
+    """Whether the model fits the map exactly as well at L0 and at ``longer`` (sums of squares
+    equal to 1e-9): its force ignores L0, or its parameters take any L0.
+    """
+    costs = [
+        Separable(model, cal.with_length(spec, length), domain, fmap).fit_least_squares().cost
+        for length in (spec.nominal_length, longer)
+    ]
+    return bool(abs(costs[0] - costs[1]) <= 1e-9 * max(costs[0], costs[1], 1e-300))
 
 
 def _offset(
