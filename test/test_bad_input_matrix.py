@@ -19,13 +19,12 @@ import uuid
 import pytest
 from scipy.optimize import brentq
 
+from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
+from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 from pma_model_ros.core.engine import Engine, Level
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import node_settings, read_parameters
 from pma_model_ros.tools import node_process
-
-from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
-from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 
 CONFIG = CONFIGS['DMSP-10-250']
 P = 300e3  # gauge pressure of the good inputs [Pa]

@@ -3,11 +3,14 @@
 What a user mistypes gets one line and exit code 2.
 """
 
+import sys
+
 import pytest
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.cli import main
 
-from conftest import CONFIGS
+SPEC = REPO / 'pma_model_ros/core/data/dmsp_10_250.yaml'
 
 
 @pytest.mark.parametrize(
@@ -40,10 +43,8 @@ def test_bad_arguments_one_line_exit_2(capsys, argv, words):
         code = main(argv)
     except SystemExit as stop:  # argparse's own refusals
         code = stop.code
-    err = capsys.readouterr().err
-    assert code == 2 and words in err.strip().splitlines()[-1], (
-        err
-    )  # (argparse prints its usage above)
+    err = capsys.readouterr().err  # argparse prints its usage above the last line
+    assert code == 2 and words in err.strip().splitlines()[-1], err
 
 
 def test_missing_bag_is_one_line_exit_2(capsys, tmp_path):
@@ -60,3 +61,21 @@ def test_missing_bag_is_one_line_exit_2(capsys, tmp_path):
     )
     err = capsys.readouterr().err
     assert code == 2 and err.count('\n') == 1 and not (tmp_path / 'out').exists()
+
+
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['bag', 'estimate', 'run1', '--config', str(CONFIGS['DMSP-10-250']), '--out', 'out'],
+        ['bag', 'play', 'run1'],
+        ['fit', '--bag', 'run1', '--muscle', str(SPEC), '--model', 'martens', '--out', 'p.yaml'],
+    ],
+)
+def test_without_rosbags_a_bag_command_is_one_line_exit_2(capsys, monkeypatch, tmp_path, argv):
+    """Rosbags is pip-only (no rosdep key): a ROS install may lack it."""
+    monkeypatch.setitem(sys.modules, 'rosbags', None)  # import rosbags: ImportError
+    monkeypatch.chdir(tmp_path)
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count('\n') == 1 and 'pip install rosbags' in err, err
+    assert not list(tmp_path.iterdir())

@@ -8,16 +8,23 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 import pytest
+
+try:
+    import rosbags  # noqa: F401
+except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install without it
+    pytest.skip(
+        'needs rosbags, a pip-only library: pip install -r requirements-dev.txt',
+        allow_module_level=True,
+    )
 from rosgraph_msgs.msg import Clock
 
+from conftest import CONFIGS
+from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
 from pma_model_ros.bags.bag_io import read, storage_of
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.param_file import node_settings, read_parameters
 from pma_model_ros.tools import node_process
-
-from conftest import CONFIGS
-from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
 
 pytestmark = pytest.mark.ros
 

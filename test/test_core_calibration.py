@@ -94,9 +94,9 @@ def test_parameter_file_applies_length_and_offset_for_force_inverse_and_bank():
 
 
 def test_offset_and_length_recovered_where_the_model_identifies_them():
-    """McKibben (eq. 17) has no parameters: on its own forces, with a known offset and L0, both are
-    identified: the offset exactly with the true L0, L0 to the grid of its held-out choice (0.25 %
-    of the given L0).
+    """The McKibben model (eq. 17) has no parameters: on its own forces, with a known offset and
+    L0, both are identified: the offset exactly with the true L0, L0 to the grid of its held-out
+    choice (0.25 % of the given L0).
     """
     model, truth_spec = MODELS['mckibben'], shipped_spec('DMSP-20-300')
     grid = shipped_force_map('DMSP-20-300')

@@ -7,13 +7,12 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import CONFIGS
 from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
 from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map
-
-from conftest import CONFIGS
 
 FITTED = ('andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 

@@ -10,12 +10,11 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.models import MODELS
 from pma_model_ros.core.muscle_model import MuscleModel, pressure_for_one
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS
 
 MUSCLES = [
     muscle_model(read_parameters(path), name)

@@ -11,12 +11,11 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.joint import envelope, Joint, Transmission
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS, REPO
 
 EXAMPLE = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
 #: The highest pressure the example's muscles are commanded: their map's 650 kPa (hildebrandt does

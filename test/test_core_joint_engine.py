@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.core.engine import Config, Engine, Level
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.hysteresis import Follow
@@ -20,8 +21,6 @@ from pma_model_ros.core.joint import Joint, Transmission
 from pma_model_ros.core.joint_engine import JointEngine, Settings
 from pma_model_ros.core.joint_file import joints, load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS, REPO
 
 AMBIENT = 101325.0  # [Pa]
 AGE = 0.125  # [s] max_input_age (a binary fraction: the freshness edge is exact)

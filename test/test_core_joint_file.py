@@ -5,11 +5,10 @@ import copy
 import pytest
 import yaml
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import joints, load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS, REPO
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 

@@ -5,13 +5,12 @@ import math
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import domain_of, max_error_percent
 from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
-
-from conftest import CONFIGS
 
 # Martens & Boblan 2017, Table 2 (as printed).
 TABLE2 = {

@@ -11,14 +11,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import fit_best, max_error_percent
 from pma_model_ros.core.models import EDGE_CV_LIMIT, get_model
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
-
-from conftest import CONFIGS
 
 
 def served_at_held_out(muscle: str, model: str, objective: str, edge: int, extrapolates: bool):

@@ -4,14 +4,13 @@ import copy
 
 import pytest
 
+from conftest import REPO
 from pma_model_ros.core.param_file import (
     all_node_settings,
     muscle_model,
     node_settings,
     read_parameters,
 )
-
-from conftest import REPO
 
 CONFIG = REPO / 'config' / 'dmsp_10_250.yaml'
 

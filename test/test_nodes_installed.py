@@ -7,9 +7,8 @@ import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-
 from node_messages import AMBIENT, pressure, state
+from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 pytestmark = pytest.mark.ros
 

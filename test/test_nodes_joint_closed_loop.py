@@ -14,10 +14,9 @@ import math
 import pytest
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
-
 from conftest import REPO
 from node_messages import SENSOR_QOS
+from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
 
 pytestmark = pytest.mark.ros
 

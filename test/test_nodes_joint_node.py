@@ -16,15 +16,14 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
+from conftest import REPO
+from node_messages import AMBIENT
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.startup import StartupError
 from pma_model_ros.tools import node_process
-
-from conftest import REPO
-from node_messages import AMBIENT
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 ELBOW = load_joints(EXAMPLE)[0]

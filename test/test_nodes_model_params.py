@@ -7,11 +7,10 @@ from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.nodes.model_params import MODEL_INFO
-
 from conftest import CONFIGS
 from node_messages import AMBIENT, pressure, state
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.nodes.model_params import MODEL_INFO
 
 pytestmark = pytest.mark.ros
 

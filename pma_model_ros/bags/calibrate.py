@@ -33,10 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.engine import seconds
-from ..core.force_map import ForceMap
-from ..core.hysteresis import branches
-from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
 from .bag_io import (
     BagError,
     connections_of,
@@ -49,6 +45,10 @@ from .bag_io import (
     WRENCH_STAMPED,
 )
 from .estimate import muscle_namespace
+from ..core.engine import seconds
+from ..core.force_map import ForceMap
+from ..core.hysteresis import branches
+from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope
 PRESSURE_CELL = 5e3  #: [Pa] pressure side of an averaging cell

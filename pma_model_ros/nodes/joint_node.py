@@ -32,15 +32,15 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
+from . import model_params
+from .diagnostics import diagnostic_array
+from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
+from .startup import refusing, run
 from ..core.cdr import sentinels, StampedTemplate
 from ..core.engine import seconds
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
-from . import model_params
-from .diagnostics import diagnostic_array
-from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
-from .startup import refusing, run
 
 
 def _declare(node: Node, spec: ParameterSpec, prefix: str = ''):

@@ -20,9 +20,9 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 from .ros_time import now_seconds
 from .startup import declare_table, refusing, run
+from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 
 
 class JointSimulatorNode(Node):

@@ -33,12 +33,12 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Header
 
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
-from ..core.param_file import NodeSettings
 from . import model_params
 from .diagnostics import diagnostic_array
 from .startup import refusing, run
+from ..core.cdr import sentinels, StampedTemplate
+from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
+from ..core.param_file import NodeSettings
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
 

@@ -24,9 +24,9 @@ from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.simulation import PARAMETERS, SimulatedMuscle
 from .ros_time import now_seconds
 from .startup import declare_table, refusing, run
+from ..core.simulation import PARAMETERS, SimulatedMuscle
 
 
 class SimulatorNode(Node):

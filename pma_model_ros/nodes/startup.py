@@ -55,7 +55,7 @@ class StartupError(Exception):
 
 
 def init(args: list[str] | None) -> None:
-    """``rclpy.init(args=args)``; a params file rcl cannot parse raises StartupError.
+    """Initialise rclpy with ``args``; a params file rcl cannot parse raises StartupError.
 
     rcl's own "Failed to parse global arguments" line is muted during init so the
     caller's single line is the only one.
