@@ -93,6 +93,14 @@ def test_pma_model_help(build):
     assert 'usage' in proc.stdout.lower()
 
 
+def test_share_directory_of_the_install(build):
+    """The package finds its share directory through ament_index, from any working directory."""
+    code = 'from pma_model_ros.core.shipped_data import share_directory; print(share_directory())'
+    proc = _run_installed([sys.executable, '-c', code], build)
+    assert proc.returncode == 0, explain(proc)
+    assert Path(proc.stdout.strip()) == build['prefix'] / 'share' / PKG
+
+
 def test_ament_index_finds_share_directory(build):
     code = (
         'from ament_index_python.packages import get_package_share_directory as g; '

@@ -36,7 +36,6 @@ def make_node():
     def make(params_file=EXAMPLE, **overrides):
         context = rclpy.Context()
         rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
-        overrides = {'config_dir': str(REPO / 'config')} | overrides
         node = JointNode(
             context=context,
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
@@ -300,12 +299,29 @@ def test_a_new_declaration_is_no_change(make_node):
     assert node.declare_parameter('executor', 'events').value == 'events'
 
 
-def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
-    """Started as a process, without ``config_dir`` the example's muscle files are not found from
-    the repo root.
+def test_without_config_dir_muscle_files_are_the_shipped_ones(make_node, monkeypatch, tmp_path):
+    """``config_dir`` unset: relative muscle files are found in the package's share directory,
+    whatever the working directory.
     """
+    monkeypatch.chdir(tmp_path)
+    node = make_node()
+    for muscle, expected in zip(node.engine.joints[0].muscles, ELBOW.muscles):
+        assert (muscle.spec, muscle.model, muscle.domain) == (
+            expected.spec,
+            expected.model,
+            expected.domain,
+        )
+        assert muscle.theta.tolist() == expected.theta.tolist()
+
+
+def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
+    """A muscle file that is not in ``config_dir``: one line naming the joint, muscle and file."""
     proc = subprocess.run(
-        node_process.command('joint_node', '/bad_joint', EXAMPLE),
+        [
+            *node_process.command('joint_node', '/bad_joint', EXAMPLE),
+            '-p',
+            f'config_dir:={tmp_path}',
+        ],
         capture_output=True,
         text=True,
         timeout=60,

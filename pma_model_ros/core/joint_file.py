@@ -50,7 +50,8 @@ NODE_PARAMETERS: tuple[ParameterSpec, ...] = (
         'config_dir',
         'string',
         '',
-        'directory of relative muscle `file`s (empty: the working directory)',
+        "directory of relative muscle `file`s (empty: the package's shipped `config/`, found "
+        'through ament_index from any working directory)',
         read_only=True,
     ),
     SPECS['ambient_pressure'],

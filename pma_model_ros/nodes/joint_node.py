@@ -41,6 +41,7 @@ from ..core.engine import seconds
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
+from ..core.shipped_data import share_directory
 
 
 def _declare(node: Node, spec: ParameterSpec, prefix: str = ''):
@@ -70,7 +71,7 @@ class JointNode(Node):
             declare(self)
             flat = model_params.values(self)
             nested = model_params.nest(flat)
-            found = joints(nested, Path(str(flat.get('config_dir') or '.')))
+            found = joints(nested, Path(flat.get('config_dir') or share_directory() / 'config'))
             settings = [
                 Settings(
                     float(nested[j.name]['cocontraction']),
