@@ -92,6 +92,22 @@ def lines_of_failed_start(cmd: list[str]) -> list[str]:
     return (run.stdout + run.stderr).strip().splitlines()
 
 
+def docstring_yaml(module) -> dict:
+    """The ``ros__parameters`` of the YAML example in ``module``'s docstring (the block after
+    ``::``).
+    """
+    import textwrap
+
+    import yaml
+
+    block = []
+    for line in module.__doc__.split('::\n\n', 1)[1].splitlines():
+        if line and not line.startswith('    '):
+            break
+        block.append(line)
+    return yaml.safe_load(textwrap.dedent('\n'.join(block)))['/**']['ros__parameters']
+
+
 def explain(proc):
     return f'exit {proc.returncode}\n--- stdout ---\n{proc.stdout}\n--- stderr ---\n{proc.stderr}'
 

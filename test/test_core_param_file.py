@@ -4,9 +4,11 @@ import copy
 
 import pytest
 
-from conftest import REPO
+from conftest import docstring_yaml, REPO
+from pma_model_ros.core import param_file
 from pma_model_ros.core.param_file import (
     all_node_settings,
+    identification,
     muscle_model,
     node_settings,
     read_parameters,
@@ -65,3 +67,27 @@ def test_many_muscles_each_under_its_name(params):
         all_node_settings(both | {'right': one | {'joint_name': 'left'}})
     with pytest.raises(ValueError, match="muscle 'right': no parameters"):
         all_node_settings({'muscles': ['left', 'right'], 'left': one})
+
+
+def test_the_docstring_example_is_the_shipped_file_s_martens(params):
+    example = docstring_yaml(param_file)
+    assert example['muscle'] == params['muscle']
+    for key in ('model', 'length_range', 'pressure_range'):
+        assert example[key] == params[key]
+    assert example['models']['martens'] == params['models']['martens']
+
+
+def test_identification_results_as_diagnostic_values(params):
+    """The file's numbers to 6 digits (err: 4.20 % in the README's Table 3 comparison)."""
+    assert identification(params) == {
+        'identification objective': 'minimax',
+        'identification err [% of max force]': '4.20303',
+        'identification rmse [N]': '7.94343',
+        'identification r2': '0.996793',
+        'identification cv_err [% of max force]': '8.2323',
+        'identification edge_cv_err [% of max force]': '8.2323',
+    }
+    assert identification(params, 'hildebrandt')['identification err [% of max force]'] == (
+        f'{params["models"]["hildebrandt"]["err"]:.6g}'
+    )
+    assert identification({'model': 'martens', 'models': {'martens': {'params': []}}}) == {}

@@ -32,7 +32,7 @@ def map_torque(theta, p0, p1):
     """Torque [N·m] of the measured map at ``theta`` [rad] and gauge pressures [Pa] (the
     simulator's truth).
     """
-    sim = SimulatedJoint({name: default for name, (default, _, _) in PARAMETERS.items()}, 0.0)
+    sim = SimulatedJoint({p.name: p.default for p in PARAMETERS}, 0.0)
     sim.angle, sim.pressures = theta, [p0, p1]
     return sim.torque()
 

@@ -286,10 +286,13 @@ def test_hysteresis_branches_follow_the_muscle_lengths_not_the_velocity(make_nod
     assert [t.effort[0] for t in torques[1:]] == pytest.approx(expected, rel=1e-9)
 
 
-def test_parameter_changes_are_refused(make_node):
+def test_parameters_are_read_only(make_node):
+    """joint_node reads its parameters at start-up: every one says so and refuses a change."""
     node = make_node()
+    ours = [name for name in node.get_parameters_by_prefix('') if name != 'use_sim_time']
+    assert ours and all(d.read_only for d in node.describe_parameters(ours))
     result = node.set_parameters([Parameter('elbow.cocontraction', value=200e3)])[0]
-    assert not result.successful and 'start-up' in result.reason
+    assert not result.successful and 'read-only' in result.reason
     assert node.get_parameter('elbow.cocontraction').value == 300e3
 
 
@@ -334,3 +337,32 @@ def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
         and "joint 'elbow', muscle 'flexor'" in lines[0]
         and 'dmsp_10_250.yaml' in lines[0]
     )
+
+
+def test_gauge_pressure_reference_reads_and_commands_gauge_pressures(make_node):
+    """``pressure_reference: gauge``: the worked example's torque from gauge readings, and torque
+    commands in gauge pressure (the absolute node's less the ambient pressure).
+    """
+    commanded = {}
+    for reference, offset in (('absolute', AMBIENT), ('gauge', 0.0)):
+        node = make_node(pressure_reference=reference)
+        torques, flexor = record(node._torque_pub), record(node._command_pubs[0][0])
+        node._on_pressure(0, 0, pressure(node, offset + 400e3))
+        node._on_pressure(0, 1, pressure(node, offset + 300e3))
+        node._on_states(joint_state(node, 0.5))
+        assert torques[-1].effort[0] == pytest.approx(-0.69331, abs=5e-6)  # README, by hand
+        node._on_torque(command(elbow=1.0))
+        commanded[reference] = flexor[-1].fluid_pressure
+    assert commanded['gauge'] == pytest.approx(575140, abs=1)  # README: flexor 575140 Pa gauge
+    assert commanded['absolute'] - commanded['gauge'] == pytest.approx(AMBIENT, rel=1e-12)
+
+
+def test_identification_results_are_values_of_the_joint_status(make_node):
+    """Each muscle's results of its model (the example: hildebrandt of config/dmsp_10_250.yaml)."""
+    node = make_node()
+    diagnostics = record(node._diag_pub)
+    node.publish_status()
+    values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
+    err = read_parameters(REPO / 'config' / 'dmsp_10_250.yaml')['models']['hildebrandt']['err']
+    for muscle in ('flexor', 'extensor'):
+        assert values[f'{muscle} identification err [% of max force]'] == f'{err:.6g}'

@@ -1,18 +1,29 @@
 """Reading ROS 2 parameter files of identified muscles (``ros__parameters`` YAML).
 
-Layout (every value SI)::
+Layout (every value SI; ``config/dmsp_10_250.yaml``, its martens entry)::
 
     /**:
       ros__parameters:
-        muscle: {name, nominal_length, inner_diameter, membrane_thickness, fiber_angle,
-        max_pressure} model: martens                 # the default model length_range: [0.198,
-        0.25]    # identified length range [m] pressure_range: [0.0, 650000.0]   # identified gauge
-        pressure range [Pa] (absent: up to the rated one) models:
-          martens: {params: [...], objective: minimax, err: 4.2, rmse: .., r2: .., cv_err: 8.2,
-                    edge_cv_err: 8.2, extrapolates: true}   # absent extrapolates: false
-          # a calibrated fit (core/calibration.py) also has nominal_length [m] (replaces
-          # muscle.nominal_length for this model) and pressure_offset [Pa] (the model sees gauge
-          # pressure - pressure_offset)
+        muscle: {name: DMSP-10-250, nominal_length: 0.25, inner_diameter: 0.01,
+                 membrane_thickness: 0.0018, fiber_angle: 0.49916416607, max_pressure: 800000.0}
+        model: martens                   # the default model
+        length_range: [0.198, 0.25]      # identified length range [m]
+        pressure_range: [0.0, 650000.0]  # identified gauge pressure range [Pa] (absent: rated)
+        models:
+          martens:
+            params: [116867130.487, -1279220859.1, 4543081596.93, -4975670864.91,
+                     -0.0990271756283]
+            extrapolates: true           # absent: false
+            # identification results (diagnostics values, not ROS parameters):
+            objective: minimax
+            err: 4.20302656782
+            rmse: 7.94343341235
+            r2: 0.996793480426
+            cv_err: 8.23229604725
+            edge_cv_err: 8.23229604726
+            # a calibrated fit (core/calibration.py) also has nominal_length [m] (replaces
+            # muscle.nominal_length for this model) and pressure_offset [Pa] (the model sees
+            # gauge pressure - pressure_offset)
 
 Node settings (``ambient_pressure``, ``joint_name``, ...) may sit beside these
 keys; this module reads only the muscle and its models, and
@@ -31,7 +42,7 @@ from .geometry import MuscleSpec
 from .hysteresis import Follow
 from .models import Domain, get_model
 from .muscle_model import MuscleModel
-from .node_parameters import SPECS
+from .node_parameters import IDENTIFICATION, SPECS
 from .user_files import load_yaml_mapping, read_user_file
 
 #: Node settings written into generated files, beside the muscle (documented in the README).
@@ -104,6 +115,35 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
             [*params, offset] if isinstance(params, list) else params,
         )
     return MuscleModel(spec, model, params, domain)
+
+
+#: The unit of each identification result (:data:`~.node_parameters.IDENTIFICATION`).
+IDENTIFICATION_UNITS = {
+    'objective': '',
+    'err': '% of max force',
+    'rmse': 'N',
+    'r2': '',
+    'cv_err': '% of max force',
+    'edge_cv_err': '% of max force',
+}
+
+
+def identification(parameters: dict, model: str | None = None) -> dict[str, str]:
+    """The identification results of the muscle's model (``model`` overrides the default) from
+    its ``ros__parameters`` (nested), as diagnostic key-values ``identification <entry> [unit]``;
+    entries the file lacks are left out.
+    """
+    name = get_model(model if model is not None else parameters.get('model', '')).name
+    models = parameters.get('models')
+    entry = models.get(name) if isinstance(models, dict) else None
+    values = {}
+    for key in IDENTIFICATION:
+        value = entry.get(key) if isinstance(entry, dict) else None
+        if value is not None:
+            unit = IDENTIFICATION_UNITS[key]
+            text = f'{value:.6g}' if isinstance(value, float) else str(value)
+            values[f'identification {key}' + (f' [{unit}]' if unit else '')] = text
+    return values
 
 
 def hysteresis_follow(parameters: dict) -> Follow:
