@@ -35,9 +35,10 @@ READY = (
 )
 
 
-def child(module: str, cls: str, params_file: Path | None) -> str:
+def child(module: str, cls: str, params_file: Path | None, *ros_args: str) -> str:
     """The code of a process that builds node ``cls`` of ``module`` from ``params_file``."""
-    args = ['node', '--ros-args'] + (['--params-file', str(params_file)] if params_file else [])
+    args = ['node', '--ros-args', *ros_args]
+    args += ['--params-file', str(params_file)] if params_file else []
     return (
         'import sys, rclpy\n'
         f'from pma_model_ros.nodes.{module} import {cls}\n'
@@ -56,7 +57,9 @@ def children(folder: Path) -> dict[str, str]:
         ),
         'model_node 1': child('model_node', 'ModelNode', CONFIG),
         'model_node 64': child('model_node', 'ModelNode', multi_muscle_file(64, folder)),
-        'joint_node 4x2': child('joint_node', 'JointNode', joints),
+        'joint_node 4x2': child(
+            'joint_node', 'JointNode', joints, '-p', f'config_dir:={ROOT / "config"}'
+        ),
         'simulator_node': child('simulator_node', 'SimulatorNode', None),
         'joint_sim_node': child('joint_simulator_node', 'JointSimulatorNode', None),
     }

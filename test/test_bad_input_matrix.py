@@ -155,10 +155,8 @@ MESSAGES = {
     'pressure-below-ambient': (pressure(AMBIENT - 50e3), estimate(WARN, OUTSIDE, gauge=-50e3)),
     'pressure-above-rated': (pressure(AMBIENT + 1e6), estimate(WARN, OUTSIDE, gauge=1e6)),
     'length-above-range': (state([0.26]), estimate(WARN, OUTSIDE, length=0.26)),
-    'length-below-envelope': (
-        state([0.15]),
-        estimate(WARN, OUTSIDE, length=0.15),
-    ),  # braid's shortest: 0.164 m
+    # the braid's shortest: 0.164 m
+    'length-below-envelope': (state([0.15]), estimate(WARN, OUTSIDE, length=0.15)),
     'length-below-identified': (
         state([0.19]),
         estimate(WARN, 'extrapolated beyond the identified data', length=0.19),
@@ -227,9 +225,8 @@ def test_core(row):
     else:
         value, stamp = out
         assert value == pytest.approx(expect.output(settings.config.model), rel=1e-9, abs=1e-6)
-        assert (
-            math.isfinite(value) and value >= 0 and stamp == now
-        )  # newest input stamp: never an older one
+        assert math.isfinite(value) and value >= 0
+        assert stamp == now  # the newest input stamp: never an older one
 
 
 # --- over the live node
@@ -604,13 +601,7 @@ def test_docs_table_lists_every_row():
 
 #: Calls and imports that would run or unpickle something a user supplies.
 UNSAFE_CALLS = {'eval', 'exec', 'compile', '__import__'}
-UNSAFE_ATTRIBUTES = {
-    'load',
-    'unsafe_load',
-    'full_load',
-    'system',
-    'popen',
-}  # yaml.load, os.system, ...
+UNSAFE_ATTRIBUTES = {'load', 'unsafe_load', 'full_load', 'system', 'popen'}  # yaml.load, ...
 UNSAFE_MODULES = {'pickle', 'marshal', 'shelve', 'dill', 'cloudpickle'}
 UNSAFE_KEYWORDS = {('shell', True), ('allow_pickle', True)}
 

@@ -132,9 +132,7 @@ def test_cli_fit_from_bag(tmp_path, capsys):
 
 
 def test_cli_fit_from_bad_bag(tmp_path, capsys):
-    bag = record_simulation(
-        tmp_path / 'run', 5.0, '/cal', rate=50.0
-    )  # the default sweep never holds still
+    bag = record_simulation(tmp_path / 'run', 5.0, '/cal', rate=50.0)  # sweeps, never holds still
     out = tmp_path / 'fit.yaml'
     assert (
         main(

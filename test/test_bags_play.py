@@ -102,12 +102,12 @@ def test_replay_into_the_node_equals_offline_estimate(
             '--topics',
             f'{namespace}/pressure',
             f'{namespace}/muscle_state',
-            '--wait-for-subscribers',
+            '--wait-for-subscribers',  # both ends matched
             '20',
             '--delay',
             '2',
         ]
-    )  # both ends matched
+    )
     ros.spin_until(
         lambda: (
             player.poll() is not None and estimates and stamp_key(estimates[-1]) == offline[-1][0]
@@ -175,12 +175,8 @@ def test_simulator_records_what_it_publishes(ros, processes, namespace, tmp_path
     counts = {len(v) for v in recorded.values()}
     assert len(counts) == 1 and counts.pop() >= len(forces)
     by_stamp = {stamp_key(m): m.wrench.force.x for _, m in recorded[f'{namespace}/force']}
-    assert all(
-        by_stamp[stamp_key(f)] == f.wrench.force.x for f in forces
-    )  # what was received was recorded
-    assert all(
-        t == stamp_key(m) for msgs in recorded.values() for t, m in msgs
-    )  # log time = stamp
+    assert all(by_stamp[stamp_key(f)] == f.wrench.force.x for f in forces)  # received: recorded
+    assert all(t == stamp_key(m) for msgs in recorded.values() for t, m in msgs)  # log time: stamp
     summary = estimate_bag(
         out,
         node_settings(read_parameters(CONFIGS['DMSP-10-250'])),

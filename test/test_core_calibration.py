@@ -66,9 +66,7 @@ def test_parameter_file_applies_length_and_offset_for_force_inverse_and_bank():
         build_parameters(spec, 'martens', fit.domain, {'martens': entry})['/**']['ros__parameters']
     )
     assert muscle.spec.nominal_length == 0.302
-    assert muscle.max_length == pytest.approx(
-        0.302 / np.cos(spec.fiber_angle)
-    )  # eq. 3 with the calibrated L0
+    assert muscle.max_length == pytest.approx(0.302 / np.cos(spec.fiber_angle))  # eq. 3, new L0
     # the sensor reads 8 kPa more than the muscle sees: the model at (p - 8 kPa), by hand from the
     # coefficients
     p, L = 308e3, 0.26

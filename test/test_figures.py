@@ -47,9 +47,8 @@ def png_size(path):
 def assert_written(paths, stem):
     assert [p.name for p in paths] == [f'{stem}.png', f'{stem}.svg']
     width, height = png_size(paths[0])
-    assert (
-        width == round(figures.WIDTH * figures.DPI) and 300 < height < width
-    )  # README width, landscape
+    assert width == round(figures.WIDTH * figures.DPI)  # the README's width
+    assert 300 < height < width  # landscape
     assert ET.parse(paths[1]).getroot().tag == '{http://www.w3.org/2000/svg}svg'
 
 

@@ -99,10 +99,10 @@ def test_torque_commands_reach_the_map_torque(ros, processes, namespace, theta):
             f'a steady torque after commanding {wanted:.3f} N·m at {theta} rad',
             every=lambda: bench.send('torque_command', effort=[wanted]),
         )
-        print(
+        print(  # pytest -s
             f'{theta:+.1f} rad: wanted {wanted:+.3f} N·m, map torque {measured:+.3f} N·m, '
             f'error {100 * (measured - wanted) / max_torque:+.2f} % of {max_torque:.3f} N·m'
-        )  # pytest -s
+        )
         assert abs(measured - wanted) <= TORQUE_TOLERANCE / 100 * max_torque, (
             f'{theta} rad: wanted {wanted:.3f} N·m, map torque {measured:.3f} N·m (max '
             f'{max_torque:.3f} N·m)'

@@ -112,9 +112,7 @@ def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_no
     flexor, extensor = (record(p) for p in node._command_pubs[0])
     node._on_states(joint_state(node, -0.3))
     node._on_torque(command(elbow=2.5))
-    expected = ELBOW.pressures_one(
-        -0.3, 2.5, 300e3, 'min'
-    )  # the file's co-contraction: min 300 kPa
+    expected = ELBOW.pressures_one(-0.3, 2.5, 300e3, 'min')  # the file's co-contraction
     assert flexor[-1].fluid_pressure == pytest.approx(expected.pressures[0] + AMBIENT, rel=1e-12)
     assert extensor[-1].fluid_pressure == pytest.approx(300e3 + AMBIENT, rel=1e-12)
     assert ELBOW.forward(
@@ -146,9 +144,8 @@ def test_out_of_reach_command_saturates_and_warns(make_node):
     node.publish_status()
     assert diagnostics[-1].status[0].level == b'\x00'
     node._on_torque(command(elbow=100.0))
-    assert flexor[-1].fluid_pressure == pytest.approx(
-        650e3 + AMBIENT
-    )  # the map's top (hildebrandt: no extrapolation)
+    top = 650e3  # the map's top (hildebrandt: no extrapolation)
+    assert flexor[-1].fluid_pressure == pytest.approx(top + AMBIENT)
     node.publish_status()
     status = diagnostics[-1].status[0]
     assert status.level == b'\x01' and 'SATURATED' in status.message
@@ -231,10 +228,7 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
         expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f'j{k}')
         assert torques[0].effort[i] == pytest.approx(float(expected.torque), rel=1e-9)
         assert stiffnesses[0].effort[i] == pytest.approx(float(expected.stiffness), rel=1e-9)
-    msg.name, msg.position = (
-        ['j0', 'j1', 'j2', 'j3'],
-        angles,
-    )  # the node's order: its prebuilt message
+    msg.name, msg.position = ['j0', 'j1', 'j2', 'j3'], angles  # the node's order: prebuilt
     node._on_states(msg)
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
         [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9

@@ -139,8 +139,8 @@ class JointEngine:
         if not (
             abs(now - stamp) <= self.max_age
             and abs(now - s.p_stamps[0]) <= self.max_age
-            and abs(now - s.p_stamps[1]) <= self.max_age
-        ):  # False for NaN: a pressure never received
+            and abs(now - s.p_stamps[1]) <= self.max_age  # NaN (no pressure yet): False
+        ):
             s.counts['stale skipped'] += 1
             return None
         m0, m1, r, r_slope = s.at

@@ -1,8 +1,8 @@
 """joint_node: torque and stiffness estimates and pressure commands of antagonistic joints.
 
 Parameters: a joint file (``config/example_joint.yaml``, layout in
-:mod:`pma_model_ros.core.joint_file`), read at start-up (later changes are refused).  Topics
-(relative, so a namespace applies):
+:mod:`pma_model_ros.core.joint_file`), read at start-up: all read-only.  Topics (relative, so
+a namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge``):
 
 * in ``joint_states`` (sensor_msgs/JointState: position θ [rad], entries by joint name; the
   velocity is not used: a hysteresis muscle's branch follows its length or pressure with memory)

@@ -62,9 +62,8 @@ def init(args: list[str] | None) -> None:
     level = get_logger_level('rcl')
     set_logger_level('rcl', LoggingSeverity.FATAL)
     try:
-        rclpy.init(
-            args=args, signal_handler_options=SignalHandlerOptions.NO
-        )  # run() handles the signals
+        # run() handles the signals
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RCLError as err:
         text = re.sub(r', at \S+:\d+', '', str(err)).removeprefix('failed to initialize rcl: ')
         raise StartupError(text) from None
