@@ -149,9 +149,9 @@ def test_package_xml_declares_every_import():
     assert tests - exec_deps - test_deps == set(), 'imported by the tests, not declared'
 
 
-#: What test_colcon_test_in_a_clean_workspace runs with `colcon test`: the ament lint tests, the
-#: ruff gate and a bag test (both skip: their pip-only libraries are hidden), the bag commands
-#: without rosbags, the nodes' parameters in-process, the share directory.
+#: What test_colcon_build_and_test_in_a_clean_workspace runs with `colcon test`: the ament lint
+#: tests, the ruff gate and a bag test (both skip: their pip-only libraries are hidden), the bag
+#: commands without rosbags, the nodes' parameters in-process, the README's layout tree (no git).
 COLCON_TESTS = [
     'test/test_flake8.py',
     'test/test_pep257.py',
@@ -159,6 +159,7 @@ COLCON_TESTS = [
     'test/test_bags_synthetic.py',
     'test/test_bags_commands.py',
     'test/test_core_node_parameters.py',
+    'test/test_readme_layout.py',
 ]
 #: Hides rosbags and ruff from every Python process of the run, as on a ROS install without them.
 HIDE_PIP_ONLY = 'import sys\nsys.modules.update(rosbags=None, ruff=None)\n'
