@@ -3,6 +3,7 @@
 Only the pure-Python physics dependencies are listed in install_requires;
 the ROS 2 dependencies (rclpy, message packages) are declared in package.xml.
 """
+
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -12,8 +13,7 @@ PACKAGE = 'pma_model_ros'
 setup(
     name=PACKAGE,
     version='0.1.0',
-    description=('Static force models of Festo pneumatic muscle actuators '
-                 '(DMSP/MAS) for ROS 2.'),
+    description=('Static force models of Festo pneumatic muscle actuators (DMSP/MAS) for ROS 2.'),
     license='Apache-2.0',
     maintainer='pma_model_ros maintainers',
     maintainer_email='maintainers@pma-model-ros.invalid',

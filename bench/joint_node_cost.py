@@ -92,9 +92,7 @@ def main() -> None:
             position=[0.1 * (k % 5) for k in range(args.joints)],
             velocity=[0.0] * args.joints,
         )
-        node.now = lambda: (
-            stamp.sec + stamp.nanosec * 1e-9
-        )  # inputs stay fresh however long this runs
+        node.now = lambda: stamp.sec + stamp.nanosec * 1e-9  # inputs stay fresh however long
         states.header.stamp = stamp
         torque = JointState(name=[names[0]], effort=[1.0])
         rows = {

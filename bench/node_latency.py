@@ -43,7 +43,7 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402, I100  (after the sys.path line)
 from joint_node_cost import arm  # noqa: E402  (bench/, this script's folder, is on sys.path)
 import rclpy  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402

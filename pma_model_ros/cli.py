@@ -669,7 +669,7 @@ def cmd_plot(args: argparse.Namespace) -> None:
 
 
 def _refuse_existing(paths: Sequence[str | Path], what: str) -> None:
-    """CliError naming the first of ``paths`` that exists (outputs are overwritten only with
+    """A CliError naming the first of ``paths`` that exists (outputs are overwritten only with
     ``--force``).
     """
     for path in paths:

@@ -27,7 +27,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from .core.muscle_model import MuscleModel
 from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import muscle_model, read_parameters
-from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map
+from .core.shipped_data import MAPPED_MUSCLES, share_directory, shipped_force_map
 from .tools import node_process
 
 NAMESPACE = '/pma_demo'
@@ -47,13 +47,8 @@ SENSOR_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
 def default_config() -> Path:
-    """config/dmsp_10_250.yaml of the source tree, else of the installed share directory."""
-    source = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'
-    if source.is_file():
-        return source
-    from ament_index_python.packages import get_package_share_directory
-
-    return Path(get_package_share_directory('pma_model_ros')) / 'config' / 'dmsp_10_250.yaml'
+    """config/dmsp_10_250.yaml of the package's share directory (in development: the source)."""
+    return share_directory() / 'config' / 'dmsp_10_250.yaml'
 
 
 @dataclass

@@ -28,6 +28,54 @@ def martens_10_250():
     return muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 
 
+#: What the lint tests check (test_lint.py: ruff; test_flake8.py, test_pep257.py: ament's).
+LINT_PATHS = ['pma_model_ros', 'test', 'bench', 'setup.py']
+
+
+def ruff_config() -> dict:
+    """``ruff.toml``, the lint rules (tomllib imported here: Jazzy's flake8-import-order 0.18
+    takes it for a third-party module).
+    """
+    import tomllib
+
+    return tomllib.loads((REPO / 'ruff.toml').read_text())
+
+
+#: In the reason of a test skipped for a missing pip-only library (rosbags, ruff: no rosdep key;
+#: requirements-dev.txt).  scripts/test installs them and sets PMA_TEST_ALL_LIBRARIES=1: there
+#: such a skip fails the run.
+PIP_ONLY = 'a pip-only library'
+_skipped_for_libraries: list[str] = []
+
+
+def pytest_collectreport(report):
+    _note_library_skip(report)
+
+
+def pytest_runtest_logreport(report):
+    _note_library_skip(report)
+
+
+def _note_library_skip(report) -> None:
+    if report.skipped and PIP_ONLY in str(report.longrepr):
+        _skipped_for_libraries.append(f'{report.nodeid}: {report.longrepr[-1]}')
+
+
+def pytest_sessionfinish(session):
+    if _skipped_for_libraries and os.environ.get('PMA_TEST_ALL_LIBRARIES') == '1':
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter):
+    if _skipped_for_libraries and os.environ.get('PMA_TEST_ALL_LIBRARIES') == '1':
+        terminalreporter.write_line(
+            'FAILED: scripts/test installs every test library, yet these skipped for one:',
+            red=True,
+        )
+        for line in _skipped_for_libraries:
+            terminalreporter.write_line(f'  {line}', red=True)
+
+
 COLCON = Path(sys.executable).parent / 'colcon'
 #: The environment of node processes that only start and fail: no DDS discovery.  Twenty of them
 #: discovering each other at once made Fast DDS's discovery deadlock (nodes/startup.teardown)
@@ -42,6 +90,22 @@ def lines_of_failed_start(cmd: list[str]) -> list[str]:
     )
     assert run.returncode == 1, run.stdout + run.stderr
     return (run.stdout + run.stderr).strip().splitlines()
+
+
+def docstring_yaml(module) -> dict:
+    """The ``ros__parameters`` of the YAML example in ``module``'s docstring (the block after
+    ``::``).
+    """
+    import textwrap
+
+    import yaml
+
+    block = []
+    for line in module.__doc__.split('::\n\n', 1)[1].splitlines():
+        if line and not line.startswith('    '):
+            break
+        block.append(line)
+    return yaml.safe_load(textwrap.dedent('\n'.join(block)))['/**']['ros__parameters']
 
 
 def explain(proc):

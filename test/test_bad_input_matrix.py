@@ -19,13 +19,12 @@ import uuid
 import pytest
 from scipy.optimize import brentq
 
+from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
+from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 from pma_model_ros.core.engine import Engine, Level
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import node_settings, read_parameters
 from pma_model_ros.tools import node_process
-
-from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
-from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 
 CONFIG = CONFIGS['DMSP-10-250']
 P = 300e3  # gauge pressure of the good inputs [Pa]
@@ -156,10 +155,8 @@ MESSAGES = {
     'pressure-below-ambient': (pressure(AMBIENT - 50e3), estimate(WARN, OUTSIDE, gauge=-50e3)),
     'pressure-above-rated': (pressure(AMBIENT + 1e6), estimate(WARN, OUTSIDE, gauge=1e6)),
     'length-above-range': (state([0.26]), estimate(WARN, OUTSIDE, length=0.26)),
-    'length-below-envelope': (
-        state([0.15]),
-        estimate(WARN, OUTSIDE, length=0.15),
-    ),  # braid's shortest: 0.164 m
+    # the braid's shortest: 0.164 m
+    'length-below-envelope': (state([0.15]), estimate(WARN, OUTSIDE, length=0.15)),
     'length-below-identified': (
         state([0.19]),
         estimate(WARN, 'extrapolated beyond the identified data', length=0.19),
@@ -228,9 +225,8 @@ def test_core(row):
     else:
         value, stamp = out
         assert value == pytest.approx(expect.output(settings.config.model), rel=1e-9, abs=1e-6)
-        assert (
-            math.isfinite(value) and value >= 0 and stamp == now
-        )  # newest input stamp: never an older one
+        assert math.isfinite(value) and value >= 0
+        assert stamp == now  # the newest input stamp: never an older one
 
 
 # --- over the live node
@@ -607,13 +603,7 @@ def test_docs_table_lists_every_row():
 
 #: Calls and imports that would run or unpickle something a user supplies.
 UNSAFE_CALLS = {'eval', 'exec', 'compile', '__import__'}
-UNSAFE_ATTRIBUTES = {
-    'load',
-    'unsafe_load',
-    'full_load',
-    'system',
-    'popen',
-}  # yaml.load, os.system, ...
+UNSAFE_ATTRIBUTES = {'load', 'unsafe_load', 'full_load', 'system', 'popen'}  # yaml.load, ...
 UNSAFE_MODULES = {'pickle', 'marshal', 'shelve', 'dill', 'cloudpickle'}
 UNSAFE_KEYWORDS = {('shell', True), ('allow_pickle', True)}
 

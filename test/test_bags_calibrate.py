@@ -4,8 +4,17 @@ that generalises to the measured map as well as the fit on the map itself.
 
 import numpy as np
 import pytest
+
+try:
+    import rosbags  # noqa: F401
+except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install without it
+    pytest.skip(
+        'needs rosbags, a pip-only library: pip install -r requirements-dev.txt',
+        allow_module_level=True,
+    )
 import yaml
 
+from conftest import REPO
 from pma_model_ros.bags.calibrate import (
     force_map_from_bag,
     quasi_static,
@@ -20,8 +29,6 @@ from pma_model_ros.core.identification import fit_best, max_error_percent, physi
 from pma_model_ros.core.models import get_model
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
-
-from conftest import REPO
 
 SPEC = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml'
 #: A calibration run: 4 held lengths over the map's range, 30 s each, while the pressure sweeps the

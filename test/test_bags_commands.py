@@ -8,9 +8,10 @@ import sys
 
 import pytest
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.cli import main
 
-from conftest import CONFIGS
+SPEC = REPO / 'pma_model_ros/core/data/dmsp_10_250.yaml'
 
 
 @pytest.mark.parametrize(
@@ -43,10 +44,8 @@ def test_bad_arguments_one_line_exit_2(capsys, argv, words):
         code = main(argv)
     except SystemExit as stop:  # argparse's own refusals
         code = stop.code
-    err = capsys.readouterr().err
-    assert code == 2 and words in err.strip().splitlines()[-1], (
-        err
-    )  # (argparse prints its usage above)
+    err = capsys.readouterr().err  # argparse prints its usage above the last line
+    assert code == 2 and words in err.strip().splitlines()[-1], err
 
 
 def test_missing_bag_is_one_line_exit_2(capsys, tmp_path):
@@ -84,3 +83,21 @@ def test_estimate_replaces_an_existing_output_only_with_force(tmp_path):
         sum(1 for topic, *_ in read(out) if topic == '/m1/force_estimate') == 99
     )  # 2 x 50 inputs, the first unpaired
     assert sorted(p.name for p in tmp_path.iterdir()) == ['est.mcap', 'run']
+
+
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['bag', 'estimate', 'run1', '--config', str(CONFIGS['DMSP-10-250']), '--out', 'out'],
+        ['bag', 'play', 'run1'],
+        ['fit', '--bag', 'run1', '--muscle', str(SPEC), '--model', 'martens', '--out', 'p.yaml'],
+    ],
+)
+def test_without_rosbags_a_bag_command_is_one_line_exit_2(capsys, monkeypatch, tmp_path, argv):
+    """Rosbags is pip-only (no rosdep key): a ROS install may lack it."""
+    monkeypatch.setitem(sys.modules, 'rosbags', None)  # import rosbags: ImportError
+    monkeypatch.chdir(tmp_path)
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count('\n') == 1 and 'pip install rosbags' in err, err
+    assert not list(tmp_path.iterdir())

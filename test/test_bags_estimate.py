@@ -9,9 +9,18 @@ import sys
 
 import numpy as np
 import pytest
+
+try:
+    import rosbags  # noqa: F401
+except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install without it
+    pytest.skip(
+        'needs rosbags, a pip-only library: pip install -r requirements-dev.txt',
+        allow_module_level=True,
+    )
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+from conftest import CONFIGS
 from pma_model_ros.bags.bag_io import (
     BagWriter,
     FLUID_PRESSURE,
@@ -26,8 +35,6 @@ from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.hysteresis import branches
 from pma_model_ros.core.param_file import node_settings, read_parameters
-
-from conftest import CONFIGS
 
 T = TYPESTORE.types
 SETTINGS = node_settings(read_parameters(CONFIGS['DMSP-10-250']))

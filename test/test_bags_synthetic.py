@@ -3,6 +3,14 @@
 import numpy as np
 import pytest
 
+try:
+    import rosbags  # noqa: F401
+except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install without it
+    pytest.skip(
+        'needs rosbags, a pip-only library: pip install -r requirements-dev.txt',
+        allow_module_level=True,
+    )
+
 from pma_model_ros.bags.bag_io import read
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.shipped_data import shipped_force_map
@@ -39,14 +47,11 @@ def test_rate_times_duration_messages_on_three_topics_stamped_on_the_grid(tmp_pa
         ]
         assert times == expected and stamps == expected, name
     pressures = [m.fluid_pressure for t, _, m in messages if t == '/sim/pressure']
-    assert pressures == pytest.approx(
-        [101325.0 + 310e3] * 100, abs=1e-6
-    )  # absolute: ambient + 310 kPa gauge
+    absolute = 101325.0 + 310e3  # ambient + 310 kPa gauge
+    assert pressures == pytest.approx([absolute] * 100, abs=1e-6)
     lengths = [m.position[0] for t, _, m in messages if t == '/sim/muscle_state']
     assert lengths == pytest.approx([0.23] * 100)
     forces = np.array([m.wrench.force.x for t, _, m in messages if t == '/sim/force'])
-    fmap = shipped_force_map(
-        'DMSP-10-250'
-    )  # 0.23 m lies between the 0.219 and 0.234 m rows of Table A2
+    fmap = shipped_force_map('DMSP-10-250')  # 0.23 m: between Table A2's 0.219 and 0.234 m rows
     near = [fmap.force[(fmap.length == L) & (fmap.pressure == 310e3)][0] for L in (0.219, 0.234)]
     assert np.all((forces > min(near)) & (forces < max(near)))

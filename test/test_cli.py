@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.cli import length_headers, main
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
-
-from conftest import CONFIGS, REPO
 
 TABLE3_MODELS = {'mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens'}
 

@@ -2,17 +2,21 @@
 
 Uses the session's colcon build (test/conftest.py) in a temporary directory -- build, install and
 log bases all live outside the source tree -- then checks the install layout, the console scripts,
-the ament index and that the source tree got no build artifacts.
+the ament index and that the source tree got no build artifacts.  package.xml declares what the
+code imports; `colcon build && colcon test` pass in a clean workspace.
 """
 
+import ast
 import os
 from pathlib import Path
+import shutil
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
 
 import pytest
 
-from conftest import explain
+from conftest import COLCON, explain
 
 PKG = 'pma_model_ros'
 REPO = Path(__file__).resolve().parents[1]
@@ -89,6 +93,14 @@ def test_pma_model_help(build):
     assert 'usage' in proc.stdout.lower()
 
 
+def test_share_directory_of_the_install(build):
+    """The package finds its share directory through ament_index, from any working directory."""
+    code = 'from pma_model_ros.core.shipped_data import share_directory; print(share_directory())'
+    proc = _run_installed([sys.executable, '-c', code], build)
+    assert proc.returncode == 0, explain(proc)
+    assert Path(proc.stdout.strip()) == build['prefix'] / 'share' / PKG
+
+
 def test_ament_index_finds_share_directory(build):
     code = (
         'from ament_index_python.packages import get_package_share_directory as g; '
@@ -97,3 +109,94 @@ def test_ament_index_finds_share_directory(build):
     proc = _run_installed([sys.executable, '-c', code], build)
     assert proc.returncode == 0, explain(proc)
     assert Path(proc.stdout.strip()) == build['prefix'] / 'share' / PKG
+
+
+#: rosdep keys of the third-party modules this package imports (a ROS package's module is its
+#: name); the pip-only ones (no rosdep key, requirements-dev.txt) are not declared.
+ROSDEP_KEYS = {
+    'numpy': 'python3-numpy',
+    'scipy': 'python3-scipy',
+    'yaml': 'python3-yaml',
+    'matplotlib': 'python3-matplotlib',
+    'pytest': 'python3-pytest',
+    'hypothesis': 'python3-hypothesis',
+}
+PIP_ONLY = {'rosbags', 'apsw', 'ruff'}  # apsw: rosbags' SQLite binding
+FIRST_PARTY = {PKG, 'conftest', 'node_messages'}
+
+
+def third_party_imports(folder: str) -> set[str]:
+    """Top-level names of the modules that the Python files under ``folder`` import."""
+    names = set()
+    for path in (REPO / folder).rglob('*.py'):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names.update(alias.name.split('.')[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names.add(node.module.split('.')[0])
+    test_modules = {p.stem for p in (REPO / 'test').glob('*.py')}
+    return names - set(sys.stdlib_module_names) - FIRST_PARTY - PIP_ONLY - test_modules
+
+
+def test_package_xml_declares_every_import():
+    """The package's imports are exec dependencies; the tests' are exec or test dependencies."""
+    root = ET.parse(REPO / 'package.xml').getroot()
+    exec_deps = {e.text for e in root.iter('exec_depend')}
+    test_deps = {e.text for e in root.iter('test_depend')}
+    run = {ROSDEP_KEYS.get(name, name) for name in third_party_imports(PKG)}
+    tests = {ROSDEP_KEYS.get(name, name) for name in third_party_imports('test')}
+    assert run - exec_deps == set(), 'imported by the package, not an exec_depend'
+    assert tests - exec_deps - test_deps == set(), 'imported by the tests, not declared'
+
+
+#: What test_colcon_build_and_test_in_a_clean_workspace runs with `colcon test`: the ament lint
+#: tests, the ruff gate and a bag test (both skip: their pip-only libraries are hidden), the bag
+#: commands without rosbags, the nodes' parameters in-process, the README's layout tree (no git).
+COLCON_TESTS = [
+    'test/test_flake8.py',
+    'test/test_pep257.py',
+    'test/test_lint.py',
+    'test/test_bags_synthetic.py',
+    'test/test_bags_commands.py',
+    'test/test_core_node_parameters.py',
+    'test/test_readme_layout.py',
+]
+#: Hides rosbags and ruff from every Python process of the run, as on a ROS install without them.
+HIDE_PIP_ONLY = 'import sys\nsys.modules.update(rosbags=None, ruff=None)\n'
+
+
+def test_colcon_build_and_test_in_a_clean_workspace(tmp_path):
+    """A copy of the source in a fresh workspace: `colcon build`, then `colcon test` of
+    :data:`COLCON_TESTS` with the pip-only libraries hidden: no failure, and the tests that need
+    one are skipped with that reason.
+    """
+    source = tmp_path / 'ws' / 'src' / PKG
+    shutil.copytree(
+        REPO,
+        source,
+        ignore=shutil.ignore_patterns(
+            '.git', '.venv', 'build', 'install', 'log', '*.egg-info', '__pycache__', '.*cache'
+        ),
+    )
+    hide = tmp_path / 'hide'
+    hide.mkdir()
+    (hide / 'sitecustomize.py').write_text(HIDE_PIP_ONLY)
+    env = {k: v for k, v in os.environ.items() if k != 'PMA_TEST_ALL_LIBRARIES'}
+    env |= {'COLCON_HOME': str(tmp_path / 'colcon_home'), 'PYTHONPATH': str(hide)}
+    workspace = tmp_path / 'ws'
+    for command in (
+        ['build'],
+        ['test', '--pytest-args', *COLCON_TESTS],
+        ['test-result', '--verbose'],
+    ):
+        proc = _run([COLCON, *command], env=env, cwd=workspace, timeout=300)
+        assert proc.returncode == 0, f'colcon {command[0]}: {explain(proc)}'
+    print(proc.stdout.strip().splitlines()[-1])  # pytest -s: colcon test-result's summary
+    result = ET.parse(workspace / 'build' / PKG / 'pytest.xml').getroot()
+    skipped = {  # a module skipped at collection: name 'test.test_lint', the reason in the text
+        case.get('name').rsplit('.', 1)[-1]: skip.text
+        for case in result.iter('testcase')
+        for skip in case.iter('skipped')
+    }
+    assert set(skipped) == {'test_lint', 'test_bags_synthetic'}, skipped
+    assert all('a pip-only library' in reason for reason in skipped.values()), skipped

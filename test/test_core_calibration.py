@@ -65,9 +65,7 @@ def test_parameter_file_applies_length_and_offset_for_force_inverse_and_bank():
         build_parameters(spec, 'martens', fit.domain, {'martens': entry})['/**']['ros__parameters']
     )
     assert muscle.spec.nominal_length == 0.302
-    assert muscle.max_length == pytest.approx(
-        0.302 / np.cos(spec.fiber_angle)
-    )  # eq. 3 with the calibrated L0
+    assert muscle.max_length == pytest.approx(0.302 / np.cos(spec.fiber_angle))  # eq. 3, new L0
     # the sensor reads 8 kPa more than the muscle sees: the model at (p - 8 kPa), by hand from the
     # coefficients
     p, L = 308e3, 0.26
@@ -93,10 +91,10 @@ def test_parameter_file_applies_length_and_offset_for_force_inverse_and_bank():
 
 
 def test_offset_and_length_recovered_where_the_model_identifies_them():
-    """McKibben (eq. 17) has no parameters: on its own forces with a +10 kPa sensor offset (every
-    row slack below 10 kPa) and the true L0, the offset is identified exactly; with L0 given 8 mm
-    short (shorter than the 0.296 m row), L0 is found within 2 mm (the search does not model the
-    offset), then the offset.
+    """The McKibben model (eq. 17) has no parameters: on its own forces with a +10 kPa sensor
+    offset (every row slack below 10 kPa) and the true L0, the offset is identified exactly; with
+    L0 given 8 mm short (shorter than the 0.296 m row), L0 is found within 2 mm (the search does
+    not model the offset), then the offset.
     """
     model, truth_spec = MODELS['mckibben'], shipped_spec('DMSP-20-300')
     grid = shipped_force_map('DMSP-20-300')

@@ -9,13 +9,12 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.engine import Config, Engine, Level
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
-
-from conftest import CONFIGS
 
 AMBIENT = 101325.0
 P = 300e3  # gauge [Pa]

@@ -7,13 +7,12 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import CONFIGS
 from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
 from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map
-
-from conftest import CONFIGS
 
 FITTED = ('andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 
@@ -102,10 +101,7 @@ def test_regenerated_config_matches_committed(results, muscle, tmp_path):
         )
         for key in ('err', 'rmse', 'r2'):
             assert new[key] == pytest.approx(entry[key], rel=1e-4, abs=1e-3), (name, key)
-        for key in (
-            'cv_err',
-            'edge_cv_err',
-        ):  # fits of 4-5 lengths: the held-out error varies ~1e-4 by platform
+        for key in ('cv_err', 'edge_cv_err'):  # 4-5 lengths fitted: ~1e-4 apart by platform
             assert new[key] == pytest.approx(entry[key], rel=1e-3), (name, key)
         # Ill-conditioned fits (hildebrandt's 8 parameters) land a few 1e-4 apart by platform:
         # compare what the parameters serve, the force on the map, to 0.01 % of its max force.
@@ -164,22 +160,8 @@ def test_two_branch_model_from_a_map_with_directions(tmp_path):
     single.write_text(
         'pressure_pa,length_m,force_n\n' + ''.join(f'{a},{b},{c}\n' for a, b, c, _ in rows)
     )
-    assert (
-        main(
-            [
-                'fit',
-                '--data',
-                str(single),
-                '--muscle',
-                str(spec),
-                '--model',
-                'sarosi_hysteresis',
-                '--out',
-                str(out),
-            ]
-        )
-        == 2
-    )  # no direction column: one line, exit 2
+    argv = ['fit', '--data', str(single), '--muscle', str(spec), '--model', 'sarosi_hysteresis']
+    assert main([*argv, '--out', str(out)]) == 2  # no direction column: one line, exit 2
 
 
 def test_worker_environment_is_set_for_the_workers_only(monkeypatch):

@@ -10,12 +10,11 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.models import MODELS
 from pma_model_ros.core.muscle_model import MuscleModel, pressure_for_one
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS
 
 MUSCLES = [
     muscle_model(read_parameters(path), name)
@@ -153,9 +152,7 @@ def test_inverse_of_random_parameter_sets(shape, factors, u_length, u_pressure, 
         assert float(muscle.force(back.pressure, L, rate).force) == pytest.approx(
             wanted, abs=1e-9 * scale
         )
-        if (
-            np.ptp(grid.raw) > 1e-3 * scale
-        ):  # (on a flat line, every pressure gives it to round-off)
+        if np.ptp(grid.raw) > 1e-3 * scale:  # (on a flat line, every pressure gives it)
             assert float(back.pressure) <= p_true + 1e-6 * p_max
             # no smaller pressure gives it
             below = GRID * p_max < float(back.pressure) - 1e-6 * p_max

@@ -11,12 +11,11 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.joint import envelope, Joint, Transmission
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS, REPO
 
 EXAMPLE = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
 #: The highest pressure the example's muscles are commanded: their map's 650 kPa (hildebrandt does
@@ -170,9 +169,7 @@ def _check_round_trip(joint, theta, wanted, solution):
 def test_round_trip_lower_pressure(joint, theta, share, level):
     p_max = _top(joint)
     level *= p_max
-    low = float(
-        joint.forward(theta, level, p_max).torque
-    )  # reachable with the lower pressure at ``level``
+    low = float(joint.forward(theta, level, p_max).torque)  # reachable, lower pressure at level
     high = float(joint.forward(theta, p_max, level).torque)
     wanted = low + share * (high - low)
     solution = joint.pressures_one(theta, wanted, level, 'min')
@@ -237,9 +234,7 @@ def test_out_of_reach_torque_is_saturated_at_the_bound():
 
 
 def test_out_of_reach_stiffness_keeps_the_torque():
-    top = float(
-        EXAMPLE.forward(0.0, TOP, TOP).stiffness
-    )  # both muscles at max: the stiffest pair at 0 N·m
+    top = float(EXAMPLE.forward(0.0, TOP, TOP).stiffness)  # both at max: the stiffest at 0 N·m
     solution = EXAMPLE.pressures_one(0.0, 0.0, stiffness=top + 10.0)
     assert solution.flags & Flag.SATURATED
     assert abs(solution.torque) <= 1e-9 * _scale(EXAMPLE, 0.0)

@@ -5,11 +5,12 @@ import copy
 import pytest
 import yaml
 
+from conftest import CONFIGS, docstring_yaml, REPO
+from pma_model_ros.core import joint_file
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import joints, load_joints
+from pma_model_ros.core.node_parameters import DEFAULT_FOLLOW
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS, REPO
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 
@@ -115,3 +116,16 @@ def test_joint_list_errors(tmp_path):
     path.write_text(yaml.safe_dump({'/**': {'ros__parameters': example()}}))
     with pytest.raises(ValueError, match="muscle 'flexor'.*dmsp_10_250.yaml"):
         load_joints(path)  # muscle files are found beside the joint file
+
+
+def test_the_docstring_example_is_the_example_joint_with_a_hysteresis_mapping():
+    (elbow,) = joints(docstring_yaml(joint_file), REPO / 'config')
+    (shipped,) = load_joints(EXAMPLE)
+    assert (elbow.muscle_names, elbow.transmission, elbow.limits, elbow.length_at_zero) == (
+        shipped.muscle_names,
+        shipped.transmission,
+        shipped.limits,
+        shipped.length_at_zero,
+    )
+    assert [m.model.name for m in elbow.muscles] == ['martens', 'hildebrandt']
+    assert elbow.follows == (DEFAULT_FOLLOW, Follow('pressure', 10000.0))

@@ -14,7 +14,7 @@ AMBIENT = 101325.0
 
 
 def params(**overrides):
-    return {name: default for name, (default, _, _) in PARAMETERS.items()} | overrides
+    return {p.name: p.default for p in PARAMETERS} | overrides
 
 
 def measured(pressure, length):

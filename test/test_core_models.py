@@ -5,13 +5,12 @@ import math
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import domain_of, max_error_percent
 from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
-
-from conftest import CONFIGS
 
 # Martens & Boblan 2017, Table 2 (as printed).
 TABLE2 = {
@@ -100,9 +99,7 @@ def test_physical_force_flags_and_clipping(martens_10_250):
         np.array([0.23, 0.2, 0.23, 0.23, 0.26, 0.23, 0.23]),
     )
     assert np.all(res.force[:5] >= 0) and np.isnan(res.force[5])
-    vented = martens_10_250.force(
-        0.0, 0.23
-    )  # 5 kPa below ambient: a vented muscle, served as 0 Pa gauge
+    vented = martens_10_250.force(0.0, 0.23)  # 5 kPa below ambient (vented) is served as 0 Pa
     assert res.flags[6] == vented.flags and not res.flags[6] & Flag.PRESSURE_OUT_OF_RANGE
     assert res.force[6] == float(vented.force)
     assert res.flags[0] == Flag.OK

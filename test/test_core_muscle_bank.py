@@ -5,11 +5,10 @@ MuscleModel.
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.models import MODELS
 from pma_model_ros.core.muscle_bank import MuscleBank
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS
 
 
 def shipped_muscles() -> list:

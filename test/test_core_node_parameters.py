@@ -5,10 +5,9 @@ ranges.
 import pytest
 import rclpy
 
+from conftest import CONFIGS, REPO
 from pma_model_ros.core.engine import Config
 from pma_model_ros.core.node_parameters import markdown_table, PARAMETERS, SPECS
-
-from conftest import CONFIGS, REPO
 
 
 def test_readme_table_is_the_schema():

@@ -4,14 +4,15 @@ import copy
 
 import pytest
 
+from conftest import docstring_yaml, REPO
+from pma_model_ros.core import param_file
 from pma_model_ros.core.param_file import (
     all_node_settings,
+    identification,
     muscle_model,
     node_settings,
     read_parameters,
 )
-
-from conftest import REPO
 
 CONFIG = REPO / 'config' / 'dmsp_10_250.yaml'
 
@@ -128,3 +129,33 @@ def test_a_muscle_spec_given_as_parameter_file_is_named_so():
     spec = REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml'
     with pytest.raises(ValueError, match='is a muscle spec, not a ROS parameter file'):
         read_parameters(spec)
+
+
+def test_the_docstring_example_is_the_shipped_file_s_martens(params):
+    example = docstring_yaml(param_file)
+    assert example['muscle'] == params['muscle']
+    for key in ('model', 'length_range', 'pressure_range'):
+        assert example[key] == params[key]
+    assert example['models']['martens'] == params['models']['martens']
+
+
+def test_identification_results_as_diagnostic_values(params):
+    """The file's numbers to 6 digits, with units, and the held-out err of each length."""
+    martens = params['models']['martens']
+    held = martens['held_out']
+    assert identification(params) == {
+        'identification objective': martens['objective'],
+        'identification err [% of max force]': f'{martens["err"]:.6g}',
+        'identification rmse [N]': f'{martens["rmse"]:.6g}',
+        'identification r2': f'{martens["r2"]:.6g}',
+        'identification cv_err [% of max force]': f'{martens["cv_err"]:.6g}',
+        'identification edge_cv_err [% of max force]': f'{martens["edge_cv_err"]:.6g}',
+        'identification held_out [m: % of max force]': ', '.join(
+            f'{length:.4g}: {err:.3g}' for length, err in zip(held['lengths'], held['err'])
+        ),
+    }
+    assert max(held['err']) == martens['cv_err']  # the worst held-out length is cv_err
+    assert identification(params, 'hildebrandt')['identification err [% of max force]'] == (
+        f'{params["models"]["hildebrandt"]["err"]:.6g}'
+    )
+    assert identification({'model': 'martens', 'models': {'martens': {'params': []}}}) == {}

@@ -35,13 +35,12 @@ from hypothesis.extra.numpy import array_shapes, arrays
 import numpy as np
 import pytest
 
+from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.geometry import MuscleSpec
 from pma_model_ros.core.models import Domain, MODELS
 from pma_model_ros.core.muscle_model import MuscleModel, VENTED_BAND
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-
-from conftest import CONFIGS
 
 PARAMETERS = {muscle: read_parameters(path) for muscle, path in CONFIGS.items()}
 MUSCLES = [
@@ -98,10 +97,8 @@ def units(size: int = 8):
 @given(st.sampled_from(MUSCLES), units(), units(), st.sampled_from(RATES))
 def test_served_force_is_nonnegative_clipped_raw_force(muscle, u_p, u_L, rate):
     n = min(u_p.size, u_L.size)
-    p, L = (
-        (3 * u_p[:n] - 1) * muscle.spec.max_pressure,
-        working_length(muscle, u_L[:n]),
-    )  # p in [-p_max, 2 p_max]
+    p = (3 * u_p[:n] - 1) * muscle.spec.max_pressure  # p in [-p_max, 2 p_max]
+    L = working_length(muscle, u_L[:n])
     result = muscle.force(p, L, rate)
     assert not np.any(flagged(result.flags, Flag.INVALID_INPUT))
     assert np.all(result.force >= 0)
@@ -316,16 +313,13 @@ def value_error_or(build, one_line: bool = True):
 )
 def test_check_params_raises_value_error_only(model_theta, as_array):
     model, theta = model_theta
-    if (
-        as_array
-    ):  # a float array (when numpy can make one) as well as the lists a parameter file gives
+    if as_array:  # a float array (when numpy can make one) as well as a parameter file's lists
         try:
             theta = np.array(theta, dtype=float).reshape(-1)[: model.n_params]
         except (TypeError, ValueError, OverflowError):
             pass
-    values = value_error_or(
-        lambda: model.check_params(theta), one_line=not as_array
-    )  # numpy wraps long reprs
+    one_line = not as_array  # numpy wraps long reprs
+    values = value_error_or(lambda: model.check_params(theta), one_line=one_line)
     if values is not None:
         assert values.shape == (model.n_params,) and np.all(np.isfinite(values))
 

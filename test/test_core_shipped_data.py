@@ -6,15 +6,15 @@ from importlib import resources
 import numpy as np
 import pytest
 
+from conftest import REPO
 from pma_model_ros.core.shipped_data import (
     MAPPED_MUSCLES,
     sarosi_tables,
+    share_directory,
     shipped_force_map,
     SHIPPED_MUSCLES,
     shipped_spec,
 )
-
-from conftest import REPO
 
 
 @pytest.mark.parametrize(
@@ -58,3 +58,22 @@ def test_the_spec_files_in_config_are_the_shipped_specs(muscle):
     assert (REPO / 'config' / 'muscles' / name).read_bytes() == (
         resources.files('pma_model_ros.core').joinpath('data', name).read_bytes()
     )
+
+
+def test_share_directory_of_the_development_install_is_the_source(monkeypatch, tmp_path):
+    """No ament prefix path (scripts/setup's editable install): the source tree, from any working
+    directory.
+    """
+    monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert share_directory() == REPO
+
+
+def test_share_directory_through_ament_index(monkeypatch, tmp_path):
+    """A prefix on AMENT_PREFIX_PATH that has the package (a colcon install) comes first."""
+    share = tmp_path / 'share' / 'pma_model_ros'
+    (tmp_path / 'share/ament_index/resource_index/packages').mkdir(parents=True)
+    (tmp_path / 'share/ament_index/resource_index/packages/pma_model_ros').touch()
+    share.mkdir()
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path))
+    assert share_directory() == share

@@ -49,9 +49,8 @@ def test_hysteresis_gap_changes_sign_only_after_the_length_reversed_by_the_deadb
     ):
         assert sign[int(round(t / 0.001)) - 1] == expected, t
     assert np.all(np.abs(with_gap.force - without.force) <= GAP + 1e-9)
-    assert (
-        with_gap.rate[int(round((PERIOD / 4 + lag / 2) / 0.001))] < 0
-    )  # rate already negative, branch still +
+    # rate already negative, branch still +
+    assert with_gap.rate[int(round((PERIOD / 4 + lag / 2) / 0.001))] < 0
 
 
 def test_defaults_reject_unknown_parameters():

@@ -4,14 +4,13 @@ import os
 
 import pytest
 
+from conftest import REPO
 from pma_model_ros.core.user_files import (
     load_yaml_mapping,
     MAX_FILE_BYTES,
     read_spec_yaml,
     read_user_file,
 )
-
-from conftest import REPO
 
 
 def test_reads_utf8_text(tmp_path):

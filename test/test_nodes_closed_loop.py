@@ -11,11 +11,10 @@ from geometry_msgs.msg import WrenchStamped
 import pytest
 from sensor_msgs.msg import FluidPressure
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
-
 from conftest import CONFIGS
 from node_messages import AMBIENT, force_command, SENSOR_QOS
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.shipped_data import shipped_force_map
 
 pytestmark = pytest.mark.ros
 

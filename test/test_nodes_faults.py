@@ -12,10 +12,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 import pytest
 
-from pma_model_ros.tools import node_process
-
 from conftest import CONFIGS
 from node_messages import model_statuses, RELIABLE_QOS, stamp_key
+from pma_model_ros.tools import node_process
 
 pytestmark = pytest.mark.ros
 

@@ -15,8 +15,6 @@ import time
 import numpy as np
 import pytest
 
-from pma_model_ros.core.param_file import node_settings, read_parameters
-
 from conftest import CONFIGS
 from node_messages import (
     AMBIENT,
@@ -27,6 +25,7 @@ from node_messages import (
     state,
     status_values,
 )
+from pma_model_ros.core.param_file import node_settings, read_parameters
 
 pytestmark = pytest.mark.ros
 

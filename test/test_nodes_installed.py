@@ -1,15 +1,16 @@
 """The colcon install tree: the installed model_node, started as `ros2 run` would, estimates
-force.
+force; the installed joint_node finds its shipped muscle files.
 """
+
+import time
 
 from geometry_msgs.msg import WrenchStamped
 import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-
 from node_messages import AMBIENT, pressure, state
+from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 pytestmark = pytest.mark.ros
 
@@ -52,3 +53,21 @@ def test_installed_model_node_estimates(colcon_install, ros, processes, namespac
     expected = float(muscle_model(read_parameters(config)).force(400e3, 0.24).force)
     assert estimates[-1].wrench.force.x == pytest.approx(expected, rel=1e-9)
     assert estimates[-1].header.frame_id == 'dmsp_10_250'
+
+
+def test_installed_joint_node_finds_the_shipped_muscle_files(colcon_install, processes, namespace):
+    """Without ``config_dir``, from a directory outside the source tree: the example joint's
+    relative muscle files come from the install's share directory (ament_index).
+    """
+    prefix = colcon_install['prefix']
+    config = prefix / 'share/pma_model_ros/config/example_joint.yaml'
+    node = processes.start(
+        [prefix / 'lib/pma_model_ros/joint_node', '--ros-args', '-r', f'__ns:={namespace}']
+        + ['--params-file', config],
+        env=colcon_install['env'],
+        cwd=colcon_install['tmp'],
+    )
+    deadline = time.monotonic() + 30
+    while "joint 'elbow': flexor (hildebrandt)" not in processes.output(node):
+        assert node.poll() is None and time.monotonic() < deadline, processes.output(node)
+        time.sleep(0.1)

@@ -14,10 +14,9 @@ import math
 import pytest
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
-
 from conftest import REPO
 from node_messages import SENSOR_QOS
+from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
 
 pytestmark = pytest.mark.ros
 
@@ -33,7 +32,7 @@ def map_torque(theta, p0, p1):
     """Torque [N·m] of the measured map at ``theta`` [rad] and gauge pressures [Pa] (the
     simulator's truth).
     """
-    sim = SimulatedJoint({name: default for name, (default, _, _) in PARAMETERS.items()}, 0.0)
+    sim = SimulatedJoint({p.name: p.default for p in PARAMETERS}, 0.0)
     sim.angle, sim.pressures = theta, [p0, p1]
     return sim.torque()
 
@@ -100,10 +99,10 @@ def test_torque_commands_reach_the_map_torque(ros, processes, namespace, theta):
             f'a steady torque after commanding {wanted:.3f} N·m at {theta} rad',
             every=lambda: bench.send('torque_command', effort=[wanted]),
         )
-        print(
+        print(  # pytest -s
             f'{theta:+.1f} rad: wanted {wanted:+.3f} N·m, map torque {measured:+.3f} N·m, '
             f'error {100 * (measured - wanted) / max_torque:+.2f} % of {max_torque:.3f} N·m'
-        )  # pytest -s
+        )
         assert abs(measured - wanted) <= TORQUE_TOLERANCE / 100 * max_torque, (
             f'{theta} rad: wanted {wanted:.3f} N·m, map torque {measured:.3f} N·m (max '
             f'{max_torque:.3f} N·m)'

@@ -16,15 +16,14 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
+from conftest import REPO
+from node_messages import AMBIENT
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.startup import StartupError
 from pma_model_ros.tools import node_process
-
-from conftest import REPO
-from node_messages import AMBIENT
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 ELBOW = load_joints(EXAMPLE)[0]
@@ -37,7 +36,6 @@ def make_node():
     def make(params_file=EXAMPLE, **overrides):
         context = rclpy.Context()
         rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
-        overrides = {'config_dir': str(REPO / 'config')} | overrides
         node = JointNode(
             context=context,
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
@@ -114,9 +112,7 @@ def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_no
     flexor, extensor = (record(p) for p in node._command_pubs[0])
     node._on_states(joint_state(node, -0.3))
     node._on_torque(command(elbow=2.5))
-    expected = ELBOW.pressures_one(
-        -0.3, 2.5, 300e3, 'min'
-    )  # the file's co-contraction: min 300 kPa
+    expected = ELBOW.pressures_one(-0.3, 2.5, 300e3, 'min')  # the file's co-contraction
     assert flexor[-1].fluid_pressure == pytest.approx(expected.pressures[0] + AMBIENT, rel=1e-12)
     assert extensor[-1].fluid_pressure == pytest.approx(300e3 + AMBIENT, rel=1e-12)
     assert ELBOW.forward(
@@ -148,9 +144,8 @@ def test_out_of_reach_command_saturates_and_warns(make_node):
     node.publish_status()
     assert diagnostics[-1].status[0].level == b'\x00'
     node._on_torque(command(elbow=100.0))
-    assert flexor[-1].fluid_pressure == pytest.approx(
-        650e3 + AMBIENT
-    )  # the map's top (hildebrandt: no extrapolation)
+    top = 650e3  # the map's top (hildebrandt: no extrapolation)
+    assert flexor[-1].fluid_pressure == pytest.approx(top + AMBIENT)
     node.publish_status()
     status = diagnostics[-1].status[0]
     assert status.level == b'\x01' and 'SATURATED' in status.message
@@ -233,10 +228,7 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
         expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f'j{k}')
         assert torques[0].effort[i] == pytest.approx(float(expected.torque), rel=1e-9)
         assert stiffnesses[0].effort[i] == pytest.approx(float(expected.stiffness), rel=1e-9)
-    msg.name, msg.position = (
-        ['j0', 'j1', 'j2', 'j3'],
-        angles,
-    )  # the node's order: its prebuilt message
+    msg.name, msg.position = ['j0', 'j1', 'j2', 'j3'], angles  # the node's order: prebuilt
     node._on_states(msg)
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
         [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9
@@ -288,10 +280,13 @@ def test_hysteresis_branches_follow_the_muscle_lengths_not_the_velocity(make_nod
     assert [t.effort[0] for t in torques[1:]] == pytest.approx(expected, rel=1e-9)
 
 
-def test_parameter_changes_are_refused(make_node):
+def test_parameters_are_read_only(make_node):
+    """joint_node reads its parameters at start-up: every one says so and refuses a change."""
     node = make_node()
+    ours = [name for name in node.get_parameters_by_prefix('') if name != 'use_sim_time']
+    assert ours and all(d.read_only for d in node.describe_parameters(ours))
     result = node.set_parameters([Parameter('elbow.cocontraction', value=200e3)])[0]
-    assert not result.successful and 'start-up' in result.reason
+    assert not result.successful and 'read-only' in result.reason
     assert node.get_parameter('elbow.cocontraction').value == 300e3
 
 
@@ -301,12 +296,29 @@ def test_a_new_declaration_is_no_change(make_node):
     assert node.declare_parameter('executor', 'events').value == 'events'
 
 
-def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
-    """Started as a process, without ``config_dir`` the example's muscle files are not found from
-    the repo root.
+def test_without_config_dir_muscle_files_are_the_shipped_ones(make_node, monkeypatch, tmp_path):
+    """``config_dir`` unset: relative muscle files are found in the package's share directory,
+    whatever the working directory.
     """
+    monkeypatch.chdir(tmp_path)
+    node = make_node()
+    for muscle, expected in zip(node.engine.joints[0].muscles, ELBOW.muscles):
+        assert (muscle.spec, muscle.model, muscle.domain) == (
+            expected.spec,
+            expected.model,
+            expected.domain,
+        )
+        assert muscle.theta.tolist() == expected.theta.tolist()
+
+
+def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
+    """A muscle file that is not in ``config_dir``: one line naming the joint, muscle and file."""
     proc = subprocess.run(
-        node_process.command('joint_node', '/bad_joint', EXAMPLE),
+        [
+            *node_process.command('joint_node', '/bad_joint', EXAMPLE),
+            '-p',
+            f'config_dir:={tmp_path}',
+        ],
         capture_output=True,
         text=True,
         timeout=60,
@@ -319,3 +331,32 @@ def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):
         and "joint 'elbow', muscle 'flexor'" in lines[0]
         and 'dmsp_10_250.yaml' in lines[0]
     )
+
+
+def test_gauge_pressure_reference_reads_and_commands_gauge_pressures(make_node):
+    """``pressure_reference: gauge``: the worked example's torque from gauge readings, and torque
+    commands in gauge pressure (the absolute node's less the ambient pressure).
+    """
+    commanded = {}
+    for reference, offset in (('absolute', AMBIENT), ('gauge', 0.0)):
+        node = make_node(pressure_reference=reference)
+        torques, flexor = record(node._torque_pub), record(node._command_pubs[0][0])
+        node._on_pressure(0, 0, pressure(node, offset + 400e3))
+        node._on_pressure(0, 1, pressure(node, offset + 300e3))
+        node._on_states(joint_state(node, 0.5))
+        assert torques[-1].effort[0] == pytest.approx(-0.691819, abs=5e-6)  # README, by hand
+        node._on_torque(command(elbow=1.0))
+        commanded[reference] = flexor[-1].fluid_pressure
+    assert commanded['gauge'] == pytest.approx(574986, abs=1)  # README: flexor 574986 Pa gauge
+    assert commanded['absolute'] - commanded['gauge'] == pytest.approx(AMBIENT, rel=1e-12)
+
+
+def test_identification_results_are_values_of_the_joint_status(make_node):
+    """Each muscle's results of its model (the example: hildebrandt of config/dmsp_10_250.yaml)."""
+    node = make_node()
+    diagnostics = record(node._diag_pub)
+    node.publish_status()
+    values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
+    err = read_parameters(REPO / 'config' / 'dmsp_10_250.yaml')['models']['hildebrandt']['err']
+    for muscle in ('flexor', 'extensor'):
+        assert values[f'{muscle} identification err [% of max force]'] == f'{err:.6g}'

@@ -20,13 +20,12 @@ from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import FluidPressure, JointState
 
+from conftest import lines_of_failed_start, REPO
+from node_messages import AMBIENT
 from pma_model_ros.core.shipped_data import shipped_force_map
 from pma_model_ros.core.simulation import GroundTruth
 from pma_model_ros.nodes.joint_simulator_node import JointSimulatorNode
 from pma_model_ros.nodes.startup import StartupError
-
-from conftest import lines_of_failed_start, REPO
-from node_messages import AMBIENT
 
 with open(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv') as f:
     #: Table A2 (DMSP-10-250): {(gauge pressure [Pa], length [m]): force [N]}
@@ -38,7 +37,9 @@ with open(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv'
 
 @pytest.fixture
 def make_node():
-    """``make_node(**parameters)``: a JointSimulatorNode at ROS time 0 on its own Context."""
+    """A factory of JointSimulatorNodes (keyword arguments: parameters), each at ROS time 0 on
+    its own Context.
+    """
     made = []
 
     def make(**params):

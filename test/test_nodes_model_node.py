@@ -16,11 +16,10 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.nodes.model_node import ModelNode
-
 from conftest import CONFIGS, REPO
 from node_messages import AMBIENT, force_command, JOINT, pressure, state
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.nodes.model_node import ModelNode
 
 EXAMPLE = REPO / 'config' / 'example_multi_muscle.yaml'
 MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
@@ -28,8 +27,8 @@ MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 
 @pytest.fixture
 def make_node():
-    """``make_node(params_file, **overrides)``: a ModelNode on its own Context, destroyed after the
-    test.
+    """A factory of ModelNodes (a params file and parameter overrides), each on its own Context,
+    destroyed after the test.
     """
     made = []
 

@@ -3,15 +3,18 @@
 from geometry_msgs.msg import WrenchStamped
 import pytest
 from rcl_interfaces.srv import SetParameters
+import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
-
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.nodes.model_params import MODEL_INFO
 
 from conftest import CONFIGS
 from node_messages import AMBIENT, pressure, state
+from pma_model_ros.core.node_parameters import IDENTIFICATION
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.nodes.model_node import ModelNode
+from pma_model_ros.nodes.model_params import expected_undeclared
 
 pytestmark = pytest.mark.ros
 
@@ -139,29 +142,94 @@ def test_a_new_parameter_file_at_runtime_never_mixes_old_and_new(ros, processes,
             diagnose=lambda: processes.output(node),
         )
 
-    def messages(params: dict) -> list:
-        """The file's writable parameters (identification results are read-only information)."""
+    def messages(params: dict, whole: bool) -> list:
+        """The file's parameters; not ``whole``: without its undeclared entries (the other models'
+        blocks, identification results), which a request of one parameter at a time cannot set.
+        """
+        selected = f'models.{params["model"]}.'
         return [
             Parameter(k, value=v).to_parameter_msg()
             for k, v in flat(params).items()
-            if not any(k.endswith(f'.{entry}') for entry in MODEL_INFO)
+            if whole
+            or not expected_undeclared(k)
+            or k.startswith(selected)
+            and k.removeprefix(selected).split('.')[0] not in IDENTIFICATION
         ]
 
     reach('A')
     response = ros.call(
         SetParametersAtomically,
         f'{namespace}/model_node/set_parameters_atomically',
-        SetParametersAtomically.Request(parameters=messages(b)),
+        SetParametersAtomically.Request(parameters=messages(b, whole=True)),
     )
     assert response.result.successful, response.result.reason
     reach('B')
     response = ros.call(
         SetParameters,
         f'{namespace}/model_node/set_parameters',
-        SetParameters.Request(parameters=messages(a)),
+        SetParameters.Request(parameters=messages(a, whole=False)),
     )
     assert all(r.successful for r in response.results), [r.reason for r in response.results]
     reach('A')
     seen = {which(msg) for msg in estimates}
     assert seen <= {'A', 'B'}, seen
     assert node.poll() is None, processes.output(node)
+
+
+@pytest.fixture
+def node():
+    """A ModelNode of config/dmsp_10_250.yaml on its own Context (no DDS)."""
+    context = rclpy.Context()
+    rclpy.init(context=context, args=['--ros-args', '--params-file', str(CONFIGS['DMSP-10-250'])])
+    made = ModelNode(context=context)
+    yield made
+    made.destroy_node()
+    rclpy.shutdown(context=context)
+
+
+def estimate(node) -> float:
+    """The node's force estimate at 400 kPa gauge and 0.24 m (in-process)."""
+    sent = []
+    node.topics._estimate_pubs[0].publish = sent.append
+    now = node.get_clock().now()
+    node.topics._on_pressure(0, pressure(now.to_msg(), AMBIENT + 400e3))
+    node.topics._on_state(0, state(now.to_msg(), 0.24, name='DMSP-10-250'))
+    return deserialize_message(sent[-1], WrenchStamped).wrench.force.x
+
+
+def test_switching_model_declares_its_block_and_keeps_the_last_values(node):
+    """The selected model's block only; a block set at runtime comes back as set."""
+    params = read_parameters(CONFIGS['DMSP-10-250'])
+    tuned = [
+        params['models']['martens']['params'][0] * 1.01,
+        *params['models']['martens']['params'][1:],
+    ]
+    assert node.set_parameters([Parameter('models.martens.params', value=tuned)])[0].successful
+    assert node.set_parameters([Parameter('model', value='hildebrandt')])[0].successful
+    blocks = {name.split('.')[0] for name in node.get_parameters_by_prefix('models')}
+    assert blocks == {'hildebrandt'}
+    assert estimate(node) == pytest.approx(
+        float(muscle_model(params, 'hildebrandt').force(400e3, 0.24).force), rel=1e-12
+    )
+    assert node.set_parameters([Parameter('model', value='martens')])[0].successful
+    assert list(node.get_parameter('models.martens.params').value) == tuned
+    params['models']['martens']['params'] = tuned
+    assert estimate(node) == pytest.approx(
+        float(muscle_model(params).force(400e3, 0.24).force), rel=1e-12
+    )
+
+
+def test_identification_results_are_values_of_the_muscle_status(node):
+    """Not parameters: the file's results of the selected model, in its /diagnostics status."""
+    params = read_parameters(CONFIGS['DMSP-10-250'])
+    assert not node.has_parameter('models.martens.err')
+    for model in ('martens', 'hildebrandt'):
+        assert node.set_parameters([Parameter('model', value=model)])[0].successful
+        sent = []
+        node._diag_pub.publish = sent.append
+        node.publish_status(node.now())
+        values = {kv.key: kv.value for kv in sent[0].status[0].values}
+        entry = params['models'][model]
+        assert values['identification err [% of max force]'] == f'{entry["err"]:.6g}'
+        assert values['identification rmse [N]'] == f'{entry["rmse"]:.6g}'
+        assert values['identification objective'] == entry['objective']

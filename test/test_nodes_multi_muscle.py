@@ -10,11 +10,10 @@ import pytest
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.tools import node_process
-
 from conftest import REPO
 from node_messages import AMBIENT, pressure, state
+from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.tools import node_process
 
 pytestmark = pytest.mark.ros
 

@@ -33,10 +33,19 @@ def layout_tree() -> list[str]:
 
 
 def package_files() -> list[str]:
+    """The package's files: those git tracks, or outside a git work tree (a source archive in a
+    colcon workspace) those on disk, without caches.
+    """
     listed = subprocess.run(
-        ['git', 'ls-files', PACKAGE], cwd=ROOT, capture_output=True, text=True, check=True
+        ['git', 'ls-files', PACKAGE], cwd=ROOT, capture_output=True, text=True, check=False
     )
-    return [path.removeprefix(f'{PACKAGE}/') for path in listed.stdout.split()]
+    if listed.returncode == 0:
+        return [path.removeprefix(f'{PACKAGE}/') for path in listed.stdout.split()]
+    return [
+        str(path.relative_to(ROOT / PACKAGE))
+        for path in (ROOT / PACKAGE).rglob('*')
+        if path.is_file() and '__pycache__' not in path.parts
+    ]
 
 
 def test_the_tree_lists_every_module_and_folder_once():

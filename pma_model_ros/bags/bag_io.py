@@ -171,7 +171,9 @@ def open_bag(path: str | Path) -> Iterator[Reader]:
 def messages(
     reader: Reader, connections: Collection[Connection]
 ) -> Iterator[tuple[Connection, int, bytes]]:
-    """``reader.messages(connections)`` (log-time order); a damaged storage file is a BagError."""
+    """The reader's messages of ``connections`` (log-time order); a damaged storage file is a
+    BagError.
+    """
     try:
         yield from reader.messages(connections)
     except _DAMAGED as err:

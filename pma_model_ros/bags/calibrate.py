@@ -33,11 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.engine import seconds
-from ..core.force_map import ForceMap
-from ..core.hysteresis import branches
-from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
-from ..core.progress import Meter
 from .bag_io import (
     BagError,
     connections_of,
@@ -50,6 +45,11 @@ from .bag_io import (
     WRENCH_STAMPED,
 )
 from .estimate import muscle_namespace
+from ..core.engine import seconds
+from ..core.force_map import ForceMap
+from ..core.hysteresis import branches
+from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
+from ..core.progress import Meter
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope
 #: simulator_node's settings of a recording that fits (the README's, run verbatim by a test): five

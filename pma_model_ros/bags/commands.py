@@ -1,7 +1,8 @@
 """The ``pma-model bag ...`` subcommands and ``pma-model fit --bag``.
 
 Only argparse here: rosbags (and rclpy, for ``bag play``) are imported when a command runs,
-so the rest of ``pma-model`` works without them.
+so the rest of ``pma-model`` works without them; without rosbags (pip-only, no rosdep key) a bag
+command is one line and exit code 2 (:func:`_needs_rosbags`).
 """
 
 from __future__ import annotations
@@ -100,9 +101,20 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_bag_play)
 
 
+def _needs_rosbags() -> None:
+    """Raise a ValueError (one line, exit code 2) when rosbags is not installed."""
+    try:
+        import rosbags  # noqa: F401
+    except ImportError:
+        raise ValueError(
+            'bag files need rosbags, a pip-only library: pip install rosbags==0.11.9'
+        ) from None
+
+
 def cmd_bag_estimate(args: argparse.Namespace) -> None:
-    from ..core.param_file import all_node_settings, read_parameters
+    _needs_rosbags()
     from .estimate import estimate_bag
+    from ..core.param_file import all_node_settings, read_parameters
 
     parameters = read_parameters(args.config)
     if args.pressure_reference:
@@ -150,8 +162,6 @@ def replacing(out: Path) -> Iterator[Path]:
 
 
 def cmd_bag_play(args: argparse.Namespace) -> None:
-    from .play import play
-
     remaps = {}
     for rule in args.remap:
         source, sep, target = rule.partition(':=')
@@ -165,6 +175,9 @@ def cmd_bag_play(args: argparse.Namespace) -> None:
         and (args.clock is None or args.clock > 0)
     ):
         raise ValueError('--rate and --clock must be > 0, --delay and --wait-for-subscribers >= 0')
+    _needs_rosbags()
+    from .play import play
+
     count = play(
         args.bag,
         rate=args.rate,
@@ -222,6 +235,7 @@ def bag_force_map(
     """The force map of ``fit --bag``: the recording's quasi-static samples, averaged per cell (per
     hysteresis branch with ``two_branches``).
     """
+    _needs_rosbags()
     from .calibrate import force_map_from_bag, QuasiStatic
 
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)

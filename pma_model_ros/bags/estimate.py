@@ -41,10 +41,6 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
-from ..core.flags import describe
-from ..core.param_file import NodeSettings
 from .bag_io import (
     BagError,
     BagWriter,
@@ -61,6 +57,10 @@ from .bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
+from ..core.cdr import sentinels, StampedTemplate
+from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
+from ..core.flags import describe
+from ..core.param_file import NodeSettings
 
 #: The node's input topics of one muscle (relative names) and their types.
 INPUTS = {'pressure': FLUID_PRESSURE, 'muscle_state': JOINT_STATE, 'force_command': WRENCH_STAMPED}

@@ -118,9 +118,7 @@ def play(
                 delay,
                 reader.start_time,
             )
-            time.sleep(
-                _LINGER
-            )  # best-effort samples still in flight reach their readers before the publishers go
+            time.sleep(_LINGER)  # samples in flight reach their readers before the publishers go
             return count
         except (KeyboardInterrupt, ExternalShutdownException):
             return 0

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.simulation import defaults, SimulatedMuscle
 from .bag_io import (
     BagWriter,
     FLUID_PRESSURE,
@@ -22,6 +21,7 @@ from .bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
+from ..core.simulation import defaults, SimulatedMuscle
 
 #: 2026-01-01T00:00:00Z [ns]: the first stamp of a synthetic recording.
 START_NS = 1_767_225_600_000_000_000

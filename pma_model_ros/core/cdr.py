@@ -35,9 +35,7 @@ class StampedTemplate:
         if bytes(data[:2]) != _CDR_LE:
             raise ValueError(f'not little-endian CDR (encapsulation {bytes(data[:4])!r})')
         self._buffer = bytearray(data)
-        at = self._buffer.find(
-            sentinels(count).tobytes()
-        )  # the first: rclpy may append stale buffer bytes
+        at = self._buffer.find(sentinels(count).tobytes())  # the first: stale bytes may follow
         if at < 0:
             raise ValueError(f'the {count} sentinel values are not in the serialized message')
         #: The patched float64 fields, a view into the message bytes: write into it.

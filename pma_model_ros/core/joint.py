@@ -114,10 +114,8 @@ class MuscleAt:
         self, model: MuscleModel, theta: tuple[float, ...], length: float, branch: float
     ) -> None:
         self.flags, self.q2, self.q1, self.q0 = model.operating_one(length, branch)
-        self.p_top, self.p_max = (
-            model.limits.pressure_top,
-            model.limits.command_top,
-        )  # served, commanded [Pa]
+        limits = model.limits
+        self.p_top, self.p_max = limits.pressure_top, limits.command_top  # served, commanded [Pa]
         if self.flags & int(Flag.LENGTH_OUT_OF_RANGE):
             self.d2 = self.d1 = self.d0 = 0.0
         else:
@@ -384,9 +382,7 @@ def _for_stiffness(
     span = (m0.force(0.0) - m1.force(m1.p_max), m0.force(m0.p_max) - m1.force(0.0))
     leader, follower = (m0, m1) if want >= 0 else (m1, m0)
     need = abs(want)
-    if (
-        want > span[1] or want < span[0] or not math.isfinite(want)
-    ):  # torque out of reach: the nearest bound
+    if want > span[1] or want < span[0] or not math.isfinite(want):  # out of reach: nearest bound
         ends = (leader.p_max, 0.0) if math.isfinite(want) else (0.0, 0.0)
         return (ends if want >= 0 else ends[::-1]) + (span,)
     s_low = follower.pressure(leader.force(0.0) - need)

@@ -24,6 +24,7 @@ from .flags import describe
 from .hysteresis import play
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 from .muscle_model import served_pressure
+from .node_parameters import SPECS
 
 COUNTERS = (
     'joint_states',
@@ -90,7 +91,8 @@ class _JointState:
 class JointEngine:
     """Estimates and commands of ``joints`` (with their ``settings``); ``ambient`` [Pa absolute],
     ``max_age`` [s], ``hold`` [s]: how long a rejected input (ERROR) or a warning flag (WARN) keeps
-    a joint's level up.
+    a joint's level up; ``pressure_reference``: what pressure readings and commands hold,
+    ``absolute`` or ``gauge`` pressure.
     """
 
     def __init__(
@@ -100,8 +102,12 @@ class JointEngine:
         ambient: float,
         max_age: float,
         hold: float = 1.0,
+        pressure_reference: str = SPECS['pressure_reference'].default,
     ) -> None:
         self.joints, self.ambient, self.max_age, self.hold = tuple(joints), ambient, max_age, hold
+        SPECS['pressure_reference'].check(pressure_reference)
+        #: [Pa] what a pressure reading lacks of the absolute pressure: ambient for gauge readings
+        self.reading_offset = ambient if pressure_reference == 'gauge' else 0.0
         self.index = {j.name: k for k, j in enumerate(joints)}
         self.state = [_JointState(s, j) for s, j in zip(settings, self.joints)]
 
@@ -133,8 +139,8 @@ class JointEngine:
         if not (
             abs(now - stamp) <= self.max_age
             and abs(now - s.p_stamps[0]) <= self.max_age
-            and abs(now - s.p_stamps[1]) <= self.max_age
-        ):  # False for NaN: a pressure never received
+            and abs(now - s.p_stamps[1]) <= self.max_age  # NaN (no pressure yet): False
+        ):
             s.counts['stale skipped'] += 1
             return None
         m0, m1, r, r_slope = s.at
@@ -147,12 +153,14 @@ class JointEngine:
         s.counts['estimates'] += 1
         return s.torque, s.stiffness_estimate
 
-    def pressure(self, k: int, muscle: int, absolute: float, stamp: float, now: float) -> None:
-        """Muscle ``muscle`` (0: the one shortening for positive θ) of joint ``k``: a pressure [Pa
-        absolute]; a branch following it changes for the next estimate and command.
+    def pressure(self, k: int, muscle: int, reading: float, stamp: float, now: float) -> None:
+        """Muscle ``muscle`` (0: the one shortening for positive θ) of joint ``k``: a pressure
+        reading [Pa, absolute or gauge by ``pressure_reference``]; a branch following it changes
+        for the next estimate and command.
         """
         s = self.state[k]
         s.counts['pressures'] += 1
+        absolute = reading + self.reading_offset
         problem = pressure_problem(absolute)
         if problem:
             return self.reject(
@@ -182,8 +190,8 @@ class JointEngine:
         self.state[k].stiffness = stiffness
 
     def command(self, k: int, torque: float, now: float) -> tuple[float, float] | None:
-        """A wanted ``torque`` [N·m] of joint ``k``: both muscles' pressure commands [Pa absolute],
-        if any.
+        """A wanted ``torque`` [N·m] of joint ``k``: both muscles' pressure commands [Pa, absolute
+        or gauge by ``pressure_reference``], if any.
         """
         s = self.state[k]
         s.counts['torque commands'] += 1
@@ -197,7 +205,8 @@ class JointEngine:
             result = self.joints[k].pressures_at(s.at, torque, s.level, s.mode)
         self._note(s, result.flags, now)
         s.counts['pressure commands'] += 1
-        return result.pressures[0] + self.ambient, result.pressures[1] + self.ambient
+        offset = self.ambient - self.reading_offset  # gauge + offset: the command's reference
+        return result.pressures[0] + offset, result.pressures[1] + offset
 
     def _note(self, s: _JointState, flags: int, now: float) -> None:
         if flags & _WARN_MASK:

@@ -7,18 +7,18 @@ Layout (SI units; ``config/example_joint.yaml``)::
       ros__parameters:
         joints: [elbow]
         elbow:
-          radius: [0.02]               # lever arm r(θ) = Σ radius[k] θ^k [m]; one entry: a pulley
+          radius: [0.015]              # lever arm r(θ) = Σ radius[k] θ^k [m]; one entry: a pulley
           limits: [-1.0, 1.0]          # joint range [rad]
           muscles: [flexor, extensor]  # topic namespaces of the two muscles
-          positive: flexor             # the muscle that shortens for positive θ (REP-103:
-          counter-clockwise) flexor: {file: dmsp_10_250.yaml, length_at_zero: 0.224} extensor:
-          # or inline, as a single-muscle parameter file's keys
-            length_at_zero: 0.224
-            muscle: {...}
-            model: martens
-            length_range: [...]
-            models: {...}
-            hysteresis: {input: length, length_deadband: 0.0005}   # optional, as model_node's
+          positive: flexor             # shortens for positive θ (REP-103: counter-clockwise)
+          flexor: {file: dmsp_10_250.yaml, length_at_zero: 0.234}
+          extensor:
+            file: dmsp_10_250.yaml
+            length_at_zero: 0.234
+            model: hildebrandt         # overrides the file's
+            hysteresis: {input: pressure, pressure_deadband: 10000.0}  # as model_node's
+          # without file: the muscle inline, as a single-muscle parameter file's keys (muscle,
+          # model, length_range, models, ...)
 
 A muscle's ``file`` is a single-muscle parameter file (``config/dmsp_10_250.yaml``), relative to
 ``base`` (the joint file's directory, or joint_node's ``config_dir``); keys beside ``file`` (e.g.
@@ -33,7 +33,7 @@ from pathlib import Path
 from .hysteresis import Follow
 from .joint import Joint, Transmission
 from .muscle_model import MuscleModel
-from .node_parameters import ParameterSpec, SPECS
+from .node_parameters import ParameterSpec, read_only, SPECS
 from .param_file import (
     hysteresis_follow,
     muscle_model,
@@ -41,29 +41,30 @@ from .param_file import (
     ROS_PARAMETERS,
     unknown_muscle_parameters,
 )
+from .param_file import identification as muscle_identification
 from .typos import missing_key, unknown_keys
 
 #: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle
-#: (``<joint>.<muscle>.``).
-NODE_PARAMETERS: tuple[ParameterSpec, ...] = (
+#: (``<joint>.<muscle>.``).  All read-only: joint_node reads them at start-up.
+NODE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     ParameterSpec(
         'joints',
         'string[]',
         None,
         'names of the joints, each with its parameters under `<joint>.`',
-        read_only=True,
     ),
     ParameterSpec(
         'config_dir',
         'string',
         '',
-        'directory of relative muscle `file`s (empty: the working directory)',
-        read_only=True,
+        "directory of relative muscle `file`s (empty: the package's shipped `config/`, found "
+        'through ament_index from any working directory)',
     ),
     SPECS['ambient_pressure'],
+    SPECS['pressure_reference'],
     SPECS['max_input_age'],
 )
-JOINT_PARAMETERS: tuple[ParameterSpec, ...] = (
+JOINT_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     ParameterSpec(
         'radius',
         'double[]',
@@ -72,9 +73,7 @@ JOINT_PARAMETERS: tuple[ParameterSpec, ...] = (
         'm',
     ),
     ParameterSpec('limits', 'double[]', None, '[min, max] joint angle', 'rad'),
-    ParameterSpec(
-        'muscles', 'string[]', None, "the two muscles' names (topic namespaces)", read_only=True
-    ),
+    ParameterSpec('muscles', 'string[]', None, "the two muscles' names (topic namespaces)"),
     ParameterSpec(
         'positive',
         'string',
@@ -98,7 +97,7 @@ JOINT_PARAMETERS: tuple[ParameterSpec, ...] = (
         choices=('min', 'sum'),
     ),
 )
-MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = (
+MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     ParameterSpec(
         'file',
         'string',
@@ -184,6 +183,12 @@ def _muscle(block: dict, base: Path) -> tuple[MuscleModel, Follow]:
     """A muscle's model and what its hysteresis branch follows, from its block (by file or
     inline).
     """
+    own = _muscle_parameters(block, base)
+    return muscle_model(own), hysteresis_follow(own)
+
+
+def _muscle_parameters(block: dict, base: Path) -> dict:
+    """A muscle's ``ros__parameters``: its ``file``'s, with the block's own keys over them."""
     file = block.get('file') or ''
     own = {
         k: v
@@ -193,7 +198,21 @@ def _muscle(block: dict, base: Path) -> tuple[MuscleModel, Follow]:
     if file:
         path = Path(file) if Path(file).is_absolute() else base / file
         own = read_parameters(path) | own
-    return muscle_model(own), hysteresis_follow(own)
+    return own
+
+
+def identification(joint: Joint, parameters: dict, base: Path) -> dict[str, str]:
+    """The identification results of ``joint``'s two muscles (as
+    :func:`~pma_model_ros.core.param_file.identification`, each key after the muscle's name),
+    from the joint file's ``ros__parameters`` (nested).
+    """
+    return {
+        f'{muscle} {key}': value
+        for muscle in joint.muscle_names
+        for key, value in muscle_identification(
+            _muscle_parameters(parameters[joint.name][muscle], base)
+        ).items()
+    }
 
 
 def _names(table: tuple[ParameterSpec, ...]) -> tuple[str, ...]:

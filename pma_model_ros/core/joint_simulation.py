@@ -11,6 +11,7 @@ joint_node estimates is judged against data.
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 from typing import Sequence
 
@@ -18,56 +19,66 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .joint import Transmission
-from .node_parameters import SPECS, STANDARD_ATMOSPHERE
+from .node_parameters import ParameterSpec, read_only, SPECS
 from .shipped_data import MAPPED_MUSCLES, shipped_force_map
 from .simulation import GroundTruth
 
 MODES = ('held', 'link')
-#: name: (default, description, (min, max) or None); joint_simulator_node declares each as a
-#: parameter.
-PARAMETERS = {
-    'joint_name': ('elbow', 'JointState entry of the joint', None),
-    'muscles': (
+#: joint_simulator_node's parameters, read at start-up (read-only).
+PARAMETERS: tuple[ParameterSpec, ...] = read_only(
+    ParameterSpec('joint_name', 'string', 'elbow', 'JointState entry of the joint'),
+    ParameterSpec(
+        'muscles',
+        'string[]',
         ['flexor', 'extensor'],
         "the two muscles' topic namespaces; the first shortens for positive θ",
-        None,
     ),
-    'maps': (
+    ParameterSpec(
+        'maps',
+        'string[]',
         ['DMSP-10-250', 'DMSP-10-250'],
         f"each muscle's measured map, the truth: {', '.join(MAPPED_MUSCLES)}",
-        None,
     ),
-    'radius': ([0.015], 'lever arm r(θ) = Σ radius[k] θ^k [m]', None),
-    'length_at_zero': ([0.234, 0.234], "each muscle's length at θ = 0 [m]", None),
-    'limits': ([-1.0, 1.0], 'joint range [rad]: the link stops there', None),
-    'mode': (
+    ParameterSpec('radius', 'double[]', [0.015], 'lever arm r(θ) = Σ radius[k] θ^k', 'm'),
+    ParameterSpec(
+        'length_at_zero', 'double[]', [0.234, 0.234], "each muscle's length at θ = 0", 'm'
+    ),
+    ParameterSpec('limits', 'double[]', [-1.0, 1.0], 'joint range: the link stops there', 'rad'),
+    ParameterSpec(
+        'mode',
+        'string',
         'held',
         f"angle: {' or '.join(MODES)} (held: set by angle_command; link: I θ'' = τ - c θ')",
-        None,
+        choices=MODES,
     ),
-    'angle': (0.0, 'initial angle [rad]', (-10.0, 10.0)),
-    'inertia': (
+    ParameterSpec('angle', 'double', 0.0, 'initial angle', 'rad', (-10.0, 10.0)),
+    ParameterSpec(
+        'inertia',
+        'double',
         0.01,
-        'link inertia about the joint axis [kg m^2]; at least K_max / rate^2 (start-up checks it)',
+        'link inertia about the joint axis; at least K_max / rate^2 (start-up checks it)',
+        'kg m^2',
         (1e-6, 1e3),
     ),
-    'damping': (0.1, 'link viscous damping [N·m·s/rad]', (0.0, 1e3)),
-    'rate': (
+    ParameterSpec('damping', 'double', 0.1, 'link viscous damping', 'N·m·s/rad', (0.0, 1e3)),
+    ParameterSpec(
+        'rate',
+        'double',
         200.0,
-        'publishing and integration rate [Hz] (each step evaluates two pchip maps, about 0.9 ms)',
+        'publishing and integration rate (each step evaluates two pchip maps, about 0.9 ms)',
+        'Hz',
         (1.0, 1000.0),
     ),
-    'ambient_pressure': (
-        STANDARD_ATMOSPHERE,
-        'ambient pressure [Pa absolute]',
-        SPECS['ambient_pressure'].limits,
-    ),
-    'pressure_time_constant': (
+    replace(SPECS['ambient_pressure'], description='ambient pressure'),
+    ParameterSpec(
+        'pressure_time_constant',
+        'double',
         0.05,
-        'first-order time constant toward the commanded pressure [s]',
+        'first-order time constant toward the commanded pressure',
+        's',
         (0.0, 60.0),
     ),
-}
+)
 
 
 class SimulatedJoint:

@@ -123,7 +123,7 @@ def _contraction(spec: MuscleSpec, length: np.ndarray) -> np.ndarray:
 
 
 def _mckibben(theta, spec, domain, length, branch) -> Coefficients:
-    """McKibben / Schulte, eq. 17: F = -p dV/dL = p L_F^2 (3 cos^2 Theta - 1) / (4 pi n^2)."""
+    """Eq. 17, McKibben / Schulte: F = -p dV/dL = p L_F^2 (3 cos^2 Theta - 1) / (4 pi n^2)."""
     return _zeros(length), -geo.volume_slope(spec, length), _zeros(length)
 
 

@@ -1,15 +1,18 @@
-"""model_node's parameters: one declarative table (no ROS).
+"""The nodes' parameters as declarative tables of :class:`ParameterSpec` (no ROS); model_node's.
 
-Each row gives a parameter's name, type, default, unit, range and description.  The node declares
-its ROS parameters (descriptors with ranges, read-only flags) from it
-(:mod:`pma_model_ros.nodes.model_params`), the core checks values against the same ranges
-(:meth:`ParameterSpec.check`, used by :class:`~pma_model_ros.core.engine.Config` and the engine),
-and the README's parameter table is :func:`markdown_table` (a test compares them).
+Each row gives a parameter's name, type, default, unit, range, description and whether the node
+ever changes it.  Every node declares its ROS parameters (descriptors with ranges, read-only
+flags) from such a table (:mod:`pma_model_ros.nodes.parameters`): model_node from
+:data:`PARAMETERS`, joint_node from :mod:`~pma_model_ros.core.joint_file`'s, the simulators from
+:mod:`~pma_model_ros.core.simulation`'s and :mod:`~pma_model_ros.core.joint_simulation`'s.  The
+core checks values against the same ranges (:meth:`ParameterSpec.check`, used by
+:class:`~pma_model_ros.core.engine.Config` and the engine), and the README's model_node table is
+:func:`markdown_table` (a test compares them).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 from .hysteresis import Follow
@@ -34,14 +37,14 @@ class ParameterSpec:
     """One parameter: ``default`` None means required (from the parameter file)."""
 
     name: str
-    kind: str  #: ``double``, ``string``, ``bool``, ``double[]`` or ``string[]``
+    kind: str  #: ``double``, ``integer``, ``string``, ``bool``, ``double[]`` or ``string[]``
     default: object
     description: str
     unit: str = ''
     limits: tuple[float, float] | None = None  #: inclusive [min, max]
     choices: tuple[str, ...] = ()
     per_muscle: bool = False  #: with ``muscles:``, under ``<name>.``; else node-wide
-    read_only: bool = False  #: fixed at start-up
+    read_only: bool = False  #: fixed at start-up: the node never changes it
 
     def check(self, value: object) -> object:
         """``value`` if it is one of this parameter's; else ValueError naming the parameter, its
@@ -59,6 +62,8 @@ class ParameterSpec:
                     f'{value!r}'
                 )
             return float(value)
+        if self.kind == 'integer' and (isinstance(value, bool) or not isinstance(value, int)):
+            raise ValueError(f"parameter '{self.name}' must be an integer, got {value!r}")
         if self.choices and value not in self.choices:
             noun = self.name.rsplit('_', 1)[-1]
             raise ValueError(
@@ -66,6 +71,11 @@ class ParameterSpec:
                 f'{", ".join(self.choices)}'
             )
         return value
+
+
+def read_only(*specs: ParameterSpec) -> tuple[ParameterSpec, ...]:
+    """``specs`` as the table of a node that reads its parameters at start-up only."""
+    return tuple(replace(spec, read_only=True) for spec in specs)
 
 
 _MODEL_NAMES = ', '.join(MODELS)
@@ -168,7 +178,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         'models.<model>.params',
         'double[]',
         None,
-        'identified parameters of each model (SI units)',
+        "identified parameters of each model (SI units); only the selected `model`'s block is "
+        "declared (switching `model` declares the new one's, from the file or as last set)",
         per_muscle=True,
     ),
     ParameterSpec(
@@ -177,20 +188,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         False,
         "serve the model's own value outside the identified "
         'ranges, flagged EXTRAPOLATED (else the nearest identified point, flagged out of range); '
-        'set by '
-        "`make-config` where the held-out error on the map's edge lengths is ≤ 10 %",
+        "set by `make-config` where the held-out error on the map's edge lengths is ≤ 10 %",
         per_muscle=True,
-    ),
-    ParameterSpec(
-        'models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out}',
-        'string, double, double[]',
-        None,
-        'identification results: objective, max error on the map (eq. 23) [% of max force], RMSE '
-        '[N], R², worst nested leave-one-length-out error, the same on the shortest and longest '
-        'length [% of max force]; held_out: {lengths [m], err [%], max_force [N]}, the nested '
-        'error at each identified length and the max force it is a share of',
-        per_muscle=True,
-        read_only=True,
     ),
     ParameterSpec(
         'models.<model>.{nominal_length, pressure_offset}',
@@ -198,8 +197,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         None,
         'geometry calibration of a fit by `pma-model fit`: effective rest length L0 [m] (replaces '
         '`muscle.nominal_length` for this model) and pressure-sensor offset [Pa] (the model sees '
-        'gauge '
-        'pressure − offset); absent: `muscle.nominal_length` and 0',
+        'gauge pressure − offset); absent: `muscle.nominal_length` and 0',
         'm, Pa',
         per_muscle=True,
     ),
@@ -301,6 +299,11 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
+#: The entries of a model's block ``models.<model>.``: its ROS parameters (the selected model's)...
+MODEL_BLOCK = ('params', 'extrapolates', 'nominal_length', 'pressure_offset')
+#: ... and its identification results, read from the parameter file into each muscle's
+#: diagnostics (:func:`~pma_model_ros.core.param_file.identification`), not ROS parameters.
+IDENTIFICATION = ('objective', 'err', 'rmse', 'r2', 'cv_err', 'edge_cv_err', 'held_out')
 _INPUT = SPECS['hysteresis.input'].default
 #: What a hysteresis muscle's branch follows unless its parameters say otherwise.
 DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)

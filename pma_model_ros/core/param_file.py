@@ -1,18 +1,33 @@
 """Reading ROS 2 parameter files of identified muscles (``ros__parameters`` YAML).
 
-Layout (every value SI)::
+Layout (every value SI; ``config/dmsp_10_250.yaml``, its martens entry)::
 
     /**:
       ros__parameters:
-        muscle: {name, nominal_length, inner_diameter, membrane_thickness, fiber_angle,
-        max_pressure} model: martens                 # the default model length_range: [0.198,
-        0.25]    # identified length range [m] pressure_range: [0.0, 650000.0]   # identified gauge
-        pressure range [Pa] (absent: up to the rated one) models:
-          martens: {params: [...], objective: minimax, err: 4.2, rmse: .., r2: .., cv_err: 8.2,
-                    edge_cv_err: 8.2, extrapolates: true}   # absent extrapolates: false
-          # a calibrated fit (core/calibration.py) also has nominal_length [m] (replaces
-          # muscle.nominal_length for this model) and pressure_offset [Pa] (the model sees gauge
-          # pressure - pressure_offset)
+        muscle: {name: DMSP-10-250, nominal_length: 0.25, inner_diameter: 0.01,
+                 membrane_thickness: 0.0018, fiber_angle: 0.49916416607, max_pressure: 800000.0}
+        model: martens                   # the default model
+        length_range: [0.198, 0.25]      # identified length range [m]
+        pressure_range: [0.0, 650000.0]  # identified gauge pressure range [Pa] (absent: rated)
+        models:
+          martens:
+            params: [121624751.799, -1339251496.2, 4799295897.34, -5346910896.4,
+                     -0.0990271864595]
+            extrapolates: true           # absent: false
+            # identification results (diagnostics values, not ROS parameters):
+            objective: minimax
+            err: 4.2030272397
+            rmse: 7.92133215023
+            r2: 0.996811298802
+            cv_err: 8.81150464854        # the worst nested held-out err [%]
+            edge_cv_err: 8.81150464854
+            held_out:                    # nested held-out err [%] of each identified length
+              lengths: [0.25, 0.234, 0.219, 0.204, 0.198]
+              err: [8.81150464854, 4.65750678049, 1.79429022943, 0.406203906509, 0.44477631851]
+              max_force: 542.5
+            # a calibrated fit (core/calibration.py) also has nominal_length [m] (replaces
+            # muscle.nominal_length for this model) and pressure_offset [Pa] (the model sees
+            # gauge pressure - pressure_offset)
 
 Node settings (``ambient_pressure``, ``joint_name``, ...) may sit beside these
 keys; this module reads only the muscle and its models, and
@@ -24,7 +39,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 from pathlib import Path
-import re
 
 from . import calibration
 from .engine import Config
@@ -32,7 +46,7 @@ from .geometry import MuscleSpec
 from .hysteresis import Follow
 from .models import ALIASES, Domain, get_model, MODELS
 from .muscle_model import MuscleModel
-from .node_parameters import PARAMETERS, SPECS
+from .node_parameters import IDENTIFICATION, MODEL_BLOCK, PARAMETERS, SPECS
 from .typos import missing_key, unknown_keys
 from .user_files import load_yaml_mapping, read_user_file
 from .validation import HeldOutBand
@@ -51,13 +65,7 @@ NODE_KEYS = (*dict.fromkeys(s.name.split('.')[0] for s in PARAMETERS if not s.pe
 #: Keys of one muscle: a single-muscle file's top level, or a block of a ``muscles:`` file.
 MUSCLE_KEYS = (*dict.fromkeys(s.name.split('.')[0] for s in PARAMETERS if s.per_muscle),)
 #: Keys of one entry of ``models:`` and of ``hysteresis:``.
-MODEL_ENTRY_KEYS = tuple(
-    key
-    for s in PARAMETERS
-    if s.name.startswith('models.<model>.')
-    for key in re.split(r'[{}, ]+', s.name.removeprefix('models.<model>.'))
-    if key
-)
+MODEL_ENTRY_KEYS = MODEL_BLOCK + IDENTIFICATION
 HYSTERESIS_KEYS = tuple(
     s.name.removeprefix('hysteresis.') for s in PARAMETERS if s.name.startswith('hysteresis.')
 )
@@ -215,6 +223,41 @@ def held_out_band(parameters: dict, model: str | None = None) -> HeldOutBand | N
         raise ValueError(
             f'models.{name}.held_out must map lengths [m], err [%] and max_force [N]: {err}'
         ) from None
+
+
+#: The unit of each identification result (:data:`~.node_parameters.IDENTIFICATION`).
+IDENTIFICATION_UNITS = {
+    'objective': '',
+    'err': '% of max force',
+    'rmse': 'N',
+    'r2': '',
+    'cv_err': '% of max force',
+    'edge_cv_err': '% of max force',
+}
+
+
+def identification(parameters: dict, model: str | None = None) -> dict[str, str]:
+    """The identification results of the muscle's model (``model`` overrides the default) from
+    its ``ros__parameters`` (nested), as diagnostic key-values ``identification <entry> [unit]``
+    (the held-out error of each identified length as ``identification held_out [m: % of max
+    force]``); entries the file lacks are left out.
+    """
+    name = get_model(model if model is not None else parameters.get('model', '')).name
+    models = parameters.get('models')
+    entry = models.get(name) if isinstance(models, dict) else None
+    values = {}
+    for key in IDENTIFICATION_UNITS:
+        value = entry.get(key) if isinstance(entry, dict) else None
+        if value is not None:
+            unit = IDENTIFICATION_UNITS[key]
+            text = f'{value:.6g}' if isinstance(value, float) else str(value)
+            values[f'identification {key}' + (f' [{unit}]' if unit else '')] = text
+    band = held_out_band(parameters, model)
+    if band is not None:
+        values['identification held_out [m: % of max force]'] = ', '.join(
+            f'{length:.4g}: {err:.3g}' for length, err in zip(band.lengths, band.errors)
+        )
+    return values
 
 
 def hysteresis_follow(parameters: dict) -> Follow:

@@ -1,13 +1,18 @@
-"""The shipped muscle data (``core/data``): specs, measured force maps, Sárosi's tables."""
+"""The shipped data: the muscle data inside the Python package (``core/data``: specs, measured
+force maps, Sárosi's tables) and the package's share directory (``config/``, the parameter files).
+"""
 
 from __future__ import annotations
 
 from importlib import resources
+from pathlib import Path
+import sys
 
 from .force_map import ForceMap, parse_force_map_csv
 from .geometry import MuscleSpec
 from .user_files import load_yaml_mapping
 
+PACKAGE = 'pma_model_ros'
 SHIPPED_MUSCLES = {
     'DMSP-10-250': 'dmsp_10_250',
     'DMSP-20-300': 'dmsp_20_300',
@@ -45,3 +50,26 @@ def shipped_spec(muscle: str) -> MuscleSpec:
 def sarosi_tables() -> dict:
     """The Sárosi paper's published parameter tables for the DMSP-10-100 (as printed)."""
     return load_yaml_mapping(_data_file('sarosi_dmsp_10_100.yaml'), 'sarosi_dmsp_10_100.yaml')
+
+
+def share_directory() -> Path:
+    """The package's share directory (``config/``, ``package.xml``), from any working directory.
+
+    Found through ament_index (``AMENT_PREFIX_PATH``: a sourced colcon workspace or ROS install);
+    else, in an editable install (``scripts/setup``), the source tree, which holds the same files;
+    else ``<sys.prefix>/share/pma_model_ros`` of a pip install.  FileNotFoundError if none has it.
+    """
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        return Path(get_package_share_directory(PACKAGE))
+    except (ImportError, LookupError, OSError):  # not installed, not on the path, no prefix path
+        pass
+    source = Path(__file__).resolve().parents[2]
+    for share in (source, Path(sys.prefix) / 'share' / PACKAGE):
+        if (share / 'package.xml').is_file() and (share / 'config').is_dir():
+            return share
+    raise FileNotFoundError(
+        f'the share directory of {PACKAGE} is not found: source the workspace that installs it '
+        '(AMENT_PREFIX_PATH)'
+    )

@@ -14,7 +14,7 @@ shape-preserving interpolation of them).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 import numpy as np
@@ -23,87 +23,128 @@ from scipy.interpolate import RegularGridInterpolator
 
 from .force_map import ForceMap
 from .hysteresis import play
-from .node_parameters import SPECS, STANDARD_ATMOSPHERE
+from .node_parameters import ParameterSpec, read_only, SPECS
 from .shipped_data import MAPPED_MUSCLES, shipped_force_map
 
 TRAJECTORIES = ('constant', 'sine', 'sweep', 'steps')
 #: Share of each 'steps' period spent moving to the next length (the rest holds it).
 STEP_MOVE = 0.25
-#: name: (default, description, (min, max) or None); simulator_node declares each as a parameter.
-PARAMETERS = {
-    'muscle': (
+#: simulator_node's parameters, read at start-up (read-only).
+PARAMETERS: tuple[ParameterSpec, ...] = read_only(
+    ParameterSpec(
+        'muscle',
+        'string',
         'DMSP-10-250',
         f'shipped muscle whose measured map is the truth: {", ".join(MAPPED_MUSCLES)}',
-        None,
+        choices=MAPPED_MUSCLES,
     ),
-    'rate': (100.0, 'publishing rate [Hz]', (1.0, 1000.0)),
-    'ambient_pressure': (
-        STANDARD_ATMOSPHERE,
-        'ambient pressure [Pa absolute]',
-        SPECS['ambient_pressure'].limits,
-    ),
-    'joint_name': ('', 'JointState entry name (empty: the muscle name)', None),
-    'noise.pressure_std': (0.0, 'standard deviation of the published pressure [Pa]', (0.0, 1e5)),
-    'noise.length_std': (0.0, 'standard deviation of the published length [m]', (0.0, 0.01)),
-    'noise.force_std': (0.0, 'standard deviation of the published force [N]', (0.0, 1e3)),
-    'seed': (0, 'seed of the noise generator', None),
-    'hysteresis_gap': (
+    ParameterSpec('rate', 'double', 100.0, 'publishing rate', 'Hz', (1.0, 1000.0)),
+    replace(SPECS['ambient_pressure'], description='ambient pressure'),
+    ParameterSpec('joint_name', 'string', '', 'JointState entry name (empty: the muscle name)'),
+    ParameterSpec(
+        'noise.pressure_std',
+        'double',
         0.0,
-        'half-gap of a hysteresis [N]: + on the lengthening branch, - on the shortening one '
+        'standard deviation of the published pressure',
+        'Pa',
+        (0.0, 1e5),
+    ),
+    ParameterSpec(
+        'noise.length_std',
+        'double',
+        0.0,
+        'standard deviation of the published length',
+        'm',
+        (0.0, 0.01),
+    ),
+    ParameterSpec(
+        'noise.force_std',
+        'double',
+        0.0,
+        'standard deviation of the published force',
+        'N',
+        (0.0, 1e3),
+    ),
+    ParameterSpec('seed', 'integer', 0, 'seed of the noise generator'),
+    ParameterSpec(
+        'hysteresis_gap',
+        'double',
+        0.0,
+        'half-gap of a hysteresis: + on the lengthening branch, - on the shortening one '
         "(model_node's play operator: core/hysteresis.py), faded out below this force "
         "(Sárosi's DMSP-10-100 branches differ by about 10 % of force)",
+        'N',
         (0.0, 1e4),
     ),
-    'hysteresis_deadband': (
-        SPECS['hysteresis.length_deadband'].default,
-        'the branch changes when the length reverses by more than this [m]',
-        SPECS['hysteresis.length_deadband'].limits,
+    replace(
+        SPECS['hysteresis.length_deadband'],
+        name='hysteresis_deadband',
+        description='the branch changes when the length reverses by more than this',
     ),
-    'pressure_time_constant': (
+    ParameterSpec(
+        'pressure_time_constant',
+        'double',
         0.05,
-        'first-order time constant toward the commanded pressure [s]',
+        'first-order time constant toward the commanded pressure',
+        's',
         (0.0, 60.0),
     ),
-    'initial_pressure': (
+    ParameterSpec(
+        'initial_pressure',
+        'double',
         0.0,
-        "gauge pressure [Pa] before any pressure_command ('constant' and 'sine')",
+        "gauge pressure before any pressure_command ('constant' and 'sine')",
+        'Pa',
         (0.0, 5e6),
     ),
-    'trajectory': (
+    ParameterSpec(
+        'trajectory',
+        'string',
         'sweep',
         f"length trajectory: {', '.join(TRAJECTORIES)}; 'sweep' and 'steps' also sweep the "
         'pressure until a pressure_command arrives',
-        None,
+        choices=TRAJECTORIES,
     ),
-    'length': (0.23, "length for the 'constant' trajectory [m]", (0.0, 10.0)),
-    'length_min': (0.2, "lower length of the 'sine' trajectory [m]", (0.0, 10.0)),
-    'length_max': (0.25, "upper length of the 'sine' trajectory [m]", (0.0, 10.0)),
-    'period': (
+    ParameterSpec(
+        'length', 'double', 0.23, "length for the 'constant' trajectory", 'm', (0.0, 10.0)
+    ),
+    ParameterSpec(
+        'length_min', 'double', 0.2, "lower length of the 'sine' trajectory", 'm', (0.0, 10.0)
+    ),
+    ParameterSpec(
+        'length_max', 'double', 0.25, "upper length of the 'sine' trajectory", 'm', (0.0, 10.0)
+    ),
+    ParameterSpec(
+        'period',
+        'double',
         4.0,
-        "period of the 'sine' and of the 'sweep' length triangle; time per held length of 'steps' "
-        '[s]',
+        "period of the 'sine' and of the 'sweep' length triangle; time per held length of 'steps'",
+        's',
         (0.01, 1e4),
     ),
-    'steps': (
+    ParameterSpec(
+        'steps',
+        'integer',
         6,
         "number of lengths 'steps' holds, evenly over the map's lengths, visited up and down; it "
-        'moves '
-        f'to the next in the first {STEP_MOVE:.0%} of each period (a calibration run)',
-        None,
+        f'moves to the next in the first {STEP_MOVE:.0%} of each period (a calibration run)',
     ),
-    'sweep_period': (
+    ParameterSpec(
+        'sweep_period',
+        'double',
         20.0,
-        "period of the 'sweep' pressure triangle over the map's pressures [s]",
+        "period of the 'sweep' pressure triangle over the map's pressures",
+        's',
         (0.01, 1e4),
     ),
-}
+)
 
 
 def defaults(**overrides: object) -> dict[str, object]:
     """Every parameter at its default, with ``overrides`` (use '__' for '.':
     ``noise__force_std=1.0``).
     """
-    values = {name: default for name, (default, _, _) in PARAMETERS.items()}
+    values = {spec.name: spec.default for spec in PARAMETERS}
     for key, value in overrides.items():
         name = key.replace('__', '.')
         if name not in values:

@@ -1,8 +1,8 @@
 """joint_node: torque and stiffness estimates and pressure commands of antagonistic joints.
 
 Parameters: a joint file (``config/example_joint.yaml``, layout in
-:mod:`pma_model_ros.core.joint_file`), read at start-up (later changes are refused).  Topics
-(relative, so a namespace applies):
+:mod:`pma_model_ros.core.joint_file`), read at start-up: all read-only.  Topics (relative, so
+a namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge``):
 
 * in ``joint_states`` (sensor_msgs/JointState: position θ [rad], entries by joint name; the
   velocity is not used: a hysteresis muscle's branch follows its length or pressure with memory)
@@ -26,39 +26,38 @@ from pathlib import Path
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import seconds
-from ..core.joint_engine import JointEngine, Settings
-from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
-from ..core.node_parameters import ParameterSpec
-from . import model_params
+from . import model_params, parameters
 from .diagnostics import diagnostic_array
 from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
 from .startup import refusing, run
-
-
-def _declare(node: Node, spec: ParameterSpec, prefix: str = ''):
-    value = spec.default if spec.default not in (None, []) else model_params.TYPES[spec.kind]
-    return node.declare_parameter(prefix + spec.name, value, model_params.descriptor(spec))
+from ..core.cdr import sentinels, StampedTemplate
+from ..core.engine import seconds
+from ..core.joint_engine import JointEngine, Settings
+from ..core.joint_file import (
+    identification,
+    JOINT_PARAMETERS,
+    joints,
+    MUSCLE_PARAMETERS,
+    NODE_PARAMETERS,
+)
+from ..core.shipped_data import share_directory
 
 
 def declare(node: Node) -> None:
-    """Declare every joint_node parameter: node-wide, per joint, per muscle (by file or inline)."""
-    names = {spec.name: _declare(node, spec).value for spec in NODE_PARAMETERS}['joints'] or []
+    """Declare every joint_node parameter, read-only: node-wide, per joint, per muscle (by file or
+    inline; a model's block only where the muscle names its ``model`` inline).
+    """
+    names = parameters.declare_table(node, NODE_PARAMETERS)['joints'] or []
     for joint in names:
-        muscles = {
-            spec.name: _declare(node, spec, f'{joint}.').value for spec in JOINT_PARAMETERS
-        }['muscles']
-        for muscle in muscles or []:
-            for spec in MUSCLE_PARAMETERS:
-                _declare(node, spec, f'{joint}.{muscle}.')
-            model_params.declare_muscle(node, f'{joint}.{muscle}.', defaults=False)
+        for muscle in (
+            parameters.declare_table(node, JOINT_PARAMETERS, f'{joint}.')['muscles'] or []
+        ):
+            parameters.declare_table(node, MUSCLE_PARAMETERS, f'{joint}.{muscle}.')
+            model_params.declare_muscle(node, f'{joint}.{muscle}.', defaults=False, read_only=True)
 
 
 class JointNode(Node):
@@ -68,9 +67,12 @@ class JointNode(Node):
         super().__init__('joint_node', **kwargs)
         with refusing(self):
             declare(self)
-            flat = model_params.values(self)
-            nested = model_params.nest(flat)
-            found = joints(nested, Path(str(flat.get('config_dir') or '.')))
+            # the overrides: also what is not declared, e.g. an inline muscle's other models
+            flat = parameters.overrides(self) | parameters.values(self)
+            nested = parameters.nest(flat)
+            base = Path(flat.get('config_dir') or share_directory() / 'config')
+            found = joints(nested, base)
+            self.identification = [identification(j, nested, base) for j in found]
             settings = [
                 Settings(
                     float(nested[j.name]['cocontraction']),
@@ -84,8 +86,9 @@ class JointNode(Node):
                 float(flat['ambient_pressure']),
                 float(flat['max_input_age']),
                 hold=DIAGNOSTIC_PERIOD,
+                pressure_reference=str(flat['pressure_reference']),
             )
-        self.add_on_set_parameters_callback(self._refuse_changes)
+        parameters.warn_unknown(self, model_params.expected_undeclared)  # inline muscles' models
         self._ros_clock = self.get_clock().handle
         self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
         self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
@@ -132,17 +135,6 @@ class JointNode(Node):
                 for j in found
             )
         )
-
-    def _refuse_changes(self, changes: list[Parameter]) -> SetParametersResult:
-        """Parameters are read at start-up: a change of a declared one is refused (a declaration,
-        e.g. the ``executor`` by :func:`~.startup.run`, is not a change).
-        """
-        if any(self.has_parameter(p.name) for p in changes):
-            return SetParametersResult(
-                successful=False,
-                reason='joint_node reads its parameters at start-up: restart it to change them',
-            )
-        return SetParametersResult(successful=True)
 
     def now(self) -> float:
         """The node clock (ROS time) [s], without building an rclpy Time."""
@@ -229,7 +221,7 @@ class JointNode(Node):
                     ' / '.join(m.spec.name for m in joint.muscles),
                     level,
                     message,
-                    values,
+                    values | self.identification[k],
                 )
             )
         self._diag_pub.publish(diagnostic_array(self, entries))

@@ -20,9 +20,10 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.joint_simulation import PARAMETERS, SimulatedJoint
+from .parameters import declare_table, warn_unknown
 from .ros_time import now_seconds
-from .startup import declare_table, refusing, run
+from .startup import refusing, run
+from ..core.joint_simulation import PARAMETERS, SimulatedJoint
 
 
 class JointSimulatorNode(Node):
@@ -33,6 +34,7 @@ class JointSimulatorNode(Node):
         with refusing(self):
             p = declare_table(self, PARAMETERS)
             self.joint = SimulatedJoint(p, now_seconds(self))
+        warn_unknown(self)
         self._name = str(p['joint_name'])
         self._state_pub = self.create_publisher(
             JointState, 'joint_states', qos_profile_sensor_data

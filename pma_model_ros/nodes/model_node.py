@@ -33,12 +33,13 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Header
 
+from . import model_params
+from .diagnostics import diagnostic_array
+from .parameters import warn_unknown
+from .startup import refusing, run
 from ..core.cdr import sentinels, StampedTemplate
 from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
 from ..core.param_file import NodeSettings
-from . import model_params
-from .diagnostics import diagnostic_array
-from .startup import refusing, run
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
 
@@ -62,14 +63,18 @@ class ModelNode(Node):
         super().__init__('model_node', **kwargs)
         with refusing(self):
             self._names, mode = model_params.declare(self)
-            flat = model_params.values(self)
+            self._blocks = model_params.ModelBlocks(self, self._names)
+            flat = self._blocks.would_be([])
             self.settings = model_params.all_settings(flat, self._names)
+            self.identification = model_params.identifications(flat, self._names)
             self.engine = Engine(
                 [s.config for s in self.settings],
                 hold=DIAGNOSTIC_PERIOD,
                 report_interval=REPORT_INTERVAL_PER_MUSCLE * len(self.settings),
                 **model_params.pairing(flat),
             )
+        warn_unknown(self, model_params.expected_undeclared)
+        self.add_pre_set_parameters_callback(self._blocks.hold)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -95,18 +100,21 @@ class ModelNode(Node):
 
     def _validate(self, changes: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the whole would-be parameter set builds every muscle."""
-        flat = model_params.values(self)
-        flat.update({p.name: model_params.plain(p.value) for p in changes})
-        try:
-            model_params.all_settings(flat, self._names)
-        except ValueError as err:
-            return SetParametersResult(successful=False, reason=str(err))
+        if not self._blocks.swapping:
+            try:
+                model_params.all_settings(self._blocks.would_be(changes), self._names)
+            except ValueError as err:
+                return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
 
     def _apply(self, _changes: list[Parameter]) -> None:
-        settings = model_params.all_settings(model_params.values(self), self._names)
+        if self._blocks.swapping:
+            return
+        flat = self._blocks.applied()
+        settings = model_params.all_settings(flat, self._names)
         self.engine.configure([s.config for s in settings])
         self.settings = settings
+        self.identification = model_params.identifications(flat, self._names)
         self.topics.use(settings)
 
     def check_status(self, now: float, k: int | None = None) -> None:
@@ -127,7 +135,7 @@ class ModelNode(Node):
                     s.config.model.spec.name,
                     status.level,
                     status.message,
-                    status.values,
+                    status.values | self.identification[k],
                 )
             )
         self._diag_pub.publish(diagnostic_array(self, entries))

@@ -1,76 +1,46 @@
-"""Parameters of the model node: ROS declarations of :mod:`pma_model_ros.core.node_parameters`, and
-validation.
-
-Every parameter is declared explicitly from that table, so that each carries its description,
-unit, range and read-only flag.  The nested ``models.<name>.*`` entries of a parameter file are
-declared for every model this package knows (unset unless the file gives them); entries of unknown
-models are ignored, as rclpy ignores any undeclared override.
-``automatically_declare_parameters_from_overrides`` is not used: it would declare the fixed
-parameters without descriptors.
+"""Parameters of the model node: ROS declarations of :mod:`pma_model_ros.core.node_parameters`,
+the model blocks, and validation.
 
 One node serves one muscle (the per-muscle parameters at the top level, as in
 ``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per name with the
 per-muscle parameters under ``<name>.`` (``config/example_multi_muscle.yaml``); the others are
 node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`.
+
+Of a muscle's ``models.<model>.*`` entries only the selected ``model``'s block
+(:data:`~pma_model_ros.core.node_parameters.MODEL_BLOCK`) is declared; the other models' blocks
+and every identification result stay where the file put them (:class:`ModelBlocks`), so that
+switching ``model`` at runtime declares the new model's block and a whole parameter file still
+loads atomically.
 """
 
 from __future__ import annotations
 
-import array
+from dataclasses import replace
 import re
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from .parameters import declare as declare_spec
+from .parameters import descriptor, nest, overrides, plain, TYPES, values
 from ..core.models import get_model, MODELS
-from ..core.node_parameters import PARAMETERS, ParameterSpec, SPECS
-from ..core.param_file import all_node_settings, NodeSettings
+from ..core.node_parameters import IDENTIFICATION, MODEL_BLOCK, PARAMETERS, SPECS
+from ..core.param_file import all_node_settings, identification, NodeSettings
 
-TYPES = {
-    'double': Parameter.Type.DOUBLE,
-    'string': Parameter.Type.STRING,
-    'bool': Parameter.Type.BOOL,
-    'double[]': Parameter.Type.DOUBLE_ARRAY,
-    'string[]': Parameter.Type.STRING_ARRAY,
-}
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
 REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith('models.')]
 _MUSCLE_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*')
-#: models.<name>.<entry>: identification results, read-only information (see the table's models.*
-#: row).
-MODEL_INFO = {
-    'objective': Parameter.Type.STRING,
-    'err': Parameter.Type.DOUBLE,
-    'rmse': Parameter.Type.DOUBLE,
-    'r2': Parameter.Type.DOUBLE,
-    'cv_err': Parameter.Type.DOUBLE,
-    'edge_cv_err': Parameter.Type.DOUBLE,
-    'held_out.lengths': Parameter.Type.DOUBLE_ARRAY,
-    'held_out.err': Parameter.Type.DOUBLE_ARRAY,
-    'held_out.max_force': Parameter.Type.DOUBLE,
+#: The table row of each entry of a model's block.
+BLOCK_SPECS = {
+    'params': SPECS['models.<model>.params'],
+    'extrapolates': SPECS['models.<model>.extrapolates'],
+    'nominal_length': SPECS['models.<model>.{nominal_length, pressure_offset}'],
+    'pressure_offset': SPECS['models.<model>.{nominal_length, pressure_offset}'],
 }
-
-
-def descriptor(spec: ParameterSpec, description: str | None = None) -> ParameterDescriptor:
-    """The ROS descriptor of ``spec``: description with unit and choices, range, read-only flag."""
-    text = description or spec.description
-    if spec.unit:
-        text += f' [{spec.unit}]'
-    ranges = (
-        [FloatingPointRange(from_value=spec.limits[0], to_value=spec.limits[1])]
-        if spec.limits
-        else []
-    )
-    return ParameterDescriptor(
-        description=text, floating_point_range=ranges, read_only=spec.read_only
-    )
-
-
-def _declare(node: Node, spec: ParameterSpec, name: str | None = None, default: bool = True):
-    # no value: the type alone
-    value = spec.default if default and spec.default not in (None, []) else TYPES[spec.kind]
-    return node.declare_parameter(name or spec.name, value, descriptor(spec))
+#: ``<prefix>models.<model>.<entry>`` of any known model and entry (block or identification).
+_MODEL_ENTRY = re.compile(
+    rf'(.*)models\.({"|".join(MODELS)})\.({"|".join(MODEL_BLOCK + IDENTIFICATION)})(\..+)?'
+)
 
 
 def declare(node: Node) -> tuple[list[str], str]:
@@ -80,50 +50,126 @@ def declare(node: Node) -> tuple[list[str], str]:
     Raises rclpy parameter exceptions on bad overrides, ValueError on a bad ``muscles`` list or
     mode.
     """
-    names = list(_declare(node, SPECS['muscles']).value or [])
-    mode = _declare(node, SPECS['input_mode']).value
+    names = list(declare_spec(node, SPECS['muscles']).value or [])
+    mode = declare_spec(node, SPECS['input_mode']).value
     _check_names(names, mode)
     for spec in PARAMETERS:
         if not spec.per_muscle and spec.name not in ('muscles', 'input_mode', 'executor'):
-            _declare(node, spec)
-    for prefix in [f'{name}.' for name in names] or ['']:
+            declare_spec(node, spec)
+    for prefix in prefixes(names):
         declare_muscle(node, prefix)
     return names, mode
 
 
-def declare_muscle(node: Node, prefix: str, defaults: bool = True) -> None:
-    """Declare one muscle's parameters under ``prefix``; without ``defaults`` unset ones stay
-    unset (joint_node: a muscle ``file``'s values then apply).
+def prefixes(names: list[str]) -> list[str]:
+    """The parameter prefix of each muscle: ``<name>.``, or '' for the one muscle."""
+    return [f'{name}.' for name in names] or ['']
+
+
+def declare_muscle(
+    node: Node, prefix: str, defaults: bool = True, read_only: bool = False
+) -> None:
+    """Declare one muscle's parameters under ``prefix`` and its selected model's block; without
+    ``defaults`` unset ones stay unset (joint_node: a muscle ``file``'s values then apply);
+    ``read_only`` for a node that never changes them.
     """
     for spec in PARAMETERS:
         if spec.per_muscle and not spec.name.startswith('models.'):
-            _declare(node, spec, prefix + spec.name, defaults)
-    params, info = (
-        SPECS['models.<model>.params'],
-        SPECS['models.<model>.{objective, err, rmse, r2, cv_err, edge_cv_err, held_out}'],
-    )
-    extrapolates = SPECS['models.<model>.extrapolates']
-    for model in MODELS.values():
-        node.declare_parameter(
-            f'{prefix}models.{model.name}.params',
-            TYPES['double[]'],
-            descriptor(
-                params,
-                f'identified parameters {list(model.param_names)} of {model.name} '
-                f'({model.equation}), SI units',
-            ),
+            declare_spec(node, replace(spec, read_only=read_only), prefix, defaults)
+    model = node.get_parameter_or(prefix + 'model').value  # unset: None
+    if model in MODELS:
+        declare_block(node, prefix, model, read_only=read_only)
+
+
+def declare_block(
+    node: Node, prefix: str, model: str, given: dict | None = None, read_only: bool = False
+) -> None:
+    """Declare ``models.<model>.*`` of the muscle under ``prefix``, each entry from ``given``
+    (``{dotted name: value}``) if there, else from the parameter file if it sets it, else unset.
+    """
+    for entry, table_spec in BLOCK_SPECS.items():
+        spec = replace(table_spec, read_only=read_only)
+        name = f'{prefix}models.{model}.{entry}'
+        text = None
+        if entry == 'params':
+            m = MODELS[model]
+            text = f'identified parameters {list(m.param_names)} of {model} ({m.equation}), SI'
+        if given is not None and name in given:
+            node.declare_parameter(name, given[name], descriptor(spec, text), ignore_override=True)
+        else:
+            node.declare_parameter(name, TYPES[spec.kind], descriptor(spec, text))
+
+
+def expected_undeclared(name: str) -> bool:
+    """Whether a parameter file's entry ``name`` is one a node reads without declaring it: a
+    known model's block entry or identification result.
+    """
+    return _MODEL_ENTRY.fullmatch(name) is not None
+
+
+class ModelBlocks:
+    """The model blocks of model_node's muscles, declared or not.
+
+    ``stored`` holds every ``models.*`` entry of the parameter file, and a block's values as last
+    set when it is undeclared (a switch of ``model``).  A request that sets an undeclared block's
+    entries (``ros2 param load`` of a whole file) has them held (:meth:`hold`) for its validation
+    (:meth:`would_be`) and stored once it succeeded (:meth:`applied`), which declares the block of
+    every newly selected model.
+    """
+
+    def __init__(self, node: Node, names: list[str]) -> None:
+        self.node, self.prefixes = node, prefixes(names)
+        self.stored = {k: v for k, v in overrides(node).items() if expected_undeclared(k)}
+        self.selected = {p: node.get_parameter_or(p + 'model').value for p in self.prefixes}
+        self._held: dict[str, object] = {}
+        self.swapping = False  #: declarations of :meth:`applied` are in progress
+
+    def hold(self, changes: list[Parameter]) -> list[Parameter]:
+        """The changes to set as parameters; undeclared block entries are held, unless nothing
+        else is set (then all are set, and rclpy refuses the undeclared ones).
+        """
+        kept = [p for p in changes if self.node.has_parameter(p.name)]
+        held = {p.name: plain(p.value) for p in changes if not self.node.has_parameter(p.name)}
+        if not kept or any(not expected_undeclared(name) for name in held):
+            self._held = {}
+            return changes
+        self._held = held
+        return kept
+
+    def would_be(self, changes: list[Parameter]) -> dict[str, object]:
+        """The whole parameter set ``{dotted name: value}`` once ``changes`` (and the held
+        entries) are set.
+        """
+        return (
+            self.stored
+            | self._held
+            | values(self.node)
+            | {p.name: plain(p.value) for p in changes}
         )
-        node.declare_parameter(
-            f'{prefix}models.{model.name}.extrapolates', TYPES['bool'], descriptor(extrapolates)
-        )
-        for entry, kind in MODEL_INFO.items():
-            node.declare_parameter(f'{prefix}models.{model.name}.{entry}', kind, descriptor(info))
-        for entry in ('nominal_length', 'pressure_offset'):
-            node.declare_parameter(
-                f'{prefix}models.{model.name}.{entry}',
-                Parameter.Type.DOUBLE,
-                descriptor(SPECS['models.<model>.{nominal_length, pressure_offset}']),
-            )
+
+    def applied(self) -> dict[str, object]:
+        """After a successful set: store the held entries, swap the block of every muscle whose
+        model changed; the whole parameter set.
+        """
+        self.stored.update(self._held)
+        self._held = {}
+        self.swapping = True
+        try:
+            for prefix, old in self.selected.items():
+                new = self.node.get_parameter_or(prefix + 'model').value
+                if new == old:
+                    continue
+                block = [f'{prefix}models.{old}.{entry}' for entry in MODEL_BLOCK]
+                if old in MODELS:
+                    current = values(self.node)
+                    self.stored.update({n: current[n] for n in block if n in current})
+                    for name in block:
+                        self.node.undeclare_parameter(name)
+                declare_block(self.node, prefix, new, self.stored)
+                self.selected[prefix] = new
+        finally:
+            self.swapping = False
+        return self.stored | values(self.node)
 
 
 def _check_names(names: list[str], mode: str) -> None:
@@ -145,21 +191,12 @@ def pairing(flat: dict[str, object]) -> dict[str, object]:
     }
 
 
-def values(node: Node) -> dict[str, object]:
-    """The node's set parameters as ``{dotted name: plain Python value}``."""
-    return {
-        name: plain(p.value)
-        for name, p in node.get_parameters_by_prefix('').items()
-        if p.value is not None
-    }
-
-
 def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings]:
     """Settings of every muscle of a would-be parameter set (one without ``names``; see
     :func:`~pma_model_ros.core.param_file.all_node_settings`).  ValueError names the muscle and
     parameter.
     """
-    for prefix in [f'{name}.' for name in names] or ['']:
+    for prefix in prefixes(names):
         where = f"muscle '{prefix[:-1]}': " if prefix else ''
         missing = [name for name in REQUIRED if prefix + name not in flat]
         if missing:
@@ -173,17 +210,7 @@ def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings
     return all_node_settings(nest(flat))
 
 
-def plain(value: object) -> object:
-    """A parameter value with arrays as lists (what the core expects)."""
-    return list(value) if isinstance(value, (array.array, tuple)) else value
-
-
-def nest(flat: dict[str, object]) -> dict:
-    nested: dict = {}
-    for name, value in flat.items():
-        *parents, leaf = name.split('.')
-        node = nested
-        for key in parents:
-            node = node.setdefault(key, {})
-        node[leaf] = value
-    return nested
+def identifications(flat: dict[str, object], names: list[str]) -> list[dict[str, str]]:
+    """Each muscle's identification results (diagnostic key-values) of its selected model."""
+    nested = nest(flat)
+    return [identification(nested[name] if name else nested) for name in names or ['']]

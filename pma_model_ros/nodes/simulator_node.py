@@ -24,19 +24,21 @@ from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.simulation import PARAMETERS, SimulatedMuscle
+from .parameters import declare_table, warn_unknown
 from .ros_time import now_seconds
-from .startup import declare_table, refusing, run
+from .startup import refusing, run
+from ..core.simulation import PARAMETERS, SimulatedMuscle
 
 
 class SimulatorNode(Node):
     """Publishes a simulated muscle at a fixed rate."""
 
-    def __init__(self, record: str | None = None, storage: str | None = None) -> None:
-        super().__init__('simulator_node')
+    def __init__(self, record: str | None = None, storage: str | None = None, **kwargs) -> None:
+        super().__init__('simulator_node', **kwargs)
         with refusing(self):
             p = declare_table(self, PARAMETERS)
             self._muscle = SimulatedMuscle(p, now_seconds(self))
+        warn_unknown(self)
         self._pressure_pub = self.create_publisher(
             FluidPressure, 'pressure', qos_profile_sensor_data
         )
@@ -136,9 +138,7 @@ def main(args: list[str] | None = None) -> int:
         return nodes[-1]
 
     code = run('simulator_node', make, argv)
-    for node in (
-        nodes
-    ):  # after rclpy has shut down (closing the sqlite3 bag beside rclpy's shutdown crashed)
+    for node in nodes:  # after rclpy's shutdown (closing sqlite3 beside it crashed)
         node.finish_recording()
     return code
 

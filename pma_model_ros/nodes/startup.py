@@ -2,8 +2,7 @@
 
 Every node spins on the executor named by its read-only ROS parameter ``executor``:
 ``events`` (``rclpy.experimental.EventsExecutor``, the default) or ``single`` (rclpy's
-SingleThreadedExecutor); docs/performance-nodes.md compares them.  Simulators declare their
-parameter tables here too (:func:`declare_table`).
+SingleThreadedExecutor); docs/performance-nodes.md compares them.
 """
 
 from __future__ import annotations
@@ -15,7 +14,6 @@ import signal
 import threading
 from typing import Callable, Iterator
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
@@ -25,6 +23,7 @@ from rclpy.logging import get_logger_level, LoggingSeverity, set_logger_level
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from .parameters import declare
 from ..core.node_parameters import SPECS
 
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
@@ -55,7 +54,7 @@ class StartupError(Exception):
 
 
 def init(args: list[str] | None) -> None:
-    """``rclpy.init(args=args)``; a params file rcl cannot parse raises StartupError.
+    """Initialise rclpy with ``args``; a params file rcl cannot parse raises StartupError.
 
     rcl's own "Failed to parse global arguments" line is muted during init so the
     caller's single line is the only one.
@@ -63,9 +62,8 @@ def init(args: list[str] | None) -> None:
     level = get_logger_level('rcl')
     set_logger_level('rcl', LoggingSeverity.FATAL)
     try:
-        rclpy.init(
-            args=args, signal_handler_options=SignalHandlerOptions.NO
-        )  # run() handles the signals
+        # run() handles the signals
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RCLError as err:
         text = re.sub(r', at \S+:\d+', '', str(err)).removeprefix('failed to initialize rcl: ')
         raise StartupError(text) from None
@@ -88,9 +86,7 @@ def refusing(node: Node) -> Iterator[None]:
 def executor(node: Node) -> Executor:
     """The executor named by ``node``'s parameter ``executor`` (declared here, read-only)."""
     spec = SPECS['executor']
-    name = node.declare_parameter(
-        spec.name, spec.default, ParameterDescriptor(description=spec.description, read_only=True)
-    ).value
+    name = declare(node, spec).value
     try:
         spec.check(name)
     except ValueError as err:
@@ -153,17 +149,3 @@ def teardown(spinner: Executor | None, node: Node | None) -> None:
         rclpy.try_shutdown()
     finally:
         faulthandler.cancel_dump_traceback_later()
-
-
-def declare_table(node: Node, table: dict[str, tuple]) -> dict[str, object]:
-    """Declare a simulator's parameters on ``node``, each with its descriptor; their values.
-
-    ``table`` is ``{name: (default, description, (min, max) or None)}``; arrays come back as lists.
-    """
-    for name, (default, text, limits) in table.items():
-        ranges = [FloatingPointRange(from_value=limits[0], to_value=limits[1])] if limits else []
-        node.declare_parameter(
-            name, default, ParameterDescriptor(description=text, floating_point_range=ranges)
-        )
-    values = {name: node.get_parameter(name).value for name in table}
-    return {k: v if isinstance(v, (str, float, int)) else list(v) for k, v in values.items()}

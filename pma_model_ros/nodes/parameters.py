@@ -1,0 +1,114 @@
+"""ROS parameters of every node from the core's :class:`ParameterSpec` tables.
+
+One mechanism for the four nodes: each declares the rows of its table
+(:mod:`pma_model_ros.core.node_parameters` and the tables it names) with :func:`declare` or
+:func:`declare_table`, each with its descriptor (description, unit, range, read-only flag), and
+warns about the names of its parameter files that it does not know (:func:`warn_unknown`).
+``automatically_declare_parameters_from_overrides`` is not used: it would declare whatever a file
+holds, without descriptors.
+"""
+
+from __future__ import annotations
+
+import array
+import difflib
+from typing import Callable, Iterable
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..core.node_parameters import ParameterSpec
+
+TYPES = {
+    'double': Parameter.Type.DOUBLE,
+    'integer': Parameter.Type.INTEGER,
+    'string': Parameter.Type.STRING,
+    'bool': Parameter.Type.BOOL,
+    'double[]': Parameter.Type.DOUBLE_ARRAY,
+    'string[]': Parameter.Type.STRING_ARRAY,
+}
+
+
+def descriptor(spec: ParameterSpec, description: str | None = None) -> ParameterDescriptor:
+    """The ROS descriptor of ``spec``: description with unit, range, read-only flag."""
+    text = description or spec.description
+    if spec.unit:
+        text += f' [{spec.unit}]'
+    ranges = (
+        [FloatingPointRange(from_value=spec.limits[0], to_value=spec.limits[1])]
+        if spec.limits
+        else []
+    )
+    return ParameterDescriptor(
+        description=text, floating_point_range=ranges, read_only=spec.read_only
+    )
+
+
+def declare(node: Node, spec: ParameterSpec, prefix: str = '', default: bool = True) -> Parameter:
+    """Declare ``spec`` as ``prefix + spec.name`` with its default (without ``default``, or
+    without one: only its type, so it stays unset unless a file or ``-p`` sets it).
+    """
+    value = spec.default if default and spec.default not in (None, []) else TYPES[spec.kind]
+    return node.declare_parameter(prefix + spec.name, value, descriptor(spec))
+
+
+def declare_table(
+    node: Node, specs: Iterable[ParameterSpec], prefix: str = ''
+) -> dict[str, object]:
+    """Declare every row of ``specs`` under ``prefix``; their values by row name (arrays as
+    lists).
+    """
+    return {spec.name: plain(declare(node, spec, prefix).value) for spec in specs}
+
+
+def values(node: Node) -> dict[str, object]:
+    """The node's set parameters as ``{dotted name: plain Python value}``."""
+    return {
+        name: plain(p.value)
+        for name, p in node.get_parameters_by_prefix('').items()
+        if p.value is not None
+    }
+
+
+def overrides(node: Node) -> dict[str, object]:
+    """What the node's parameter files and ``-p`` set, declared or not, as ``{dotted name: plain
+    value}``.  rclpy keeps them in ``Node._parameter_overrides`` (since Dashing) and offers no
+    public accessor.
+    """
+    return {name: plain(p.value) for name, p in node._parameter_overrides.items()}
+
+
+def warn_unknown(node: Node, expected: Callable[[str], bool] = lambda name: False) -> list[str]:
+    """Log one warning per name the node's parameter files and ``-p`` set that the node neither
+    declared nor ``expected`` accepts (a file's entry it reads undeclared), with the nearest
+    declared name (difflib); the warnings.  ``executor`` is known: :func:`.startup.run` declares
+    it once the node is built.
+    """
+    declared = [*node.get_parameters_by_prefix(''), 'executor']
+    warnings = []
+    for name in sorted(overrides(node)):
+        if name in declared or node.has_parameter(name) or expected(name):
+            continue
+        near = difflib.get_close_matches(name, declared, n=1)
+        hint = f" (did you mean '{near[0]}'?)" if near else ''
+        warnings.append(f"unknown parameter '{name}'{hint}: ignored")
+        node.get_logger().warning(warnings[-1])
+    return warnings
+
+
+def plain(value: object) -> object:
+    """A parameter value with arrays as lists (what the core expects)."""
+    return list(value) if isinstance(value, (array.array, tuple)) else value
+
+
+def nest(flat: dict[str, object]) -> dict:
+    """``{'a.b': 1}`` as ``{'a': {'b': 1}}`` (a parameter file's ``ros__parameters``)."""
+    nested: dict = {}
+    for name, value in flat.items():
+        *parents, leaf = name.split('.')
+        node = nested
+        for key in parents:
+            node = node.setdefault(key, {})
+        node[leaf] = value
+    return nested

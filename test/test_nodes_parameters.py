@@ -1,0 +1,130 @@
+"""The four nodes' parameters, declared from the core's tables (nodes/parameters.py), in-process on
+private Contexts: what ``ros2 param list`` shows, read-only flags, unknown names, ``**kwargs``.
+"""
+
+import pytest
+import rclpy
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.parameter import Parameter
+import yaml
+
+from conftest import CONFIGS, REPO
+from pma_model_ros.nodes.joint_node import JointNode
+from pma_model_ros.nodes.joint_simulator_node import JointSimulatorNode
+from pma_model_ros.nodes.model_node import ModelNode
+from pma_model_ros.nodes.simulator_node import SimulatorNode
+
+EXAMPLE_JOINT = REPO / 'config' / 'example_joint.yaml'
+MULTI = REPO / 'config' / 'example_multi_muscle.yaml'
+#: The parameter file each node class is built from in these tests.
+NODES = {
+    ModelNode: CONFIGS['DMSP-10-250'],
+    JointNode: EXAMPLE_JOINT,
+    SimulatorNode: None,
+    JointSimulatorNode: None,
+}
+#: Declared by rclpy for every node (not ours).
+RCLPY = {'use_sim_time', 'start_type_description_service'}
+
+
+@pytest.fixture
+def make():
+    """A factory: node class, its parameter file, ``-p`` overrides and constructor keywords."""
+    made = []
+
+    def make(cls, params_file=None, overrides=(), **kwargs):
+        context = rclpy.Context()
+        args = ['--ros-args'] + (['--params-file', str(params_file)] if params_file else [])
+        for name, value in overrides:
+            args += ['-p', f'{name}:={value}']
+        rclpy.init(context=context, args=args)
+        made.append(context)
+        node = cls(context=context, **kwargs)
+        made.append(node)
+        return node
+
+    yield make
+    for thing in reversed(made):
+        if isinstance(thing, rclpy.Context):
+            rclpy.shutdown(context=thing)
+        else:
+            thing.destroy_node()
+
+
+@pytest.fixture
+def warnings(monkeypatch):
+    """The warnings the nodes log from now on."""
+    logged = []
+    monkeypatch.setattr(RcutilsLogger, 'warning', lambda self, text, **_: logged.append(text))
+    return logged
+
+
+def listed(node) -> list[str]:
+    """What ``ros2 param list`` lists of ``node``."""
+    return node.list_parameters([], 0).names
+
+
+@pytest.mark.parametrize('cls', NODES)
+def test_every_node_passes_its_keywords_to_rclpy(make, cls):
+    """``**kwargs`` reach rclpy's Node, as in ros2/examples: here a namespace and an override."""
+    node = make(
+        cls,
+        NODES[cls],
+        namespace='/kw',
+        parameter_overrides=[Parameter('use_sim_time', value=True)],
+    )
+    assert node.get_namespace() == '/kw' and node.get_parameter('use_sim_time').value is True
+
+
+def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
+    """One muscle: 14 parameters of the muscle, 4 of its model's block (params, extrapolates,
+    nominal_length, pressure_offset), 7 node-wide, 2 of rclpy's: 27 (28 with ``executor``, which
+    startup.run declares).  Four muscles: 18 each.
+    """
+    node = make(ModelNode, CONFIGS['DMSP-10-250'])
+    names = listed(node)
+    assert len(names) == 27
+    assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
+    multi = make(ModelNode, MULTI)
+    muscles = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']['muscles']
+    for muscle in muscles:
+        own = [n for n in listed(multi) if n.startswith(f'{muscle}.')]
+        assert len(own) == 18 <= 25, own
+
+
+def test_read_only_where_the_node_never_changes_a_parameter(make):
+    """joint_node and the simulators read their parameters at start-up: all are read-only;
+    model_node's read-only ones are its table's.
+    """
+    for cls in (JointNode, SimulatorNode, JointSimulatorNode):
+        node = make(cls, NODES[cls])
+        ours = [n for n in listed(node) if n not in RCLPY]
+        assert ours and all(d.read_only for d in node.describe_parameters(ours)), cls
+    node = make(ModelNode, CONFIGS['DMSP-10-250'])
+    fixed = {
+        n for n, d in zip(listed(node), node.describe_parameters(listed(node))) if d.read_only
+    }
+    assert fixed - RCLPY == {'muscles', 'input_mode', 'pairing', 'pairing_slop'}
+
+
+@pytest.mark.parametrize(
+    'cls, typo, near',
+    [
+        (ModelNode, 'max_input_agee', 'max_input_age'),
+        (ModelNode, 'models.martens.parms', 'models.martens.params'),
+        (JointNode, 'elbow.cocontracton', 'elbow.cocontraction'),
+        (SimulatorNode, 'noise.force_sdt', 'noise.force_std'),
+        (JointSimulatorNode, 'inertia_', 'inertia'),
+    ],
+)
+def test_an_unknown_parameter_is_named_with_the_nearest(make, warnings, cls, typo, near):
+    make(cls, NODES[cls], overrides=[(typo, '1.0')])
+    assert warnings == [f"unknown parameter '{typo}' (did you mean '{near}'?): ignored"]
+
+
+def test_entries_read_undeclared_are_no_unknown_parameters(make, warnings):
+    """The other models' blocks and the identification results of a file: read, not declared."""
+    make(ModelNode, MULTI)
+    parameters = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']
+    assert len(parameters['biceps']['models']) > 1  # blocks of the models not selected
+    assert warnings == []
