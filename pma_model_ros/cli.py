@@ -318,7 +318,7 @@ def _fit_branches(args: argparse.Namespace, spec) -> None:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
-    muscle = muscle_model(read_parameters(args.config), args.model)
+    muscle = load_muscle(args.config, args.model)
     fmap = read_force_map_csv(args.data)
     result = muscle.force(fmap.pressure, fmap.length)
     model = np.nan_to_num(result.force)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import lines_of_failed_start
+from pma_model_ros.nodes import simulator_node
 
 pytestmark = pytest.mark.ros
 NODE = [sys.executable, '-m', 'pma_model_ros.nodes.simulator_node']
@@ -49,3 +50,18 @@ def test_record_holds_three_topics_at_the_rate(tmp_path):
     step = np.median(np.diff(stamps['/sim/force']))
     assert step == pytest.approx(1e9 / 50, abs=2e6)  # 20 ms apart at 50 Hz, within 2 ms
     assert len(stamps['/sim/force']) >= 50  # 2 s at 50 Hz, less a start-up margin
+
+
+def test_record_to_an_existing_path_is_one_line_exit_1(tmp_path, capsys):
+    """Refused before any node starts, naming the option and the path (not 'invalid parameters',
+    and no traceback); the existing file is left as it was.
+    """
+    existing = tmp_path / 'run1.mcap'
+    existing.write_text('an earlier recording')
+    assert simulator_node.main(['simulator_node', '--record', str(existing)]) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f'simulator_node: error: --record {existing}: exists; not overwriting it (remove it or '
+        'record to another name)\n'
+    )
+    assert existing.read_text() == 'an earlier recording'

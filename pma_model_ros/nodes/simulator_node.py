@@ -15,6 +15,7 @@ what it publishes to a new rosbag2 bag OUT (log time = the stamp; storage from
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 import sys
 
 from geometry_msgs.msg import WrenchStamped
@@ -131,6 +132,13 @@ def main(args: list[str] | None = None) -> int:
     )
     argv = sys.argv if args is None else args
     options = parser.parse_args(remove_ros_args(argv)[1:])
+    if options.record and (Path(options.record).exists() or Path(options.record).is_symlink()):
+        print(
+            f'simulator_node: error: --record {options.record}: exists; not overwriting it '
+            '(remove it or record to another name)',
+            file=sys.stderr,
+        )
+        return 1
     nodes: list[SimulatorNode] = []
 
     def make() -> SimulatorNode:
