@@ -32,7 +32,7 @@ from .core.identification import (
 )
 from .core.models import get_model, TABLE3_MODELS
 from .core.node_parameters import STANDARD_ATMOSPHERE
-from .core.param_file import held_out_band, load_muscle, muscle_model, read_parameters
+from .core.param_file import held_out_band, load_muscle, read_parameters
 from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
 from .core.progress import step
 from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
