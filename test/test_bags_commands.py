@@ -66,6 +66,9 @@ def test_missing_bag_is_one_line_exit_2(capsys, tmp_path):
 
 def test_estimate_replaces_an_existing_output_only_with_force(tmp_path):
     """In a process of its own: estimate_bag's progress bar holds the sys.stderr of its import."""
+    pytest.importorskip(
+        'rosbags', reason='needs rosbags, a pip-only library: pip install -r requirements-dev.txt'
+    )
     from pma_model_ros.bags.bag_io import read
     from pma_model_ros.bags.synthetic import record_simulation
 
