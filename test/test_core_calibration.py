@@ -4,6 +4,10 @@ identification on the shipped maps degraded the way a user's are (issue 13's tar
 
 from dataclasses import replace
 import functools
+import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -245,3 +249,33 @@ def test_the_chosen_geometry_stays_put_when_the_data_move_by_1e_9(muscle):
             assert fit.calibration == base.calibration
             assert fit.spec.nominal_length == pytest.approx(base.spec.nominal_length, abs=1e-6)
             assert fit.pressure_offset == pytest.approx(base.pressure_offset, abs=1.0)
+
+
+def test_the_fit_does_not_depend_on_blas_threads():
+    """The same calibrated fit of Table A2 (offset identified, L0 searched then kept) with
+    OpenBLAS on 1 and on 2 threads, in fresh processes: the same geometry and parameters to 1e-12.
+    """
+    script = (
+        'from pma_model_ros.core.identification import fit_best\n'
+        'from pma_model_ros.core.calibration import Calibration\n'
+        'from pma_model_ros.core.models import get_model\n'
+        'from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec\n'
+        "m = 'DMSP-10-250'\n"
+        "f = fit_best(get_model('martens'), shipped_spec(m), shipped_force_map(m), "
+        'calibration=Calibration())\n'
+        'import json\n'
+        'print(json.dumps([*f.theta.tolist(), f.pressure_offset, f.spec.nominal_length]))\n'
+    )
+    runs = [
+        subprocess.run(
+            [sys.executable, '-c', script],
+            env=os.environ | {'OPENBLAS_NUM_THREADS': threads},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        for threads in ('1', '2')
+    ]
+    one, two = (np.array(json.loads(run)) for run in runs)
+    assert one == pytest.approx(two, rel=1e-12, abs=0)
+    assert one[-2] == pytest.approx(39.7e3, abs=1e3)  # the threshold at L0, 39.7 kPa
