@@ -263,7 +263,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
     print(
         '\nnested held-out err [%] per held-out length [m]'
         + (
-            ' (bands of lengths: their mean)'
+            ' (groups of neighbouring lengths: their mean)'
             if len(length_folds(fmap)) < fmap.lengths.size
             else ''
         )

@@ -22,6 +22,7 @@ import numpy as np
 from .force_map import ForceMap
 
 _MAX_FOLDS = 8  #: most held-out groups of a map
+_SAME_LENGTH = 1e-3  #: [m] lengths closer than this are one held-out length
 
 
 class Predictor(Protocol):
@@ -29,16 +30,16 @@ class Predictor(Protocol):
 
 
 def length_folds(fmap: ForceMap) -> list[np.ndarray]:
-    """The held-out groups of points: each measured length, longest first, or, with more than
-    :data:`_MAX_FOLDS` lengths (the cells of a recording), :data:`_MAX_FOLDS` bands of
-    neighbouring lengths.
+    """The held-out groups of points, longest first: each measured length, where lengths closer
+    than :data:`_SAME_LENGTH` count as one (the cells of one held length of a recording); with more
+    than :data:`_MAX_FOLDS` such lengths, or too few to judge (a recording that never held still),
+    :data:`_MAX_FOLDS` bands of neighbouring lengths.
     """
-    lengths = fmap.lengths
-    groups = (
-        [[length] for length in lengths]
-        if lengths.size <= _MAX_FOLDS
-        else np.array_split(lengths, _MAX_FOLDS)
-    )
+    lengths = fmap.lengths  # descending
+    cuts = np.flatnonzero(-np.diff(lengths) > _SAME_LENGTH) + 1
+    groups = np.split(lengths, cuts)
+    if len(groups) > _MAX_FOLDS or (len(groups) < 3 <= lengths.size):
+        groups = np.array_split(lengths, min(_MAX_FOLDS, lengths.size))
     return [np.isin(fmap.length, group) for group in groups]
 
 
