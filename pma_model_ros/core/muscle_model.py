@@ -122,25 +122,25 @@ def force_at(op: Operating, pressure: ArrayLike) -> ForceResult:
 
     The pressure is held to [0, pressure_top] (PRESSURE_OUT_OF_RANGE where that moved it, except
     within ``VENTED_BAND`` below 0: a vented muscle; BELOW_AMBIENT below that band); EXTRAPOLATED
-    above the identified pressures.
+    above the identified pressures.  Written for few numpy calls: the engines call it per message.
     """
     p = np.asarray(pressure, float)
     lim = op.limits
-    with np.errstate(invalid='ignore', over='ignore'):
-        usable = op.usable & np.isfinite(p)
-        p_op = np.clip(p, 0.0, lim.pressure_top)
-        raw = np.where(usable, (op.q2 * p_op + op.q1) * p_op + op.q0, np.nan)
-        moved = (p_op != p) & ~((p < 0) & (p >= -VENTED_BAND))
-        flags = np.where(
-            usable,
-            op.flags
-            | np.where(moved, _PRESSURE_OUT, 0)
-            | np.where(raw < 0, _CLIPPED, 0)
-            | np.where(p < -VENTED_BAND, _BELOW_AMBIENT, 0)
-            | np.where(p_op > lim.pressure_known, _EXTRAPOLATED, 0),
-            op.flags | _INVALID,
-        ).astype(np.uint16)
-        return ForceResult(np.maximum(raw, 0.0), raw, flags)
+    p_op = np.minimum(np.maximum(p, 0.0), lim.pressure_top)  # NaN stays NaN
+    raw = (op.q2 * p_op + op.q1) * p_op + op.q0
+    below = p < -VENTED_BAND
+    flags = (
+        op.flags
+        | (p > lim.pressure_top) * _PRESSURE_OUT
+        | below * (_PRESSURE_OUT | _BELOW_AMBIENT)
+        | (raw < 0) * _CLIPPED
+        | (p_op > lim.pressure_known) * _EXTRAPOLATED
+    )
+    usable = op.usable & np.isfinite(p)
+    if not usable.all():
+        raw = np.where(usable, raw, np.nan)
+        flags = np.where(usable, flags, op.flags | _INVALID)
+    return ForceResult(np.maximum(raw, 0.0), raw, np.asarray(flags, np.uint16))
 
 
 class Evaluator:

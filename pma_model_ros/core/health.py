@@ -1,0 +1,209 @@
+"""Health of N entities (muscles or joints): named counters, latched problems and warnings, input
+rates and stamp ages, diagnostic levels with their texts, and when to report (no ROS).
+
+One implementation for model_node's and joint_node's engines, so both nodes report alike:
+
+* ERROR for ``hold`` after a rejected input (``invalid input: <reason>``), and while an input was
+  never received or is stale (``no <input> received yet``, ``stale <input>: ...``);
+* WARN for ``hold`` after a warning flag of an estimate or command (:data:`WARN_FLAGS`);
+* else OK, ``estimating``.
+
+A report is due when a level differs from the last report (at most every ``report_interval``);
+the nodes also report every second.  Each status's values: the non-zero counters, then per input
+what diagnostic_updater's FrequencyStatus and TimeStampStatus report, over the window since the
+entity's previous report, then the engine's own values and :attr:`Health.extra` (static key-values
+per entity: a hook for, e.g., identification results).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import enum
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .flags import Flag
+from .pairing import fresh, NEVER, SECOND
+
+
+class Level(enum.IntEnum):
+    """Diagnostic level; values equal diagnostic_msgs/DiagnosticStatus levels."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+
+
+#: Flags that make an estimate or command WARN, with their diagnostic wording.
+WARN_FLAGS = {
+    Flag.SATURATED: 'saturated',
+    Flag.LENGTH_OUT_OF_RANGE: 'outside validity domain',
+    Flag.PRESSURE_OUT_OF_RANGE: 'outside validity domain',
+    Flag.BRANCH_UNKNOWN: 'hysteresis branch unknown',
+    Flag.EXTRAPOLATED: 'extrapolated beyond the identified data',
+    Flag.BELOW_AMBIENT: (
+        'pressure far below ambient: a gauge sensor read as absolute? (pressure_reference)'
+    ),
+}
+WARN_MASK = int(sum(WARN_FLAGS))
+_WARN_TEXTS = tuple(f'{text} ({flag.name})' for flag, text in WARN_FLAGS.items())
+_WARN_BITS = np.array([int(flag) for flag in WARN_FLAGS], np.uint16)
+OK_TEXT = 'estimating'
+
+
+@dataclass(frozen=True)
+class Status:
+    level: Level
+    message: str
+    values: dict[str, str]
+
+
+class Health:
+    """Diagnostics of ``count`` entities fed by ``inputs`` (names, e.g. ``pressure``), with the
+    ``counters`` (labels) of :attr:`counts`.
+
+    ``stamps`` (inputs x count, [ns]) is the newest valid stamp of each input, written by its
+    owner (:meth:`arrived`; NEVER: none); ``max_age`` [ns]: freshness; ``hold`` [ns]: how long a
+    rejection or warning keeps the level up.
+    """
+
+    def __init__(
+        self,
+        count: int,
+        inputs: Sequence[str],
+        counters: Sequence[str],
+        stamps: np.ndarray,
+        max_age: int,
+        hold: int = SECOND,
+        report_interval: int = 0,
+    ) -> None:
+        shape = (len(inputs), count)
+        self.inputs, self.labels, self.stamps = tuple(inputs), tuple(counters), stamps
+        self.max_age, self.hold, self.report_interval = max_age, hold, report_interval
+        self.counts = np.zeros((count, len(counters)), np.int64)  #: per entity, by counter
+        #: static key-values added to each entity's status (e.g. identification results)
+        self.extra: list[dict[str, str]] = [{} for _ in range(count)]
+        self._arrivals = np.zeros(shape, np.int64)  # valid inputs
+        self._delay_min, self._delay_max = np.full(shape, np.inf), np.full(shape, -np.inf)
+        self._late, self._early, self._zero = (np.zeros(shape, np.int64) for _ in range(3))
+        self._rejected_at, self._reason = np.full(count, NEVER, np.int64), [''] * count
+        self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
+        self._reported = np.full(count, -1, np.int64)  # level of the last report (-1: none)
+        self._window_start = np.full(count, NEVER, np.int64)
+        self._window_arrivals = np.zeros(shape, np.int64)
+        self._last_report, self._steady, self._quiet = NEVER, False, None
+
+    def arrived(self, i: int, sel: slice | np.ndarray, stamp: int, now: int) -> None:
+        """Input ``i`` of the entities ``sel`` (a slice or a mask) was valid, stamped ``stamp``
+        (its owner writes :attr:`stamps`).
+        """
+        self._arrivals[i, sel] += 1
+        delay = (now - stamp) / SECOND
+        self._delay_min[i, sel] = np.minimum(self._delay_min[i, sel], delay)
+        self._delay_max[i, sel] = np.maximum(self._delay_max[i, sel], delay)
+
+    def reject(self, k: int, reason: str, now: int) -> None:
+        """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
+        self._rejected_at[k], self._reason[k], self._quiet = now, reason, None
+
+    def warn(self, sel: slice, which: np.ndarray, flags: np.ndarray, now: int) -> None:
+        """Of the entities ``sel``, ``which`` (a mask) gave results with ``flags``: their warning
+        flags hold the level at WARN.
+        """
+        hit = which[:, None] & ((flags[:, None] & _WARN_BITS) != 0)
+        if hit.any():
+            self._warned_at[sel][hit] = now
+            self._quiet = None
+
+    def quiet(self, now: int) -> None:
+        """The input taken at ``now`` gave every entity a fresh result without a warning: no level
+        can have risen (:meth:`due` then skips the level check).
+        """
+        self._quiet = now
+
+    def levels(self, now: int) -> np.ndarray:
+        """Every entity's level."""
+        error = (now - self._rejected_at < self.hold) | ~fresh(self.stamps, now, self.max_age).all(
+            axis=0
+        )
+        warn = now - self._warned_at.max(axis=1) < self.hold
+        return np.where(error, int(Level.ERROR), warn.view(np.int8))
+
+    def level(self, k: int, now: int) -> tuple[Level, str]:
+        """Entity ``k``'s level and its one-line reason."""
+        if now - self._rejected_at.item(k) < self.hold:
+            return Level.ERROR, f'invalid input: {self._reason[k]}'
+        for name, stamp in zip(self.inputs, self.stamps[:, k].tolist()):
+            if stamp == NEVER:
+                return Level.ERROR, f'no {name} received yet'
+            age = (now - stamp) / SECOND
+            if abs(now - stamp) > self.max_age:
+                when = f'{age:.3g} s old' if age > 0 else f'{-age:.3g} s in the future'
+                return (
+                    Level.ERROR,
+                    f'stale {name}: newest stamp is {when} (max_input_age '
+                    f'{self.max_age / SECOND:g} s)',
+                )
+        warned = self._warned_at[k].tolist()
+        if now - max(warned) < self.hold:
+            return Level.WARN, '; '.join(
+                sorted({text for text, at in zip(_WARN_TEXTS, warned) if now - at < self.hold})
+            )
+        return Level.OK, OK_TEXT
+
+    def due(self, now: int) -> bool:
+        """Whether a level differs from the last report, and ``report_interval`` has passed since
+        it (a node that falls behind, its inputs flapping between fresh and stale, must not spend
+        its time reporting).
+        """
+        if 0 <= now - self._last_report < self.report_interval:
+            return False
+        if self._steady and self._quiet == now:
+            return False
+        levels = self.levels(now)
+        due = bool((levels != self._reported).any())
+        self._steady = not due and not levels.any()
+        return due
+
+    def report(self, now: int, own: Callable[[int], dict[str, str]] | None = None) -> list[Status]:
+        """Every entity's status; ``own(k)``: the engine's values of entity ``k``."""
+        statuses = []
+        for k in range(len(self._reported)):
+            level, message = self.level(k, now)
+            values = {label: str(n) for label, n in zip(self.labels, self.counts[k].tolist()) if n}
+            for i, name in enumerate(self.inputs):
+                values |= self._input_values(i, k, now, name)
+            values |= own(k) if own else {}
+            values |= self.extra[k]
+            statuses.append(Status(level, message, values))
+            self._reported[k], self._window_start[k] = level, now
+        self._window_arrivals[:] = self._arrivals
+        self._delay_min[:], self._delay_max[:] = np.inf, -np.inf
+        self._steady, self._last_report = False, now
+        return statuses
+
+    def _input_values(self, i: int, k: int, now: int, name: str) -> dict[str, str]:
+        """FrequencyStatus and TimeStampStatus of input ``i`` of entity ``k`` over its window."""
+        events = self._arrivals.item(i, k) - self._window_arrivals.item(i, k)
+        start = self._window_start.item(k)
+        window = (now - start) / SECOND if start != NEVER else 0.0
+        early, late = self._delay_min.item(i, k), self._delay_max.item(i, k)
+        limit = self.max_age / SECOND
+        if not events:
+            self._zero[i, k] += 1
+        self._late[i, k] += late > limit
+        self._early[i, k] += early < -limit
+        return {
+            f'{name}: Events in window': str(events),
+            f'{name}: Events since startup': str(self._arrivals.item(i, k)),
+            f'{name}: Duration of window (s)': f'{window:f}',
+            f'{name}: Actual frequency (Hz)': f'{events / window if window > 0 else 0.0:f}',
+            f'{name}: Earliest timestamp delay:': f'{early if events else 0.0:f}',
+            f'{name}: Latest timestamp delay:': f'{late if events else 0.0:f}',
+            f'{name}: Earliest acceptable timestamp delay:': f'{-limit:f}',
+            f'{name}: Latest acceptable timestamp delay:': f'{limit:f}',
+            f'{name}: Late diagnostic update count:': str(self._late.item(i, k)),
+            f'{name}: Early diagnostic update count:': str(self._early.item(i, k)),
+            f'{name}: Zero seen diagnostic update count:': str(self._zero.item(i, k)),
+        }
