@@ -3,6 +3,7 @@ relay, same run, same settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
+        [--code DIR]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
 stamped with the cycle's time (the stamp is the sequence number), and measures the time until
@@ -19,7 +20,10 @@ and answers each joint_states with a JointState of N efforts on ``torque_estimat
 ``stiffness_estimate``, no model.  Default: muscle rows N = 1 and 64 and joint rows N = 4; naming
 only ``--muscles`` or only ``--joints`` runs only those rows.  Lost = answers expected minus
 received over the measured window; Hz = the pinger's achieved cycle rate (it publishes 2 N + 1
-messages per joint cycle).  Timings are noisy on a shared machine: read the model/relay ratios,
+messages per joint cycle).  Lengths (and pressures) change every cycle.  ``--code DIR`` runs the
+model's node from another checkout (PYTHONPATH and working directory DIR; e.g. a ``git worktree``
+of the commit before a change), the relay and the pinger from this one: before/after in one
+script.  Timings are noisy on a shared machine: read the model/relay ratios,
 not the absolute times.  Not a pass/fail test.
 """
 
@@ -49,8 +53,10 @@ import rclpy  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
+from rclpy.serialization import serialize_message  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
+from pma_model_ros.core.engine import ALL, one  # noqa: E402
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
 from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
@@ -220,11 +226,19 @@ class Pinger(Node):
         if self.n == 1:
             return (
                 FluidPressure(fluid_pressure=AMBIENT + gauge),
-                JointState(name=['DMSP-10-250'], position=[0.23], velocity=[0.0]),
+                JointState(
+                    name=['DMSP-10-250'],
+                    position=[0.23 + 0.005 * np.sin(k * 1e-3)],
+                    velocity=[0.0],
+                ),
             )
         return (
             JointState(name=self._names, position=[AMBIENT + gauge] * self.n),
-            JointState(name=self._names, position=[0.23] * self.n, velocity=[0.0] * self.n),
+            JointState(
+                name=self._names,
+                position=(0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * np.arange(self.n))).tolist(),
+                velocity=[0.0] * self.n,
+            ),
         )
 
     def cycle(self, k: int) -> int:
@@ -269,12 +283,14 @@ def measure(
     rate: float,
     namespace: str,
     joints: bool = False,
+    code: Path | None = None,
 ) -> dict:
-    """Start ``responder``, ping it, stop it; round trips [ms], loss, its CPU use and the achieved
-    cycle rate.
+    """Start ``responder`` (from checkout ``code``, if given), ping it, stop it; round trips [ms],
+    loss, its CPU use and the achieved cycle rate.
     """
+    env = None if code is None else os.environ | {'PYTHONPATH': str(code)}
     with tempfile.TemporaryFile('w+') as log:
-        proc = node_process.start(responder, log)
+        proc = node_process.start(responder, log, env, code)
         context = rclpy.Context()
         rclpy.init(context=context)
         pinger = Pinger(namespace, muscles, context, joints)
@@ -376,44 +392,38 @@ def profiled_node(name: str, out: Path, args: list[str]) -> int:
 
 
 def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float]:
-    """CPU time of model_node's callbacks per cycle (both inputs, called directly: no executor, no
-    wait) and of the engine's share of it (its two calls per cycle, without the messages) [us];
-    answers go nowhere.
+    """CPU time of model_node's callbacks per cycle (both inputs as bytes, called directly: no
+    executor, no wait) and of the engine's share of it (its two calls per cycle) [us]; answers go
+    nowhere.
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     rclpy.init(args=['--ros-args', '-r', '__ns:=/cost', '--params-file', str(params)])
     try:
         node = Pinger('/unused', muscles, rclpy.get_default_context())  # builds the input messages
         model = ModelNode()
-        first, second = node.messages(0)
-        topics = model.topics
         handlers = (
-            (partial(topics._on_pressure, 0), partial(topics._on_state, 0))
+            (partial(model._on_pressure, 0), partial(model._on_state, 0))
             if muscles == 1
-            else (topics._on_pressures, topics._on_states)
+            else (model._on_pressures, model._on_states)
         )
-        start = time.process_time()
-        for _ in range(cycles):
+        inputs = []
+        for k in range(cycles):
+            first, second = node.messages(k)
             first.header.stamp = second.header.stamp = model.get_clock().now().to_msg()
+            inputs.append((serialize_message(first), serialize_message(second)))
+        start = time.process_time()
+        for first, second in inputs:
             handlers[0](first)
             handlers[1](second)
         per_cycle = (time.process_time() - start) / cycles
         engine, now = model.engine, model.now()
-        pressure, length = AMBIENT + 300e3, 0.23
-        pressures, lengths, rates = (
-            np.full(muscles, pressure),
-            np.full(muscles, length),
-            np.zeros(muscles),
-        )
+        sel = one(0) if muscles == 1 else ALL
+        pressures, rates = np.full(muscles, AMBIENT + 300e3), np.zeros(muscles)
         start = time.process_time()
         for k in range(cycles):
-            t = now + k * 1e-6
-            if muscles == 1:
-                engine.pressure(0, pressure, t, t)
-                engine.length(0, length, 0.0, t, t)
-            else:
-                engine.pressures(pressures, t, t)
-                engine.lengths(lengths, rates, t, t)
+            t = now + k * 1000
+            engine.pressures(pressures, t, t, sel)
+            engine.lengths(0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * rates), rates, t, t, sel)
         own = (time.process_time() - start) / cycles
         model.destroy_node()
         node.destroy_node()
@@ -445,7 +455,10 @@ def print_rows(
             profile = args.profile if (joints, n, executor) == last else None
             result = {}
             for name, cmd in responders(n, executor, folder, profile, joints).items():
-                result[name] = r = measure(cmd, n, args.duration, args.rate, '/bench', joints)
+                code = args.code if name == node else None
+                result[name] = r = measure(
+                    cmd, n, args.duration, args.rate, '/bench', joints, code
+                )
                 base = result[node]
                 ratio = (
                     ''
@@ -489,6 +502,11 @@ def main() -> int:
     parser.add_argument(
         '--quick', action='store_true', help='2 s per row (what bench/run --quick passes)'
     )
+    parser.add_argument(
+        '--code',
+        type=Path,
+        help="run the model's node from this checkout (before/after); skips the callback costs",
+    )
     if '--relay' in sys.argv:
         return run('relay', Relay, [a for a in sys.argv if a != '--relay'])
     if sys.argv[1:2] and sys.argv[1].startswith('--profiled-'):
@@ -506,12 +524,12 @@ def main() -> int:
         else (False, muscles[-1], args.executor[-1])
     )
     with tempfile.TemporaryDirectory() as tmp:
-        if muscles:
+        if muscles and not args.code:
             print(
                 'model_node callbacks called directly (no executor, no DDS), CPU per cycle (both '
                 'inputs):'
             )
-        for n in muscles:
+        for n in muscles if not args.code else []:
             cycle, bank = callback_cost(n, Path(tmp))
             print(
                 f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"

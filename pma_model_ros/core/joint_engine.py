@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import math
 from typing import Sequence
 
-from .engine import Level, pressure_problem, WARN_FLAGS
+from .estimation import pressure_problem
 from .flags import describe
+from .health import Level, WARN_FLAGS
 from .hysteresis import play
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 from .muscle_model import served_pressure

@@ -29,17 +29,17 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import seconds
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
+from ..wire.cdr import fluid_pressure, joint_state
+from ..wire.joint_state import JointStateArrays, JointStateReader
+from ..wire.muscle_inputs import stamped_value
 from . import model_params
 from .diagnostics import diagnostic_array
-from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
+from .model_node import DESERIALIZE, DIAGNOSTIC_PERIOD, INPUT_QOS
 from .startup import refusing, run
 
 
@@ -87,44 +87,20 @@ class JointNode(Node):
             )
         self.add_on_set_parameters_callback(self._refuse_changes)
         self._ros_clock = self.get_clock().handle
-        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
-        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self._command_pubs = []
-        for k, joint in enumerate(found):
-            pubs = []
-            for m, muscle in enumerate(joint.muscle_names):
-                self.create_subscription(
-                    FluidPressure,
-                    f'{muscle}/pressure',
-                    partial(self._on_pressure, k, m),
-                    INPUT_QOS,
-                )
-                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
-            self._command_pubs.append(pubs)
-        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS)
-        self.create_subscription(JointState, 'torque_command', self._on_torque, 10)
-        self.create_subscription(
-            JointState, 'stiffness_command', partial(self._on_level, self.engine.stiffness), 10
-        )
-        self.create_subscription(
-            JointState,
-            'cocontraction_command',
-            partial(self._on_level, self.engine.cocontraction),
-            10,
-        )
-        names = [
-            j.name for j in found
-        ]  # prebuilt messages of every joint (the usual joint_states)
-        self._all = [
-            StampedTemplate(
-                serialize_message(JointState(name=names, effort=sentinels(len(names)).tolist())),
-                len(names),
+        self._names = [j.name for j in found]
+        # prebuilt answers of every joint (the usual joint_states), and each muscle's command
+        self._all = [joint_state(self._names, 'effort') for _ in range(2)]
+        self._commands = [[fluid_pressure(m) for m in j.muscle_names] for j in found]
+        self._readers = {
+            topic: JointStateReader(DESERIALIZE['JointState'])
+            for topic in (
+                'joint_states',
+                'torque_command',
+                'stiffness_command',
+                'cocontraction_command',
             )
-            for _ in range(2)
-        ]
-        self._names = names
-        self.create_timer(DIAGNOSTIC_PERIOD, self.publish_status)
+        }
+        self.create_interfaces()
         self.get_logger().info(
             '; '.join(
                 f"joint '{j.name}': {j.muscle_names[0]} ({j.muscles[0].model.name}) "
@@ -132,6 +108,35 @@ class JointNode(Node):
                 for j in found
             )
         )
+
+    def create_interfaces(self) -> None:
+        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
+        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
+        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._command_pubs = []
+        for k, joint in enumerate(self.engine.joints):
+            pubs = []
+            for m, muscle in enumerate(joint.muscle_names):
+                self.create_subscription(
+                    FluidPressure,
+                    f'{muscle}/pressure',
+                    partial(self._on_pressure, k, m),
+                    INPUT_QOS,
+                    raw=True,
+                )
+                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
+            self._command_pubs.append(pubs)
+        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS, raw=True)
+        self.create_subscription(JointState, 'torque_command', self._on_torque, 10, raw=True)
+        for topic, apply in (
+            ('stiffness_command', self.engine.stiffness),
+            ('cocontraction_command', self.engine.cocontraction),
+        ):
+            self.create_subscription(
+                JointState, topic, partial(self._on_level, topic, apply), 10, raw=True
+            )
+        self.create_timer(DIAGNOSTIC_PERIOD, self.publish_status)
 
     def _refuse_changes(self, changes: list[Parameter]) -> SetParametersResult:
         """Parameters are read at start-up: a change of a declared one is refused (a declaration,
@@ -148,13 +153,14 @@ class JointNode(Node):
         """The node clock (ROS time) [s], without building an rclpy Time."""
         return self._ros_clock.get_now().nanoseconds * 1e-9
 
-    def _on_pressure(self, k: int, m: int, msg: FluidPressure) -> None:
-        self.engine.pressure(k, m, msg.fluid_pressure, seconds(msg.header.stamp), self.now())
+    def _on_pressure(self, k: int, m: int, data: bytes) -> None:
+        stamp, value = stamped_value(data, DESERIALIZE['FluidPressure'], 'fluid_pressure')
+        self.engine.pressure(k, m, value, stamp * 1e-9, self.now())
 
-    def _on_states(self, msg: JointState) -> None:
-        now, stamp = self.now(), msg.header.stamp
-        t = seconds(stamp)
-        names, positions = msg.name, msg.position
+    def _on_states(self, data: bytes) -> None:
+        now, msg = self.now(), self._readers['joint_states'](data)
+        t = msg.stamp * 1e-9
+        names, positions = msg.names, msg.position
         done, torques, stiffnesses = [], [], []
         if len(positions) != len(names):
             for k in {self.engine.index[n] for n in names if n in self.engine.index}:
@@ -162,60 +168,57 @@ class JointNode(Node):
                     k, f'joint_states: {len(names)} names, {len(positions)} positions', now
                 )
             return
-        for i, name in enumerate(names):
+        for i, (name, theta) in enumerate(zip(names, positions.tolist())):
             k = self.engine.index.get(name)
             if k is None:
                 continue
-            result = self.engine.angle(k, positions[i], t, now)
+            result = self.engine.angle(k, theta, t, now)
             if result is not None:
                 done.append(name)
                 torques.append(result[0])
                 stiffnesses.append(result[1])
-        if done == self._names:
-            for pub, template, values in zip(
-                (self._torque_pub, self._stiffness_pub), self._all, (torques, stiffnesses)
-            ):
-                template.values[:] = values
-                pub.publish(template(stamp.sec, stamp.nanosec))
-        elif done:
-            for pub, values in ((self._torque_pub, torques), (self._stiffness_pub, stiffnesses)):
-                out = JointState(name=done, effort=values)
-                out.header.stamp = stamp
-                pub.publish(out)
+        if not done:
+            return
+        every = done == self._names
+        for pub, template, values in zip(
+            (self._torque_pub, self._stiffness_pub), self._all, (torques, stiffnesses)
+        ):
+            out = template if every else joint_state(done, 'effort')
+            out.values[:] = values
+            pub.publish(out(msg.stamp))
 
-    def _on_torque(self, msg: JointState) -> None:
+    def _on_torque(self, data: bytes) -> None:
         now = self.now()
-        for name, torque in self._entries(msg, now):
+        for name, torque in self._entries(self._readers['torque_command'](data), now):
             k = self.engine.index[name]
             absolute = self.engine.command(k, torque, now)
             if absolute is not None:
-                stamp = self.get_clock().now().to_msg()
-                for pub, value, muscle in zip(
-                    self._command_pubs[k], absolute, self.engine.joints[k].muscle_names
+                stamp = self._ros_clock.get_now().nanoseconds
+                for pub, value, template in zip(
+                    self._command_pubs[k], absolute, self._commands[k]
                 ):
-                    out = FluidPressure(fluid_pressure=value)
-                    out.header.stamp, out.header.frame_id = stamp, muscle
-                    pub.publish(out)
+                    template.values[0] = value
+                    pub.publish(template(stamp))
 
-    def _on_level(self, apply, msg: JointState) -> None:
+    def _on_level(self, topic: str, apply, data: bytes) -> None:
         now = self.now()
-        for name, value in self._entries(msg, now):
+        for name, value in self._entries(self._readers[topic](data), now):
             apply(self.engine.index[name], value, now)
 
-    def _entries(self, msg: JointState, now: float) -> list[tuple[str, float]]:
+    def _entries(self, msg: JointStateArrays, now: float) -> list[tuple[str, float]]:
         """(joint, effort) of a command's entries of this node's joints; mismatched arrays are
         rejected.
         """
-        ours = [n for n in msg.name if n in self.engine.index]
-        if len(msg.effort) != len(msg.name):
+        ours = [n for n in msg.names if n in self.engine.index]
+        if len(msg.effort) != len(msg.names):
             for name in ours:
                 self.engine.reject(
                     self.engine.index[name],
-                    f'command: {len(msg.name)} names, {len(msg.effort)} efforts',
+                    f'command: {len(msg.names)} names, {len(msg.effort)} efforts',
                     now,
                 )
             return []
-        return [(n, e) for n, e in zip(msg.name, msg.effort) if n in self.engine.index]
+        return [(n, e) for n, e in zip(msg.names, msg.effort.tolist()) if n in self.engine.index]
 
     def publish_status(self) -> None:
         """One DiagnosticStatus per joint in one DiagnosticArray."""

@@ -5,7 +5,8 @@ first float read in place.
 Alignment is counted from the end of the 4-byte encapsulation header, as CDR defines it.  Messages
 with a header (``std_msgs/Header``) first: ``header.stamp`` at bytes 4..12, ``header.frame_id``
 (uint32 length with its NUL, the bytes) from 12.  A reader refuses (returns None for) anything
-else: another encapsulation or endianness, a truncated message; its caller then uses a full deserializer.
+else: another encapsulation or endianness, a truncated message; its caller then uses a full
+deserializer.
 Serializers may leave arbitrary bytes in padding and after the message: nothing here reads them.
 """
 
