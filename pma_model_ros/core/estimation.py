@@ -16,6 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .flags import Flag
 from .hysteresis import Follow, play
 from .muscle_bank import MuscleBank
 from .muscle_model import force_at, ForceResult, MuscleModel, Operating
@@ -25,6 +26,7 @@ from .node_parameters import DEFAULT_FOLLOW, SPECS
 #: bar).
 ABSURD_PRESSURE = 5e6
 ALL = slice(None)  #: every muscle
+_INVALID = int(Flag.INVALID_INPUT)
 
 
 def one(k: int) -> slice:
@@ -181,10 +183,9 @@ class Muscles:
 
     def forces(self, sel: slice, usable: np.ndarray) -> ForceResult:
         """The force of the muscles ``sel`` at their newest inputs, where ``usable``."""
-        q = self.q
-        op = Operating(
-            usable, self.lflags[sel], q[0, sel], q[1, sel], q[2, sel], self._evaluator(sel).limits
-        )
+        q, lflags = self.q, self.lflags[sel]
+        usable = usable & ((lflags & _INVALID) == 0)  # a length the geometry cannot take
+        op = Operating(usable, lflags, q[0, sel], q[1, sel], q[2, sel], self._evaluator(sel).limits)
         return force_at(op, self.pressure[sel] - self.ambient[sel])
 
     def command(self, k: int, force: float) -> tuple[float, int]:
