@@ -36,10 +36,11 @@ def stamp_key(msg) -> int:
 
 
 def model_statuses(diagnostics: list, namespace: str) -> list:
-    """The DiagnosticStatus entries of the model_node in ``namespace``, oldest first."""
-    return [
-        s for d in diagnostics for s in d.status if s.name.startswith(f'{namespace}/model_node')
-    ]
+    """The DiagnosticStatus entries of model_node (named ``model_node: <joint>``, as
+    diagnostic_updater names them), oldest first; ``namespace``: the test's, which its own
+    /diagnostics subscription already isolates.
+    """
+    return [s for d in diagnostics for s in d.status if s.name.startswith('model_node: ')]
 
 
 def status_values(status) -> dict[str, str]:

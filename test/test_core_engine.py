@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 import numpy as np
 import pytest
 
-from pma_model_ros.core.engine import ALL, Config, Engine, Level, one
+from pma_model_ros.core.engine import Config, Engine, Level, one
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.param_file import muscle_model, read_parameters

@@ -156,6 +156,7 @@ class _OfflineNode:
         reader: Reader,
         writer: BagWriter,
         rows: csv_module.writer | None,
+        outputs_only: bool = False,
     ) -> None:
         inputs = (
             {topic(namespace, name): (role, -1) for role, name in enumerate(COMBINED_INPUTS)}
@@ -185,7 +186,7 @@ class _OfflineNode:
         self.copies: dict[int, Connection] = {}
         self._diagnostics = None
         for c in reader.connections:
-            if c.topic in replaced:
+            if c.topic in replaced or outputs_only and c.topic != DIAGNOSTICS:
                 continue
             self.copies[c.id] = writer.copy_topic(c)
             if c.topic == DIAGNOSTICS and c.msgtype == DIAGNOSTIC_ARRAY:
@@ -390,6 +391,7 @@ def estimate_bag(
     namespace: str | None = None,
     csv: str | Path | None = None,
     progress: bool = True,
+    outputs_only: bool = False,
 ) -> Summary:
     """Write ``out``: the recording ``bag`` plus what the model node with ``settings`` would
     publish.
@@ -397,8 +399,9 @@ def estimate_bag(
     ``settings``: one muscle's, or every muscle's of a ``muscles:`` file, with their ``names`` and
     ``combined`` for ``input_mode: combined``; ``storage``: of ``out`` (default: the input's);
     ``namespace``: of the muscles' topics (default: the only one in the bag); ``csv``: also write
-    the estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name).  Raises BagError
-    (nothing written) on bad input.
+    the estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name); ``outputs_only``:
+    write only what the node publishes (and a recorded /diagnostics), not the inputs.  Raises
+    BagError (nothing written) on bad input.
     """
     settings = [settings] if isinstance(settings, NodeSettings) else list(settings)
     names = list(names or [])
@@ -414,7 +417,7 @@ def estimate_bag(
     with open_bag(bag) as reader:
         ns = muscle_namespace(reader, namespace, first, second)
         with BagWriter(out, storage or storage_of(bag)) as writer, _csv_rows(csv) as rows:
-            node = _OfflineNode(settings, names, combined, ns, reader, writer, rows)
+            node = _OfflineNode(settings, names, combined, ns, reader, writer, rows, outputs_only)
             bar = _Progress(reader.message_count) if progress else None
             for chunk in _chunks(messages(reader, reader.connections), CHUNK):
                 node.process(chunk)

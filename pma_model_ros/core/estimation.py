@@ -185,7 +185,8 @@ class Muscles:
         """The force of the muscles ``sel`` at their newest inputs, where ``usable``."""
         q, lflags = self.q, self.lflags[sel]
         usable = usable & ((lflags & _INVALID) == 0)  # a length the geometry cannot take
-        op = Operating(usable, lflags, q[0, sel], q[1, sel], q[2, sel], self._evaluator(sel).limits)
+        limits = self._evaluator(sel).limits
+        op = Operating(usable, lflags, q[0, sel], q[1, sel], q[2, sel], limits)
         return force_at(op, self.pressure[sel] - self.ambient[sel])
 
     def command(self, k: int, force: float) -> tuple[float, int]:
