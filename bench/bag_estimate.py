@@ -33,9 +33,10 @@ from pma_model_ros.bags.bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
-from pma_model_ros.bags.estimate import estimate_bag, WrenchStampedCdr
+from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.wire.cdr import wrench_stamped
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'
 NOISE = {'noise__pressure_std': 200.0, 'noise__length_std': 2e-5, 'noise__force_std': 0.5}
@@ -64,7 +65,7 @@ def floor_pass(bag: Path, out: Path) -> int:
     """Read, deserialize the inputs, copy every message and write one WrenchStamped per input; the
     count.
     """
-    wrench, inputs, count = WrenchStampedCdr('m'), (FLUID_PRESSURE, JOINT_STATE), 0
+    wrench, inputs, count = wrench_stamped('m'), (FLUID_PRESSURE, JOINT_STATE), 0
     with Reader(bag) as reader, BagWriter(out, storage_of(bag)) as writer:
         copies = {c.id: writer.copy_topic(c) for c in reader.connections}
         estimates = writer.topic('/bench/force_estimate', WRENCH_STAMPED)
@@ -72,7 +73,7 @@ def floor_pass(bag: Path, out: Path) -> int:
             writer.write_raw(copies[connection.id], time_ns, data)
             if connection.msgtype in inputs:
                 stamp = TYPESTORE.deserialize_cdr(data, connection.msgtype).header.stamp
-                writer.write_raw(estimates, time_ns, wrench(stamp.sec, stamp.nanosec, 0.0))
+                writer.write_raw(estimates, time_ns, wrench(stamp.sec * 10**9 + stamp.nanosec))
             count += 1
     return count
 

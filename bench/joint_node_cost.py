@@ -22,6 +22,7 @@ import time
 
 import rclpy
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
@@ -81,8 +82,9 @@ def main() -> None:
         )
     try:
         stamp = node.get_clock().now().to_msg()
-        p = FluidPressure(fluid_pressure=AMBIENT + 400e3)
-        p.header.stamp = stamp
+        msg = FluidPressure(fluid_pressure=AMBIENT + 400e3)
+        msg.header.stamp = stamp
+        p = serialize_message(msg)  # raw subscriptions: callbacks take bytes
         for k in range(args.joints):
             node._on_pressure(k, 0, p)
             node._on_pressure(k, 1, p)
@@ -96,7 +98,8 @@ def main() -> None:
             stamp.sec + stamp.nanosec * 1e-9
         )  # inputs stay fresh however long this runs
         states.header.stamp = stamp
-        torque = JointState(name=[names[0]], effort=[1.0])
+        states = serialize_message(states)
+        torque = serialize_message(JointState(name=[names[0]], effort=[1.0]))
         rows = {
             'joint_states, all joints': best(lambda: node._on_states(states), args.repeat),
             'one pressure': best(lambda: node._on_pressure(0, 0, p), args.repeat),

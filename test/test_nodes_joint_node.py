@@ -24,7 +24,7 @@ from pma_model_ros.nodes.startup import StartupError
 from pma_model_ros.tools import node_process
 
 from conftest import REPO
-from node_messages import AMBIENT
+from node_messages import AMBIENT, raw
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 ELBOW = load_joints(EXAMPLE)[0]
@@ -80,12 +80,12 @@ def command(**efforts):
 def test_estimate_is_the_worked_example(make_node):
     node = make_node()
     torques, stiffnesses = record(node._torque_pub), record(node._stiffness_pub)
-    node._on_states(joint_state(node, 0.5))
+    node._on_states(raw(joint_state(node, 0.5)))
     assert torques == []  # no pressures yet
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 400e3))  # flexor
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))  # extensor
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 400e3)))  # flexor
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))  # extensor
     state = joint_state(node, 0.5)
-    node._on_states(state)
+    node._on_states(raw(state))
     expected = ELBOW.forward(0.5, 400e3, 300e3)
     assert torques[-1].name == ['elbow'] and torques[-1].header.stamp == state.header.stamp
     assert torques[-1].effort[0] == pytest.approx(float(expected.torque), rel=1e-9)
@@ -100,9 +100,9 @@ def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
     torques, diagnostics = record(node._torque_pub), record(node._diag_pub)
     old = pressure(node, AMBIENT + 400e3)
     old.header.stamp.sec -= 5
-    node._on_pressure(0, 0, old)
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
-    node._on_states(joint_state(node, 0.0))
+    node._on_pressure(0, 0, raw(old))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_states(raw(joint_state(node, 0.0)))
     assert torques == []
     node.publish_status()
     status = diagnostics[-1].status[0]
@@ -112,8 +112,8 @@ def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
 def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_node):
     node = make_node()
     flexor, extensor = (record(p) for p in node._command_pubs[0])
-    node._on_states(joint_state(node, -0.3))
-    node._on_torque(command(elbow=2.5))
+    node._on_states(raw(joint_state(node, -0.3)))
+    node._on_torque(raw(command(elbow=2.5)))
     expected = ELBOW.pressures_one(
         -0.3, 2.5, 300e3, 'min'
     )  # the file's co-contraction: min 300 kPa
@@ -127,27 +127,27 @@ def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_no
 def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
     node = make_node()
     flexor, extensor = (record(p) for p in node._command_pubs[0])
-    node._on_states(joint_state(node, 0.2))
-    node._on_level(node.engine.stiffness, command(elbow=4.5))
-    node._on_torque(command(elbow=1.0))
+    node._on_states(raw(joint_state(node, 0.2)))
+    node._on_level('stiffness_command', node.engine.stiffness, raw(command(elbow=4.5)))
+    node._on_torque(raw(command(elbow=1.0)))
     got = ELBOW.forward(
         0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT
     )
     assert (float(got.torque), float(got.stiffness)) == pytest.approx((1.0, 4.5), rel=1e-9)
-    node._on_level(node.engine.cocontraction, command(elbow=400e3))
-    node._on_torque(command(elbow=-1.0))
+    node._on_level('cocontraction_command', node.engine.cocontraction, raw(command(elbow=400e3)))
+    node._on_torque(raw(command(elbow=-1.0)))
     assert flexor[-1].fluid_pressure == pytest.approx(400e3 + AMBIENT, rel=1e-12)
 
 
 def test_out_of_reach_command_saturates_and_warns(make_node):
     node = make_node()
     flexor, diagnostics = record(node._command_pubs[0][0]), record(node._diag_pub)
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 300e3))
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
-    node._on_states(joint_state(node, 0.0))
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_states(raw(joint_state(node, 0.0)))
     node.publish_status()
     assert diagnostics[-1].status[0].level == b'\x00'
-    node._on_torque(command(elbow=100.0))
+    node._on_torque(raw(command(elbow=100.0)))
     assert flexor[-1].fluid_pressure == pytest.approx(
         650e3 + AMBIENT
     )  # the map's top (hildebrandt: no extrapolation)
@@ -167,7 +167,7 @@ def test_out_of_reach_command_saturates_and_warns(make_node):
 def test_bad_joint_states_are_errors(make_node, message, problem):
     node = make_node()
     diagnostics = record(node._diag_pub)
-    node._on_states(message)
+    node._on_states(raw(message))
     node.publish_status()
     status = diagnostics[-1].status[0]
     assert status.level == b'\x02' and problem in status.message
@@ -176,10 +176,10 @@ def test_bad_joint_states_are_errors(make_node, message, problem):
 def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
     node = make_node()
     diagnostics = record(node._diag_pub)
-    node._on_torque(command(elbow=1.0))
+    node._on_torque(raw(command(elbow=1.0)))
     node.publish_status()
     assert 'before any angle' in diagnostics[-1].status[0].message
-    node._on_pressure(0, 1, pressure(node, -3.0))
+    node._on_pressure(0, 1, raw(pressure(node, -3.0)))
     node.publish_status()
     assert "muscle 'extensor': negative absolute pressure" in diagnostics[-1].status[0].message
 
@@ -219,7 +219,7 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
     pressures = [(100e3 * (k + 2), 100e3 * (5 - k)) for k in range(4)]
     for k, pair in enumerate(pressures):
         for m in (0, 1):
-            node._on_pressure(k, m, pressure(node, AMBIENT + pair[m]))
+            node._on_pressure(k, m, raw(pressure(node, AMBIENT + pair[m])))
     angles = [-0.6, -0.2, 0.2, 0.6]
     msg = JointState(
         name=['j3', 'j0', 'j2', 'j1'],
@@ -227,7 +227,7 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
         velocity=[0.0] * 4,
     )
     msg.header.stamp = node.get_clock().now().to_msg()
-    node._on_states(msg)
+    node._on_states(raw(msg))
     assert len(torques) == 1 and torques[0].name == msg.name  # in the order of joint_states
     for k in range(4):
         expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f'j{k}')
@@ -237,7 +237,7 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
         ['j0', 'j1', 'j2', 'j3'],
         angles,
     )  # the node's order: its prebuilt message
-    node._on_states(msg)
+    node._on_states(raw(msg))
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
         [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9
     )
@@ -270,12 +270,12 @@ def test_hysteresis_branches_follow_the_muscle_lengths_not_the_velocity(make_nod
     node = make_node(params_file=path, config_dir=str(tmp_path))
     assert node.engine.joints[0].follows == (Follow('length', 0.001),) * 2
     torques = record(node._torque_pub)
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 600e3))
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 500e3))
-    node._on_states(joint_state(node, 0.0, 'finger'))
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 600e3)))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 500e3)))
+    node._on_states(raw(joint_state(node, 0.0, 'finger')))
     angles = [0.2] + [0.2 + 0.004 * (-1) ** k for k in range(20)]
     for k, theta in enumerate(angles):
-        node._on_states(joint_state(node, theta, 'finger', velocity=(-1) ** k * 0.5))
+        node._on_states(raw(joint_state(node, theta, 'finger', velocity=(-1) ** k * 0.5)))
     sarosi = muscle_model(single)
     expected = [
         0.01

@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.engine import seconds
 from ..core.force_map import ForceMap
 from ..core.hysteresis import branches
 from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
+from ..wire.cdr import stamp_ns
 from .bag_io import (
     BagError,
     connections_of,
@@ -146,7 +146,7 @@ def read_samples(
         series: dict[str, list[tuple[float, float]]] = {'pressure': [], 'length': [], 'force': []}
         for connection, _, data in messages(reader, connections):
             msg = deserialize(data, connection)
-            stamp = seconds(msg.header.stamp)
+            stamp = stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec) * 1e-9
             if connection.topic == pressure:
                 series['pressure'].append((stamp, msg.fluid_pressure - ambient_pressure))
             if connection.topic == force_topic and connection.msgtype == WRENCH_STAMPED:
