@@ -68,9 +68,13 @@ class CdrWriter:
 
     def __init__(self) -> None:
         self.data = bytearray(LITTLE_ENDIAN + b'\x00\x00')
+        #: where the alignment padding is [bytes]: serializers may leave anything there
+        self.padding: list[int] = []
 
     def _align(self, size: int) -> None:
-        self.data += bytes(aligned(len(self.data), size) - len(self.data))
+        end = aligned(len(self.data), size)
+        self.padding += range(len(self.data), end)
+        self.data += bytes(end - len(self.data))
 
     def header(self, frame_id: str) -> None:
         """``std_msgs/Header`` with stamp 0 (patched later) and ``frame_id``."""

@@ -3,8 +3,9 @@
 A stream's messages normally repeat one layout: the same frame_id, names and array lengths, only
 the stamp and the numbers change.  :class:`JointStateReader` learns the layout from a message its
 deserializer decoded, then reads the next ones of that layout with ``np.frombuffer`` at the cached
-offsets (the header, names and array lengths compared as bytes).  Any other message (new names or
-lengths, another encapsulation or endianness) goes to the deserializer again.
+offsets (the header, names and array lengths compared as bytes, the alignment padding between
+them masked out: rclpy's serializer leaves whatever was in memory there).  Any other message (new
+names or lengths, another encapsulation or endianness) goes to the deserializer again.
 :class:`JointIndex` turns a layout into which of the node's joints a message gives a value of, with
 the reason for each one it does not (once per layout).
 """
@@ -39,6 +40,9 @@ class JointStateArrays:
 class _Layout:
     names: list[str]
     key: bytes  #: bytes 12 .. end of the position count: frame_id, names, position count
+    #: the same bytes as an integer with the padding bytes 0, and the mask that zeroes them
+    masked_key: int
+    mask: int
     counts: tuple[tuple[int, bytes], ...]  #: (offset, bytes) of the velocity and effort counts
     arrays: tuple[tuple[int, int], ...]  #: (offset, count) of position, velocity, effort values
     end: int  #: where the last value ends
@@ -59,8 +63,11 @@ class JointStateReader:
         layout = self._layout
         if (
             layout is not None
-            and data[12 : 12 + len(layout.key)] == layout.key
             and len(data) >= layout.end
+            and (
+                (key := data[12 : 12 + len(layout.key)]) == layout.key
+                or int.from_bytes(key, 'little') & layout.mask == layout.masked_key
+            )
             and data[:2] == LITTLE_ENDIAN
             and all(data[at : at + 4] == raw for at, raw in layout.counts)
         ):
@@ -107,7 +114,20 @@ def _learn(
     if len(data) < end or any(data[at : at + 4] != raw for at, raw in counts):
         return None
     key_end = counts[0][0] + 4
-    return _Layout(names, bytes(data[12:key_end]), tuple(counts[1:]), tuple(places), end)
+    mask = bytearray(b'\xff' * (key_end - 12))
+    for at in writer.padding:
+        if 12 <= at < key_end:
+            mask[at - 12] = 0
+    key, mask_int = bytes(data[12:key_end]), int.from_bytes(mask, 'little')
+    return _Layout(
+        names,
+        key,
+        int.from_bytes(key, 'little') & mask_int,
+        mask_int,
+        tuple(counts[1:]),
+        tuple(places),
+        end,
+    )
 
 
 class JointIndex:
