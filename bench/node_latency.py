@@ -56,7 +56,6 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
-from pma_model_ros.core.engine import ALL, one  # noqa: E402
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
 from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
@@ -417,13 +416,17 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
             handlers[1](second)
         per_cycle = (time.process_time() - start) / cycles
         engine, now = model.engine, model.now()
-        sel = one(0) if muscles == 1 else ALL
         pressures, rates = np.full(muscles, AMBIENT + 300e3), np.zeros(muscles)
+        lengths = [0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * rates) for k in range(cycles)]
         start = time.process_time()
         for k in range(cycles):
             t = now + k * 1000
-            engine.pressures(pressures, t, t, sel)
-            engine.lengths(0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * rates), rates, t, t, sel)
+            if muscles == 1:
+                engine.pressure(0, pressures.item(0), t, t)
+                engine.length(0, lengths[k].item(0), 0.0, t, t)
+            else:
+                engine.pressures(pressures, t, t)
+                engine.lengths(lengths[k], rates, t, t)
         own = (time.process_time() - start) / cycles
         model.destroy_node()
         node.destroy_node()

@@ -23,7 +23,7 @@ from pma_model_ros.bags.bag_io import (
 )
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
-from pma_model_ros.core.engine import Engine, one
+from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.hysteresis import branches
 from pma_model_ros.core.param_file import node_settings, read_parameters
 
@@ -82,15 +82,16 @@ def node_reference(bag):
         stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         estimated = None
         if topic.endswith('/pressure'):
-            estimated = est.pressures(np.array([msg.fluid_pressure]), stamp, now, one(0))
+            estimated = est.pressure(0, float(msg.fluid_pressure), stamp, now)
         elif topic.endswith('/muscle_state'):
             if list(msg.name) == [JOINT]:
-                estimated = est.lengths(msg.position, msg.velocity, stamp, now, one(0))
+                rate = msg.velocity[0] if len(msg.velocity) else math.nan
+                estimated = est.length(0, float(msg.position[0]), float(rate), stamp, now)
             else:
                 est.reject(0, 'muscle_state', f"joint '{JOINT}' not in {list(msg.name)}", now)
         elif (pressure := est.command(0, msg.wrench.force.x, now)) is not None:
             commands.append((now, pressure))
-        if estimated is not None and estimated.item(0):
+        if estimated:
             estimates.append((now, est.stamp, est.forces.item(0)))
     return estimates, commands, est.counts(0)
 

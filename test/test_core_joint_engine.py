@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from pma_model_ros.core.engine import Config, Engine, Level, one
+from pma_model_ros.core.engine import Config, Engine, Level
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint import Joint, Transmission
@@ -152,8 +152,8 @@ def test_before_any_motion_the_branches_are_unknown_and_served_as_their_mean():
     single = Engine([Config(SAROSI, AMBIENT, 10.0)] * 2)
     served = []
     for m, (p, length) in enumerate(((600e3, 0.0855), (500e3, 0.0895))):
-        single.pressures(np.array([AMBIENT + p]), 0, 0, one(m))
-        assert single.lengths(np.array([length]), np.array([math.nan]), 0, 0, one(m)).all()
+        single.pressure(m, AMBIENT + p, 0, 0)
+        assert single.length(m, length, math.nan, 0, 0)
         served.append(single.forces.item(0))
         assert single.flags.item(0) & Flag.BRANCH_UNKNOWN
     assert tau == pytest.approx(0.01 * (served[0] - served[1]), rel=1e-12)

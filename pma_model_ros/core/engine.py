@@ -1,13 +1,14 @@
 """The estimation engine: force estimates and pressure commands of N muscles from their inputs,
 each decision made once (no ROS).
 
-An input is an array of values of the muscles ``sel`` (every muscle, e.g. a combined JointState,
-or :func:`~.estimation.one`) with one stamp; the engine validates it (:mod:`.estimation`), pairs
-it with the other input and checks freshness (:mod:`.pairing`), estimates the force of the muscles
-that pair (:mod:`.estimation`), and keeps counters, levels and reports (:mod:`.health`).
-``model_node`` (both input modes) and ``pma-model bag estimate`` drive it.  Times are integer
-nanoseconds on one clock (ROS time in the node, log time offline); ``now`` is passed in, never
-read here.
+An input is an array of values of every muscle (a combined JointState: :meth:`Engine.pressures`,
+:meth:`Engine.lengths`) or one muscle's value (:meth:`Engine.pressure`, :meth:`Engine.length`: the
+one-muscle fast path in plain floats), with one stamp; the engine validates it
+(:mod:`.estimation`), pairs it with the other input and checks freshness (:mod:`.pairing`),
+estimates the force of the muscles that pair (:mod:`.estimation`), and keeps counters, levels and
+reports (:mod:`.health`).  ``model_node`` (both input modes) and ``pma-model bag estimate`` drive
+it.  Times are integer nanoseconds on one clock (ROS time in the node, log time offline); ``now``
+is passed in, never read here.
 """
 
 from __future__ import annotations
@@ -17,20 +18,13 @@ from typing import Sequence
 
 import numpy as np
 
-from .estimation import (
-    ALL,
-    Config,
-    length_problem,
-    Muscles,
-    one,
-    pressure_problem,
-)
+from .estimation import ABSURD_PRESSURE, Config, length_problem, Muscles, pressure_problem
 from .flags import describe
 from .health import Health, Level, Status, WARN_MASK
 from .node_parameters import SPECS
 from .pairing import LENGTH, nanoseconds, Pairing, PRESSURE
 
-__all__ = ['ALL', 'Config', 'Counter', 'Engine', 'Level', 'one', 'Status']
+__all__ = ['Config', 'Counter', 'Engine', 'Level', 'Status']
 
 #: [s] Shortest time between two on-change status reports of model_node (and of its offline twin),
 #: per muscle reported: building and publishing a status of 64 muscles took about 3 ms under
@@ -81,9 +75,10 @@ class Engine:
 
     ``hold`` [s]: how long a rejected input (ERROR) or a warning flag (WARN) keeps a muscle's
     level up; ``pairing``, ``slop`` [s]: :mod:`.pairing`; ``report_interval`` [s]: see
-    :meth:`~.health.Health.due`.  After an input, ``estimated`` (over its muscles), ``forces``
-    [N] and ``flags`` describe the answer, ``stamp`` [ns] is its stamp (the newest input stamp
-    among the muscles estimated).
+    :meth:`~.health.Health.due`.  After an input, until the next one: ``estimated`` (a mask over
+    the input's muscles: N, or 1 for one muscle's input), ``forces`` [N] and ``flags`` (over the
+    same muscles) describe the answer, ``stamp`` [ns] is its stamp (the newest input stamp among
+    the muscles estimated).
     """
 
     def __init__(
@@ -112,9 +107,13 @@ class Engine:
         )
         self.muscles = Muscles(configs)
         self.configs = tuple(configs)
-        self._everyone = np.ones(n, bool)
-        self.stamp, self.estimated = 0, np.zeros(0, bool)
-        self.forces, self.flags = np.zeros(0), np.zeros(0, np.uint16)
+        self._all, self._none = np.ones(n, bool), np.zeros(n, bool)
+        self._yes, self._no = np.ones(1, bool), np.zeros(1, bool)
+        for constant in (self._all, self._none, self._yes, self._no):
+            constant.flags.writeable = False
+        self._force, self._flag = np.zeros(1), np.zeros(1, np.uint16)  # one muscle's answer
+        self.stamp, self.estimated = 0, self._none
+        self.forces, self.flags = np.zeros(n), np.zeros(n, np.uint16)
 
     def __len__(self) -> int:
         return len(self.configs)
@@ -126,24 +125,20 @@ class Engine:
         self.muscles.configure(configs)
         self.configs = tuple(configs)
 
+    # --- every muscle
     def pressures(
-        self,
-        readings: np.ndarray,
-        stamp: int,
-        now: int,
-        sel: slice = ALL,
-        present: np.ndarray | None = None,
+        self, readings: np.ndarray, stamp: int, now: int, present: np.ndarray | None = None
     ) -> np.ndarray:
-        """Pressure readings [Pa, absolute or gauge by each config's ``pressure_reference``] of the
-        muscles ``sel`` (those ``present``; the caller rejects the others), stamped ``stamp``
-        [ns]; which of them got an estimate.
+        """Pressure readings [Pa, absolute or gauge by each config's ``pressure_reference``] of
+        every muscle (those ``present``; the caller rejects the others), stamped ``stamp`` [ns];
+        which got an estimate.
         """
-        absolute, good = self.muscles.check_pressures(sel, readings)
+        absolute, good = self.muscles.take_pressures(readings)
         valid = self._take(
-            'pressure', sel, good, present, lambda i: pressure_problem(absolute[i]), now
+            'pressure', good, present, lambda k: pressure_problem(absolute.item(k)), now
         )
-        self.muscles.store_pressures(sel, valid, absolute)
-        return self._answer(PRESSURE, sel, valid, stamp, now)
+        self.muscles.store_pressures(valid, absolute)
+        return self._answer(PRESSURE, valid, stamp, now)
 
     def lengths(
         self,
@@ -151,93 +146,148 @@ class Engine:
         rates: np.ndarray,
         stamp: int,
         now: int,
-        sel: slice = ALL,
         present: np.ndarray | None = None,
     ) -> np.ndarray:
         """Lengths [m] and rates [m/s] (NaN: unknown; the hysteresis branch follows the play
-        operator, not the rate) of the muscles ``sel``; see :meth:`pressures`.
+        operator, not the rate) of every muscle; see :meth:`pressures`.
         """
-        good = self.muscles.check_lengths(sel, lengths)
-        limits = self.muscles.bank.max_length[sel]
+        good = self.muscles.take_lengths(lengths)
+        limits = self.muscles.max_length
         valid = self._take(
             'muscle_state',
-            sel,
             good,
             present,
-            lambda i: length_problem(lengths[i], limits[i]),
+            lambda k: length_problem(lengths.item(k), limits.item(k)),
             now,
         )
-        self.muscles.store_lengths(sel, valid, lengths, rates)
-        return self._answer(LENGTH, sel, valid, stamp, now)
+        self.muscles.store_lengths(valid, lengths, rates)
+        return self._answer(LENGTH, valid, stamp, now)
 
-    def _take(self, source, sel, good, present, problem, now) -> np.ndarray | None:
-        """Count the input, reject its bad values (``problem(i)``); which are valid (None: all)."""
-        counts = self.health.counts[sel, SOURCES[source][0]]
-        counts += 1 if present is None else present
-        if present is None and good.all():
-            return None
+    def _take(self, source, good, present, problem, now) -> np.ndarray | None:
+        """Count the input, reject its bad values (``problem(k)``); which are valid (None: all)."""
+        self.health.count(SOURCES[source][0], present)
+        if good is None:
+            return present
         valid = good if present is None else good & present
-        start = sel.start or 0
-        for i in np.flatnonzero(~good if present is None else present & ~good).tolist():
-            self._invalid(start + i, source, problem(i), now)
+        for k in np.flatnonzero(valid ^ (self._all if present is None else present)).tolist():
+            self._invalid(k, source, problem(k), now)
         return valid
 
-    def _answer(
-        self, side: int, sel: slice, valid: np.ndarray | None, stamp: int, now: int
-    ) -> np.ndarray:
-        pairing, health, counts = self.pairing, self.health, self.health.counts
-        pairing.store(side, sel, valid, stamp)
-        start = sel.start or 0
-        health.arrived(side, sel if valid is None else start + np.flatnonzero(valid), stamp, now)
-        candidates = self._everyone[sel] if valid is None else valid
-        pairs, stale, unpaired = pairing.pair(sel, candidates, now)
-        counts[sel, Counter.STALE] += stale
-        if unpaired is not None:
-            counts[sel, Counter.UNPAIRED] += unpaired
-        result = self.muscles.forces(sel, pairs)
-        ok = pairs & (result.raw < np.inf)  # NaN or inf: the model gives no force there
-        if (ok != pairs).any():
-            length = self.muscles.length[sel]
-            for i in np.flatnonzero(pairs & ~ok).tolist():
-                reason = f'no force at length {length[i]:g} m ({describe(int(result.flags[i]))})'
-                self._invalid(start + i, 'muscle_state', reason, now)
-        counts[sel, Counter.ESTIMATES] += ok
-        if (result.flags & WARN_MASK).any():
-            health.warn(sel, ok, result.flags, now)
-        elif ok.size == len(self.configs) and ok.all():
+    def _answer(self, side: int, valid: np.ndarray | None, stamp: int, now: int) -> np.ndarray:
+        pairing, health, muscles = self.pairing, self.health, self.muscles
+        pairing.store(side, valid, stamp)
+        health.arrived(side, valid, stamp, now)
+        pairs, stale, unpaired = pairing.pair(valid, now)
+        if stale is not pairing.none:
+            health.count(Counter.STALE, stale)
+        if unpaired is not pairing.none:
+            health.count(Counter.UNPAIRED, unpaired)
+        if pairs is not None and not pairs.any():
+            self.estimated = self._none
+            return self._none
+        self.forces, self.flags, ok = muscles.forces(pairs)
+        if ok is not None:
+            asked = self._all if pairs is None else pairs
+            for k in np.flatnonzero(asked & ~ok).tolist():
+                reason = (
+                    f'no force at length {muscles.length.item(k):g} m '
+                    f'({describe(self.flags.item(k))})'
+                )
+                self._invalid(k, 'muscle_state', reason, now)
+            pairs = None if ok.all() else ok
+        health.count(Counter.ESTIMATES, pairs)
+        if (self.flags & WARN_MASK).any():
+            health.warn(pairs, self.flags, now)
+        elif pairs is None:
             health.quiet(now)
-        self.estimated, self.forces, self.flags = ok, result.force, result.flags
-        if ok.any():
-            stamps = pairing.stamps[:, sel]
-            self.stamp = int(stamps.max(axis=0)[ok].max())
-        return ok
+        common = pairing.common()
+        if common is not None:
+            self.stamp = common
+        else:
+            newest = pairing.stamps.max(axis=0)
+            self.stamp = int(newest.max() if pairs is None else newest[pairs].max())
+        self.estimated = self._all if pairs is None else pairs
+        return self.estimated
 
+    # --- one muscle (the fast path)
+    def pressure(self, k: int, reading: float, stamp: int, now: int) -> bool:
+        """:meth:`pressures` of muscle ``k``'s reading [Pa] alone; whether it got an estimate."""
+        self.health.count(Counter.RECEIVED_PRESSURE, k)
+        absolute = self.muscles.pressure_one(k, reading)
+        if not 0 <= absolute <= ABSURD_PRESSURE:  # False for NaN
+            self._invalid(k, 'pressure', pressure_problem(absolute), now)
+            return self._one(False)
+        self.muscles.store_pressure_one(k, absolute)
+        return self._answer_one(PRESSURE, k, stamp, now)
+
+    def length(self, k: int, length: float, rate: float, stamp: int, now: int) -> bool:
+        """:meth:`lengths` of muscle ``k``'s length [m] and rate [m/s] (NaN: unknown) alone."""
+        self.health.count(Counter.RECEIVED_MUSCLE_STATE, k)
+        if not self.muscles.length_valid_one(k, length):
+            limit = self.muscles.max_length.item(k)
+            self._invalid(k, 'muscle_state', length_problem(length, limit), now)
+            return self._one(False)
+        self.muscles.store_length_one(k, length, rate)
+        return self._answer_one(LENGTH, k, stamp, now)
+
+    def _answer_one(self, side: int, k: int, stamp: int, now: int) -> bool:
+        pairing, health = self.pairing, self.health
+        pairing.store_one(side, k, stamp)
+        health.arrived(side, k, stamp, now)
+        pair, stale, unpaired = pairing.pair_one(k, now)
+        if stale:
+            health.count(Counter.STALE, k)
+        if unpaired:
+            health.count(Counter.UNPAIRED, k)
+        if not pair:
+            return self._one(False)
+        force, flags, ok = self.muscles.force_one(k)
+        self._force[0], self._flag[0] = force, flags
+        if not ok:
+            reason = f'no force at length {self.muscles.length.item(k):g} m ({describe(flags)})'
+            self._invalid(k, 'muscle_state', reason, now)
+            return self._one(False)
+        health.count(Counter.ESTIMATES, k)
+        if flags & WARN_MASK:
+            health.warn_one(k, flags, now)
+        elif len(self.configs) == 1:
+            health.quiet(now)
+        self.stamp = max(pairing.stamps.item(PRESSURE, k), pairing.stamps.item(LENGTH, k))
+        return self._one(True)
+
+    def _one(self, estimated: bool) -> bool:
+        self.estimated = self._yes if estimated else self._no
+        self.forces, self.flags = self._force, self._flag
+        return estimated
+
+    # --- commands, rejections, reports
     def command(self, k: int, force: float, now: int) -> float | None:
         """A wanted tension [N] of muscle ``k``; the pressure [Pa, absolute or gauge as the
         readings] giving it, or None without a fresh length.  ``flags`` then holds its flags.
         """
-        counts = self.health.counts
-        counts[k, Counter.RECEIVED_FORCE_COMMAND] += 1
+        health = self.health
+        health.count(Counter.RECEIVED_FORCE_COMMAND, k)
         if not np.isfinite(force):
             return self._invalid(k, 'force_command', f'force command is {force} N', now)
         if not abs(now - self.pairing.stamps.item(LENGTH, k)) <= self.pairing.max_age:
-            counts[k, Counter.NO_LENGTH] += 1
+            health.count(Counter.NO_LENGTH, k)
             return None
         pressure, flags = self.muscles.command(k, force)
-        self.flags = np.array([flags], np.uint16)
-        self.health.warn(one(k), np.ones(1, bool), self.flags, now)
-        counts[k, Counter.COMMANDS] += 1
+        self._flag[0] = flags
+        self.flags = self._flag
+        health.warn_one(k, flags, now)
+        health.count(Counter.COMMANDS, k)
         return pressure
 
     def reject(self, k: int, source: str, reason: str, now: int) -> None:
         """Count a message of ``source`` (``pressure``, ``muscle_state`` or ``force_command``)
         refused before it gave a value of muscle ``k``.
         """
-        self.health.counts[k, SOURCES[source][0]] += 1
+        self.health.count(SOURCES[source][0], k)
         return self._invalid(k, source, reason, now)
 
     def _invalid(self, k: int, source: str, reason: str, now: int) -> None:
-        self.health.counts[k, SOURCES[source][1]] += 1
+        self.health.count(SOURCES[source][1], k)
         self.health.reject(k, reason, now)
 
     def inputs(self, k: int) -> tuple[float, float, float]:
@@ -262,4 +312,4 @@ class Engine:
 
     def counts(self, k: int) -> dict[str, int]:
         """Muscle ``k``'s non-zero counters by label."""
-        return {label: n for label, n in zip(LABELS, self.health.counts[k].tolist()) if n}
+        return {label: n for label, n in zip(LABELS, self.health.counts(k)) if n}

@@ -1,11 +1,15 @@
 """Estimation: the muscles' newest valid pressure and length, what the force at them needs, the
 force and the command inversion (no ROS).
 
-Every rule is written once, over arrays of muscles addressed by a slice ``sel`` (all of them, or
-one: :func:`one`): input validation, the hysteresis branch (play operator,
-:mod:`~.hysteresis`), the length-dependent coefficients (once per new length,
-:meth:`~.muscle_model.Evaluator.operating`) and the force per pressure
-(:func:`~.muscle_model.force_at`).
+Each rule is written once over the arrays of every muscle: input validation, the hysteresis
+branch (play operator, :mod:`~.hysteresis`), the length-dependent coefficients (once per new
+length, :meth:`~.muscle_bank.MuscleBank.operating`: one call per model) and the force per
+pressure (:func:`~.muscle_model.force_at`, with a shortcut, equal by construction, for the usual
+message: every pressure inside the identified range, every force finite).  One muscle's input
+takes a measured fast path in plain floats (:meth:`Muscles.pressure_one`, :meth:`length_one`,
+:meth:`force_one`, over :meth:`~.muscle_model.MuscleModel.operating_one` and
+:func:`~.muscle_model.served_pressure`): on one value numpy's per-call overhead costs more than the
+arithmetic.  ``test/test_core_engine.py`` pins both paths equal.
 """
 
 from __future__ import annotations
@@ -19,19 +23,14 @@ import numpy as np
 from .flags import Flag
 from .hysteresis import Follow, play
 from .muscle_bank import MuscleBank
-from .muscle_model import force_at, ForceResult, MuscleModel, Operating
+from .muscle_model import force_at, MuscleModel, Operating, served_pressure
 from .node_parameters import DEFAULT_FOLLOW, SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8
 #: bar).
 ABSURD_PRESSURE = 5e6
-ALL = slice(None)  #: every muscle
-_INVALID = int(Flag.INVALID_INPUT)
-
-
-def one(k: int) -> slice:
-    """Muscle ``k`` alone, as a slice of the muscle arrays."""
-    return slice(k, k + 1)
+_INVALID, _CLIPPED = int(Flag.INVALID_INPUT), int(Flag.CLIPPED)
+_CLIPPED16 = np.uint16(_CLIPPED)
 
 
 def pressure_problem(absolute: float) -> str:
@@ -88,8 +87,8 @@ class Config:
 class Muscles:
     """N muscles: their newest valid inputs, hysteresis branches and force coefficients.
 
-    ``sel`` is :data:`ALL` or :func:`one` muscle: every muscle goes through the bank's one call per
-    model, one muscle through its own model (the same :class:`~.muscle_model.Evaluator` code).
+    An input of every muscle is an array of N (a mask ``valid`` says which values to take; None:
+    all); the ``_one`` methods take muscle ``k``'s value as a float.
     """
 
     def __init__(self, configs: Sequence[Config]) -> None:
@@ -105,94 +104,172 @@ class Muscles:
         self.models = [c.model for c in configs]
         self.bank = MuscleBank(self.models)
         self.ambient = np.array([c.ambient_pressure for c in configs])
-        self._offset = np.array([c.reading_offset for c in configs])  # reading + it = absolute
-        self._offsets = bool(self._offset.any())
-        hysteresis = np.array([m.model.hysteresis for m in self.models])
-        by_pressure = np.array([c.follow.input == 'pressure' for c in configs])
-        self._by_length, self._by_pressure = hysteresis & ~by_pressure, hysteresis & by_pressure
-        self._any_length = bool(self._by_length.any())
-        self._any_pressure = bool(self._by_pressure.any())
+        self.offset = np.array([c.reading_offset for c in configs])  # reading + it = absolute
+        self._offsets = bool(self.offset.any())
+        self.max_length = self.bank.max_length
+        self._known = self.bank.limits.pressure_known
+        # what the play operator follows, per muscle: (length?, deadband) or None
+        self._follows = [
+            (c.follow.input == 'length', c.follow.deadband) if m.model.hysteresis else None
+            for c, m in zip(configs, self.models)
+        ]
+        by_length = [f is not None and f[0] for f in self._follows]
+        self._by_length = np.array(by_length)
+        self._by_pressure = np.array([f is not None and not f[0] for f in self._follows])
+        self._any_length, self._any_pressure = any(by_length), bool(self._by_pressure.any())
         self._deadband = np.array([c.follow.deadband for c in configs])
-        # a kept length the new geometry cannot take: INVALID_INPUT
-        op = self.bank.operating(self.length, self.branch)
-        self.lflags, self.q = op.flags, np.array([op.q2, op.q1, op.q0])
+        # the per-muscle numbers of the fast path, as floats
+        self._floats = [
+            (c.ambient_pressure, c.reading_offset, m.max_length, m.limits)
+            for c, m in zip(configs, self.models)
+        ]
+        self._operate(None, self.length)  # a kept length the new geometry cannot take: INVALID
 
-    def _evaluator(self, sel: slice) -> MuscleBank | MuscleModel:
-        return self.bank if sel.start is None else self.models[sel.start]
-
-    def check_pressures(self, sel: slice, readings: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(absolute pressures [Pa] of ``readings`` of the muscles ``sel``, which are readings)."""
-        absolute = readings + self._offset[sel] if self._offsets else readings
+    # --- every muscle
+    def take_pressures(self, readings: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(absolute pressures [Pa] of ``readings`` of every muscle, which are readings: None if
+        all).
+        """
+        absolute = readings + self.offset if self._offsets else readings
+        if absolute.min() >= 0 and absolute.max() <= ABSURD_PRESSURE:  # False if a NaN
+            return absolute, None
         return absolute, (absolute >= 0) & (absolute <= ABSURD_PRESSURE)
 
-    def check_lengths(self, sel: slice, lengths: np.ndarray) -> np.ndarray:
-        """Which ``lengths`` [m] of the muscles ``sel`` the geometry can take."""
-        return (lengths > 0) & (lengths < self.bank.max_length[sel])
+    def take_lengths(self, lengths: np.ndarray) -> np.ndarray | None:
+        """Which ``lengths`` [m] of every muscle the geometry can take (None: all)."""
+        if lengths.min() > 0 and (lengths < self.max_length).all():
+            return None
+        return (lengths > 0) & (lengths < self.max_length)
 
-    def store_pressures(self, sel: slice, valid: np.ndarray | None, absolute: np.ndarray) -> None:
-        """The ``valid`` (a mask; None: all) absolute pressures [Pa] of the muscles ``sel``; a
-        branch that follows the pressure and turns recomputes the coefficients at the length held.
+    def store_pressures(self, valid: np.ndarray | None, absolute: np.ndarray) -> None:
+        """The ``valid`` absolute pressures [Pa]; a branch that follows the pressure and turns
+        recomputes the coefficients at the length held.
         """
         if valid is None:
-            self.pressure[sel] = absolute
+            self.pressure[:] = absolute
         else:
-            self.pressure[sel][valid] = absolute[valid]
+            self.pressure[valid] = absolute[valid]
         if self._any_pressure:
-            follows = self._by_pressure[sel] if valid is None else self._by_pressure[sel] & valid
-            before = self.branch[sel].copy()
-            gauge = np.where(follows, absolute - self.ambient[sel], math.nan)
-            self.branch[sel], self.anchor[sel] = play(
-                before, self.anchor[sel], gauge, self._deadband[sel]
-            )
-            turned = (self.branch[sel] != before) & ~np.isnan(self.length[sel])
+            follows = self._by_pressure if valid is None else self._by_pressure & valid
+            before = self.branch.copy()
+            gauge = np.where(follows, absolute - self.ambient, math.nan)
+            self.branch, self.anchor = play(before, self.anchor, gauge, self._deadband)
+            turned = (self.branch != before) & ~np.isnan(self.length)
             if turned.any():
-                self._operate(sel, turned, self.length[sel])
+                self._operate(turned, self.length)
 
     def store_lengths(
-        self, sel: slice, valid: np.ndarray | None, lengths: np.ndarray, rates: np.ndarray
+        self, valid: np.ndarray | None, lengths: np.ndarray, rates: np.ndarray
     ) -> None:
-        """The ``valid`` lengths [m] and rates [m/s] (NaN: unknown) of the muscles ``sel``; a
-        branch that follows the length moves by the play operator.
+        """The ``valid`` lengths [m] and rates [m/s] (NaN: unknown); a branch that follows the
+        length moves by the play operator.
         """
         if self._any_length:
-            follows = self._by_length[sel] if valid is None else self._by_length[sel] & valid
-            self.branch[sel], self.anchor[sel] = play(
-                self.branch[sel],
-                self.anchor[sel],
-                np.where(follows, lengths, math.nan),
-                self._deadband[sel],
+            follows = self._by_length if valid is None else self._by_length & valid
+            self.branch, self.anchor = play(
+                self.branch, self.anchor, np.where(follows, lengths, math.nan), self._deadband
             )
         if valid is None:
-            self.length[sel], self.rate[sel] = lengths, rates
+            self.length[:], self.rate[:] = lengths, rates
         else:
-            self.length[sel][valid], self.rate[sel][valid] = lengths[valid], rates[valid]
-        self._operate(sel, valid, lengths)
+            self.length[valid], self.rate[valid] = lengths[valid], rates[valid]
+        self._operate(valid, lengths)
 
-    def _operate(self, sel: slice, which: np.ndarray | None, lengths: np.ndarray) -> None:
-        """The coefficients and length flags of the muscles ``sel`` (``which`` of them; None:
-        all) at ``lengths``, on their branches.
+    def _operate(self, which: np.ndarray | None, lengths: np.ndarray) -> None:
+        """The coefficients and length flags of the muscles ``which`` (None: all) at ``lengths``,
+        on their branches.  New arrays: a result handed out before stays as it was.
         """
-        op = self._evaluator(sel).operating(lengths, self.branch[sel])
-        if which is None:
-            self.lflags[sel] = op.flags
-            self.q[0, sel], self.q[1, sel], self.q[2, sel] = op.q2, op.q1, op.q0
+        op = self.bank.operating(lengths, self.branch)
+        if which is None:  # (broadcast results are read-only: the fast path writes into them)
+            self.lflags, self.q2, self.q1, self.q0 = (
+                a if a.flags.writeable else a.copy() for a in (op.flags, op.q2, op.q1, op.q0)
+            )
         else:
-            self.lflags[sel][which] = op.flags[which]
-            for row, q in enumerate((op.q2, op.q1, op.q0)):
-                self.q[row, sel][which] = q[which]
+            self.lflags, self.q2, self.q1, self.q0 = (
+                np.where(which, new, old)
+                for new, old in zip(
+                    (op.flags, op.q2, op.q1, op.q0), (self.lflags, self.q2, self.q1, self.q0)
+                )
+            )
+        self._plain = not (self.lflags & _INVALID).any()  # every kept length is one
 
-    def forces(self, sel: slice, usable: np.ndarray) -> ForceResult:
-        """The force of the muscles ``sel`` at their newest inputs, where ``usable``."""
-        q, lflags = self.q, self.lflags[sel]
-        usable = usable & ((lflags & _INVALID) == 0)  # a length the geometry cannot take
-        limits = self._evaluator(sel).limits
-        op = Operating(usable, lflags, q[0, sel], q[1, sel], q[2, sel], limits)
-        return force_at(op, self.pressure[sel] - self.ambient[sel])
+    def forces(self, which: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(force [N], flags, which have a force: None if all) of every muscle at its newest
+        inputs, where ``which`` (a mask; None: all).
+        """
+        gauge = self.pressure - self.ambient
+        if which is None and self._plain and gauge.min() >= 0 and (gauge <= self._known).all():
+            # force_at's rule where no pressure is moved or flagged
+            raw = (self.q2 * gauge + self.q1) * gauge + self.q0
+            low = raw.min()
+            if low == low and raw.max() < math.inf:  # no force NaN or inf
+                if low >= 0:
+                    return raw, self.lflags, None
+                return np.maximum(raw, 0.0), self.lflags | (raw < 0) * _CLIPPED16, None
+        usable = (self.lflags & _INVALID) == 0
+        op = Operating(
+            usable if which is None else usable & which,
+            self.lflags,
+            self.q2,
+            self.q1,
+            self.q0,
+            self.bank.limits,
+        )
+        result = force_at(op, gauge)
+        asked = np.ones(len(gauge), bool) if which is None else which
+        return result.force, result.flags, asked & (result.raw < math.inf)  # NaN: no force
 
+    # --- one muscle, in floats
+    def pressure_one(self, k: int, reading: float) -> float:
+        """Muscle ``k``'s reading [Pa] as an absolute pressure [Pa]."""
+        return reading + self._floats[k][1]
+
+    def store_pressure_one(self, k: int, absolute: float) -> None:
+        """:meth:`store_pressures` of muscle ``k``'s valid absolute pressure [Pa]."""
+        self.pressure[k] = absolute
+        follow = self._follows[k]
+        if follow is not None and not follow[0]:
+            before = self.branch.item(k)
+            gauge = absolute - self._floats[k][0]
+            branch, self.anchor[k] = play(before, self.anchor.item(k), gauge, follow[1])
+            self.branch[k] = branch
+            length = self.length.item(k)
+            if branch != before and length == length:  # a length is held (not NaN)
+                self._operate_one(k, length)
+
+    def length_valid_one(self, k: int, length: float) -> bool:
+        """Whether muscle ``k``'s geometry can take ``length`` [m]."""
+        return 0 < length < self._floats[k][2]
+
+    def store_length_one(self, k: int, length: float, rate: float) -> None:
+        """:meth:`store_lengths` of muscle ``k``'s valid length [m] and rate [m/s]."""
+        follow = self._follows[k]
+        if follow is not None and follow[0]:
+            branch, anchor = play(self.branch.item(k), self.anchor.item(k), length, follow[1])
+            self.branch[k], self.anchor[k] = branch, anchor
+        self.length[k], self.rate[k] = length, rate
+        self._operate_one(k, length)
+
+    def _operate_one(self, k: int, length: float) -> None:
+        flags, q2, q1, q0 = self.models[k].operating_one(length, self.branch.item(k))
+        self.lflags[k], self.q2[k], self.q1[k], self.q0[k] = flags, q2, q1, q0
+
+    def force_one(self, k: int) -> tuple[float, int, bool]:
+        """:meth:`forces` of muscle ``k``: (force [N], flags, has a force)."""
+        lflags = self.lflags.item(k)
+        ambient, _, _, limits = self._floats[k]
+        pflags, p = served_pressure(self.pressure.item(k) - ambient, limits)
+        if lflags & _INVALID:
+            return math.nan, lflags, False
+        raw = (self.q2.item(k) * p + self.q1.item(k)) * p + self.q0.item(k)
+        flags = lflags | pflags | (_CLIPPED if raw < 0 else 0)
+        return max(raw, 0.0), flags, raw < math.inf
+
+    # --- commands
     def command(self, k: int, force: float) -> tuple[float, int]:
         """Muscle ``k``'s pressure [Pa, absolute or gauge as its readings] giving tension
         ``force`` [N] at its newest length, on its branch, and its flags.
         """
         result = self.models[k].pressure(force, self.length.item(k), self.branch.item(k))
-        reading = float(result.pressure) + self.ambient.item(k) - self._offset.item(k)
-        return reading, int(result.flags)
+        ambient, offset, _, _ = self._floats[k]
+        return float(result.pressure) + ambient - offset, int(result.flags)

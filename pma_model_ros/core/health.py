@@ -11,8 +11,11 @@ One implementation for model_node's and joint_node's engines, so both nodes repo
 A report is due when a level differs from the last report (at most every ``report_interval``);
 the nodes also report every second.  Each status's values: the non-zero counters, then per input
 what diagnostic_updater's FrequencyStatus and TimeStampStatus report, over the window since the
-entity's previous report, then the engine's own values and :attr:`Health.extra` (static key-values
-per entity: a hook for, e.g., identification results).
+previous report, then the engine's own values and :attr:`Health.extra` (static key-values per
+entity: a hook for, e.g., identification results).
+
+An event concerns every entity (``which`` None: kept as one number, so that an input of every
+muscle costs no array operation), the entities of a boolean mask, or one entity (an int).
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ import numpy as np
 
 from .flags import Flag
 from .pairing import fresh, NEVER, SECOND
+
+Which = np.ndarray | int | None  #: every entity (None), a mask, or one entity
 
 
 class Level(enum.IntEnum):
@@ -48,7 +53,8 @@ WARN_FLAGS = {
 }
 WARN_MASK = int(sum(WARN_FLAGS))
 _WARN_TEXTS = tuple(f'{text} ({flag.name})' for flag, text in WARN_FLAGS.items())
-_WARN_BITS = np.array([int(flag) for flag in WARN_FLAGS], np.uint16)
+_WARN_BITS = tuple(int(flag) for flag in WARN_FLAGS)
+_WARN_ARRAY = np.array(_WARN_BITS, np.uint16)
 OK_TEXT = 'estimating'
 
 
@@ -60,8 +66,8 @@ class Status:
 
 
 class Health:
-    """Diagnostics of ``count`` entities fed by ``inputs`` (names, e.g. ``pressure``), with the
-    ``counters`` (labels) of :attr:`counts`.
+    """Diagnostics of ``count`` entities fed by ``inputs`` (names, e.g. ``pressure``; or one tuple
+    of names per entity), with the ``counters`` (labels) counted by :meth:`count`.
 
     ``stamps`` (inputs x count, [ns]) is the newest valid stamp of each input, written by its
     owner (:meth:`arrived`; NEVER: none); ``max_age`` [ns]: freshness; ``hold`` [ns]: how long a
@@ -71,21 +77,25 @@ class Health:
     def __init__(
         self,
         count: int,
-        inputs: Sequence[str],
+        inputs: Sequence[str] | Sequence[Sequence[str]],
         counters: Sequence[str],
         stamps: np.ndarray,
         max_age: int,
         hold: int = SECOND,
         report_interval: int = 0,
     ) -> None:
-        shape = (len(inputs), count)
-        self.inputs, self.labels, self.stamps = tuple(inputs), tuple(counters), stamps
+        names = [tuple(inputs)] * count if isinstance(inputs[0], str) else list(map(tuple, inputs))
+        shape = (len(names[0]), count)
+        self.inputs, self.labels, self.stamps = names, tuple(counters), stamps
         self.max_age, self.hold, self.report_interval = max_age, hold, report_interval
-        self.counts = np.zeros((count, len(counters)), np.int64)  #: per entity, by counter
+        self._counts = np.zeros((count, len(counters)), np.int64)
+        self._counts_all = [0] * len(counters)  # counted for every entity
         #: static key-values added to each entity's status (e.g. identification results)
         self.extra: list[dict[str, str]] = [{} for _ in range(count)]
         self._arrivals = np.zeros(shape, np.int64)  # valid inputs
+        self._arrivals_all = [0] * shape[0]
         self._delay_min, self._delay_max = np.full(shape, np.inf), np.full(shape, -np.inf)
+        self._delay_all = [[np.inf, -np.inf] for _ in range(shape[0])]  # (min, max) [s]
         self._late, self._early, self._zero = (np.zeros(shape, np.int64) for _ in range(3))
         self._rejected_at, self._reason = np.full(count, NEVER, np.int64), [''] * count
         self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
@@ -94,26 +104,59 @@ class Health:
         self._window_arrivals = np.zeros(shape, np.int64)
         self._last_report, self._steady, self._quiet = NEVER, False, None
 
-    def arrived(self, i: int, sel: slice | np.ndarray, stamp: int, now: int) -> None:
-        """Input ``i`` of the entities ``sel`` (a slice or a mask) was valid, stamped ``stamp``
-        (its owner writes :attr:`stamps`).
+    # --- events
+    def count(self, counter: int, which: Which = None) -> None:
+        """Add 1 to ``counter`` of the entities ``which``."""
+        if which is None:
+            self._counts_all[counter] += 1
+        else:
+            self._counts[which, counter] += 1
+
+    def counts(self, k: int) -> list[int]:
+        """Entity ``k``'s counters, in the order of the labels."""
+        return [n + m for n, m in zip(self._counts[k].tolist(), self._counts_all)]
+
+    def arrived(self, i: int, which: Which, stamp: int, now: int) -> None:
+        """Input ``i`` of the entities ``which`` was valid, stamped ``stamp`` (its owner writes
+        :attr:`stamps`).
         """
-        self._arrivals[i, sel] += 1
         delay = (now - stamp) / SECOND
-        self._delay_min[i, sel] = np.minimum(self._delay_min[i, sel], delay)
-        self._delay_max[i, sel] = np.maximum(self._delay_max[i, sel], delay)
+        if which is None:
+            self._arrivals_all[i] += 1
+            low_high = self._delay_all[i]
+            low_high[0], low_high[1] = min(low_high[0], delay), max(low_high[1], delay)
+        elif isinstance(which, int):
+            self._arrivals[i, which] += 1
+            if delay < self._delay_min.item(i, which):
+                self._delay_min[i, which] = delay
+            if delay > self._delay_max.item(i, which):
+                self._delay_max[i, which] = delay
+        else:
+            self._arrivals[i, which] += 1
+            np.minimum(self._delay_min[i], np.where(which, delay, np.inf), out=self._delay_min[i])
+            np.maximum(self._delay_max[i], np.where(which, delay, -np.inf), out=self._delay_max[i])
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
         self._rejected_at[k], self._reason[k], self._quiet = now, reason, None
 
-    def warn(self, sel: slice, which: np.ndarray, flags: np.ndarray, now: int) -> None:
-        """Of the entities ``sel``, ``which`` (a mask) gave results with ``flags``: their warning
-        flags hold the level at WARN.
+    def warn(self, which: np.ndarray | None, flags: np.ndarray, now: int) -> None:
+        """The entities ``which`` (a mask, None: all) gave results with ``flags`` (one word per
+        entity): their warning flags hold the level at WARN.
         """
-        hit = which[:, None] & ((flags[:, None] & _WARN_BITS) != 0)
+        hit = (flags[:, None] & _WARN_ARRAY) != 0
+        if which is not None:
+            hit &= which[:, None]
         if hit.any():
-            self._warned_at[sel][hit] = now
+            self._warned_at[hit] = now
+            self._quiet = None
+
+    def warn_one(self, k: int, flags: int, now: int) -> None:
+        """:meth:`warn` of entity ``k``'s result with ``flags``."""
+        if flags & WARN_MASK:
+            for j, bit in enumerate(_WARN_BITS):
+                if flags & bit:
+                    self._warned_at[k, j] = now
             self._quiet = None
 
     def quiet(self, now: int) -> None:
@@ -122,6 +165,7 @@ class Health:
         """
         self._quiet = now
 
+    # --- levels and reports
     def levels(self, now: int) -> np.ndarray:
         """Every entity's level."""
         error = (now - self._rejected_at < self.hold) | ~fresh(self.stamps, now, self.max_age).all(
@@ -134,7 +178,7 @@ class Health:
         """Entity ``k``'s level and its one-line reason."""
         if now - self._rejected_at.item(k) < self.hold:
             return Level.ERROR, f'invalid input: {self._reason[k]}'
-        for name, stamp in zip(self.inputs, self.stamps[:, k].tolist()):
+        for name, stamp in zip(self.inputs[k], self.stamps[:, k].tolist()):
             if stamp == NEVER:
                 return Level.ERROR, f'no {name} received yet'
             age = (now - stamp) / SECOND
@@ -169,26 +213,31 @@ class Health:
     def report(self, now: int, own: Callable[[int], dict[str, str]] | None = None) -> list[Status]:
         """Every entity's status; ``own(k)``: the engine's values of entity ``k``."""
         statuses = []
+        arrivals = self._arrivals + np.array(self._arrivals_all)[:, None]
+        low = np.minimum(self._delay_min, np.array([d[0] for d in self._delay_all])[:, None])
+        high = np.maximum(self._delay_max, np.array([d[1] for d in self._delay_all])[:, None])
         for k in range(len(self._reported)):
             level, message = self.level(k, now)
-            values = {label: str(n) for label, n in zip(self.labels, self.counts[k].tolist()) if n}
-            for i, name in enumerate(self.inputs):
-                values |= self._input_values(i, k, now, name)
+            values = {label: str(n) for label, n in zip(self.labels, self.counts(k)) if n}
+            for i, name in enumerate(self.inputs[k]):
+                values |= self._input_values(i, k, now, name, arrivals, low, high)
             values |= own(k) if own else {}
             values |= self.extra[k]
             statuses.append(Status(level, message, values))
             self._reported[k], self._window_start[k] = level, now
-        self._window_arrivals[:] = self._arrivals
+        self._window_arrivals[:] = arrivals
         self._delay_min[:], self._delay_max[:] = np.inf, -np.inf
+        self._delay_all = [[np.inf, -np.inf] for _ in self._delay_all]
         self._steady, self._last_report = False, now
         return statuses
 
-    def _input_values(self, i: int, k: int, now: int, name: str) -> dict[str, str]:
+    def _input_values(self, i, k, now, name, arrivals, low, high) -> dict[str, str]:
         """FrequencyStatus and TimeStampStatus of input ``i`` of entity ``k`` over its window."""
-        events = self._arrivals.item(i, k) - self._window_arrivals.item(i, k)
+        total = arrivals.item(i, k)
+        events = total - self._window_arrivals.item(i, k)
         start = self._window_start.item(k)
         window = (now - start) / SECOND if start != NEVER else 0.0
-        early, late = self._delay_min.item(i, k), self._delay_max.item(i, k)
+        early, late = low.item(i, k), high.item(i, k)
         limit = self.max_age / SECOND
         if not events:
             self._zero[i, k] += 1
@@ -196,7 +245,7 @@ class Health:
         self._early[i, k] += early < -limit
         return {
             f'{name}: Events in window': str(events),
-            f'{name}: Events since startup': str(self._arrivals.item(i, k)),
+            f'{name}: Events since startup': str(total),
             f'{name}: Duration of window (s)': f'{window:f}',
             f'{name}: Actual frequency (Hz)': f'{events / window if window > 0 else 0.0:f}',
             f'{name}: Earliest timestamp delay:': f'{early if events else 0.0:f}',

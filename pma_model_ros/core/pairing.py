@@ -10,7 +10,10 @@ input's header stamp, ``now`` the clock when it is taken.  An input is fresh whi
   ``slop`` (message_filters' ApproximateTime for two inputs); of a pair further apart, the older
   input is dropped (``unpaired``).
 
-A pair with a stale input gives no estimate (``stale``).
+A pair with a stale input gives no estimate (``stale``).  The rules are written twice, pinned equal
+by ``test/test_core_engine.py``: over arrays of every muscle (:meth:`Pairing.pair`; an input of
+every muscle at one stamp is kept as one number, so that its freshness is one comparison) and in
+plain integers for one muscle (:meth:`Pairing.pair_one`, the one-muscle fast path).
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ def fresh(stamps: np.ndarray, now: int, max_age: int) -> np.ndarray:
 
 class Pairing:
     """The newest valid stamp of each muscle's pressure and length, and which are not yet paired
-    (``approximate_time``).  Muscles are addressed by a slice ``sel`` and masks over it.
+    (``approximate_time``).  An input concerns every muscle (``which`` None), those of a mask, or
+    one muscle ``k`` (the ``_one`` methods).
     """
 
     def __init__(self, count: int, pairing: str, slop: int, max_age: int) -> None:
@@ -47,33 +51,48 @@ class Pairing:
         #: [ns] newest valid stamp of each muscle's pressure (row PRESSURE) and length (LENGTH)
         self.stamps = np.full((2, count), NEVER, np.int64)
         self._new = np.zeros((2, count), bool)
-        self._both = False  # every muscle has had both inputs (then it stays so)
+        #: per side, the one stamp of every muscle (the last input was of every muscle), or None
+        self._common: list[int | None] = [NEVER, NEVER]
+        #: no muscle, every muscle (read-only masks)
+        self.none, self._all = np.zeros(count, bool), np.ones(count, bool)
+        self.none.flags.writeable = self._all.flags.writeable = False
 
-    def store(self, side: int, sel: slice, valid: np.ndarray | None, stamp: int) -> None:
-        """Valid inputs of ``side`` (PRESSURE or LENGTH) of the muscles ``sel`` (``valid``: a
-        mask over them, None: all), stamped ``stamp`` [ns].
+    def store(self, side: int, which: np.ndarray | None, stamp: int) -> None:
+        """Valid inputs of ``side`` (PRESSURE or LENGTH) of every muscle (``which`` None) or of
+        the muscles of the mask ``which``, stamped ``stamp`` [ns].
         """
-        if valid is None:
-            self.stamps[side, sel] = stamp
-            self._new[side, sel] = True
+        if which is None:
+            self.stamps[side] = stamp
+            self._common[side] = stamp
+            if self.approximate:
+                self._new[side] = True
         else:
-            self.stamps[side, sel][valid] = stamp
-            self._new[side, sel][valid] = True
+            self.stamps[side, which] = stamp
+            self._common[side] = None
+            if self.approximate:
+                self._new[side, which] = True
 
     def pair(
-        self, sel: slice, candidates: np.ndarray, now: int
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Which of the muscles ``sel`` whose input was just taken (``candidates``) estimate now;
-        which of them had a stale input; which lost an input to ``slop`` (None: none can).
+        self, which: np.ndarray | None, now: int
+    ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+        """Which of the muscles whose input was just taken (``which``: a mask, None: all) estimate
+        now (None: all of them); which of them had a stale input; which lost an input to ``slop``
+        (:attr:`none` where no muscle did).
         """
-        p, length = self.stamps[PRESSURE, sel], self.stamps[LENGTH, sel]
-        if not self._both:
-            self._both = bool((self.stamps != NEVER).all())
-            candidates = candidates & (p != NEVER) & (length != NEVER)
-        unpaired = None
+        p, length = self._common
+        if p is not None and length is not None and not self.approximate:
+            if p == NEVER or length == NEVER:
+                return self.none, self.none, self.none
+            if abs(now - p) <= self.max_age and abs(now - length) <= self.max_age:
+                return which, self.none, self.none
+            return self.none, (self._all if which is None else which), self.none
+        candidates = self._all if which is None else which
+        p, length = self.stamps
+        candidates = candidates & (p != NEVER) & (length != NEVER)
+        unpaired = self.none
         if self.approximate:
-            p_new, l_new = self._new[PRESSURE, sel], self._new[LENGTH, sel]
-            candidates = candidates & p_new & l_new
+            p_new, l_new = self._new
+            candidates &= p_new & l_new
             unpaired = candidates & (np.abs(p - length) > self.slop)
             older_p = unpaired & (p < length)
             p_new[older_p] = False
@@ -81,5 +100,36 @@ class Pairing:
             candidates &= ~unpaired
             p_new[candidates] = l_new[candidates] = False
         ok = fresh(p, now, self.max_age) & fresh(length, now, self.max_age)
-        stale = candidates & ~ok
-        return candidates & ok, stale, unpaired
+        return candidates & ok, candidates & ~ok, unpaired
+
+    def common(self) -> int | None:
+        """The newest stamp [ns] of the last pressure and length if each was one input of every
+        muscle, else None.
+        """
+        p, length = self._common
+        return None if p is None or length is None else max(p, length)
+
+    def store_one(self, side: int, k: int, stamp: int) -> None:
+        """:meth:`store` of muscle ``k`` alone."""
+        self.stamps[side, k] = stamp
+        self._common[side] = None
+        if self.approximate:
+            self._new[side, k] = True
+
+    def pair_one(self, k: int, now: int) -> tuple[bool, bool, bool]:
+        """:meth:`pair` of muscle ``k`` alone, whose input was just taken: (estimates, stale,
+        unpaired).
+        """
+        p, length = self.stamps.item(PRESSURE, k), self.stamps.item(LENGTH, k)
+        if p == NEVER or length == NEVER:
+            return False, False, False
+        if self.approximate:
+            new = self._new
+            if not (new.item(PRESSURE, k) and new.item(LENGTH, k)):
+                return False, False, False
+            if abs(p - length) > self.slop:
+                new[PRESSURE if p < length else LENGTH, k] = False
+                return False, False, True
+            new[PRESSURE, k] = new[LENGTH, k] = False
+        ok = abs(now - p) <= self.max_age and abs(now - length) <= self.max_age
+        return ok, not ok, False

@@ -144,11 +144,19 @@ class JointIndex:
             None,
             [],
         )
+        self._in_order = False
 
     def of(self, msg: JointStateArrays) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
         if msg.names is not self._names:
             self._names, self._verdict = msg.names, self._find(msg)
+            take, present, _ = self._verdict
+            self._in_order = present is None and take.tolist() == list(range(len(msg.names)))
         return self._verdict
+
+    def in_order(self, msg: JointStateArrays) -> bool:
+        """Whether ``msg`` holds the joints, and only them, in this index's order."""
+        self.of(msg)
+        return self._in_order
 
     def _find(self, msg: JointStateArrays) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
         values = getattr(msg, self.field)

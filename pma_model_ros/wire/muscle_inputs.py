@@ -16,11 +16,12 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..core.engine import ALL, Engine, one
+from ..core.engine import Engine
 from .cdr import joint_state, stamp_ns, stamped_float, Template, wrench_stamped
 from .joint_state import JointIndex, JointStateReader
 
 Deserializers = dict[str, Callable[[bytes], object]]
+_IN_ORDER = slice(None)  #: a JointState's values are the muscles', in their order
 
 
 def stamped_value(data: bytes, deserialize: Callable[[bytes], object], field: str):
@@ -58,13 +59,14 @@ class MuscleInputs:
         #: per muscle: force_estimate (WrenchStamped, its frame_id)
         self.estimates = [wrench_stamped(frame) for frame in frames]
         self._all = joint_state(joints, 'effort')  # force_estimates of every muscle
-        self._empty = np.zeros(0)
+        self._unknown = np.full(len(joints), math.nan)  # rates of a muscle_states without
+        self._unknown.flags.writeable = False
 
     # --- per muscle
     def pressure(self, k: int, data: bytes, now: int) -> bytes | None:
         """A ``pressure`` message of muscle ``k``: its force_estimate, if any."""
         stamp, value = stamped_value(data, self._deserialize['FluidPressure'], 'fluid_pressure')
-        return self._one(k, self.engine.pressures(np.array([value]), stamp, now, one(k)))
+        return self._one(k, self.engine.pressure(k, value, stamp, now))
 
     def muscle_state(self, k: int, data: bytes, now: int) -> bytes | None:
         """A ``muscle_state`` JointState of muscle ``k``: its force_estimate, if any."""
@@ -73,18 +75,21 @@ class MuscleInputs:
         if present is not None:
             self.engine.reject(k, 'muscle_state', problems[0], now)
             return None
-        rates = msg.velocity[take] if len(msg.velocity) else np.full(1, math.nan)
-        estimated = self.engine.lengths(
-            msg.position[take],
-            np.where(np.isfinite(rates), rates, math.nan),
-            msg.stamp,
-            now,
-            one(k),
+        i = take.item(0)
+        rate = msg.velocity.item(i) if len(msg.velocity) else math.nan
+        return self._one(
+            k,
+            self.engine.length(
+                k,
+                msg.position.item(i),
+                rate if math.isfinite(rate) else math.nan,
+                msg.stamp,
+                now,
+            ),
         )
-        return self._one(k, estimated)
 
-    def _one(self, k: int, estimated: np.ndarray) -> bytes | None:
-        if not estimated.item(0):
+    def _one(self, k: int, estimated: bool) -> bytes | None:
+        if not estimated:
             return None
         template = self.estimates[k]
         template.values[0] = self.engine.forces.item(0)
@@ -103,8 +108,8 @@ class MuscleInputs:
         msg, take, present = self._read('muscle_pressures', data, 'pressure', now)
         if take is None:
             return None
-        values = msg.position if take is ALL else msg.position[take]
-        return self._many(self.engine.pressures(values, msg.stamp, now, ALL, present))
+        values = msg.position if take is _IN_ORDER else msg.position[take]
+        return self._many(self.engine.pressures(values, msg.stamp, now, present))
 
     def states(self, data: bytes, now: int) -> bytes | None:
         """A ``muscle_states`` JointState (lengths [m], rates [m/s] or empty): see
@@ -113,16 +118,17 @@ class MuscleInputs:
         msg, take, present = self._read('muscle_states', data, 'muscle_state', now)
         if take is None:
             return None
-        lengths = msg.position if take is ALL else msg.position[take]
+        lengths = msg.position if take is _IN_ORDER else msg.position[take]
         if len(msg.velocity):
-            rates = msg.velocity if take is ALL else msg.velocity[take]
-            rates = np.where(np.isfinite(rates), rates, math.nan)
+            rates = msg.velocity if take is _IN_ORDER else msg.velocity[take]
+            if not np.isfinite(rates.sum()):  # inf or NaN: unknown
+                rates = np.where(np.isfinite(rates), rates, math.nan)
         else:
-            rates = np.full(len(self.joints), math.nan)
-        return self._many(self.engine.lengths(lengths, rates, msg.stamp, now, ALL, present))
+            rates = self._unknown
+        return self._many(self.engine.lengths(lengths, rates, msg.stamp, now, present))
 
     def _read(self, topic: str, data: bytes, source: str, now: int):
-        """(message, where each muscle's value is: ALL if in order, None if none; present)."""
+        """(message, where each muscle's value is: _IN_ORDER, None if none; present)."""
         reader, index = self._combined[topic]
         msg = reader(data)
         take, present, problems = index.of(msg)
@@ -131,8 +137,7 @@ class MuscleInputs:
                 self.engine.reject(k, source, problem, now)
             if not present.any():
                 return msg, None, present
-        in_order = len(take) == len(msg.names) and (take == np.arange(len(take))).all()
-        return msg, (ALL if in_order else take), present
+        return msg, (_IN_ORDER if index.in_order(msg) else take), present
 
     def _many(self, estimated: np.ndarray) -> bytes | None:
         engine = self.engine
