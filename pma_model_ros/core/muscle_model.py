@@ -62,6 +62,10 @@ class PressureResult:
 )
 
 
+_LENGTH_OUT16, _EXTRAPOLATED16, _INVALID16, _BRANCH_UNKNOWN16, _NONE16 = (
+    np.uint16(f) for f in (_LENGTH_OUT, _EXTRAPOLATED, _INVALID, _BRANCH_UNKNOWN, 0)
+)
+
 #: [Pa] Gauge pressures this far below 0 are a vented muscle or sensor noise: served as 0 Pa,
 #: unflagged.
 VENTED_BAND = 10e3
@@ -161,6 +165,11 @@ class Evaluator:
         """Lengths and pressures served and commanded (:class:`Limits`)."""
         return limits_of(self.spec, self.domain, geo.shortest_length(self.spec))
 
+    @cached_property
+    def _extrapolates(self) -> bool:
+        """Whether any of the muscles serves lengths outside its identified ones."""
+        return bool(np.any(self.domain.extrapolates))
+
     def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
         """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see
         :class:`Operating`).
@@ -175,25 +184,27 @@ class Evaluator:
         """
         L = np.asarray(length, float)
         lim = self.limits
+        # written for few numpy calls: the engines call it per message of every muscle
+        at = np.minimum(np.maximum(L, lim.length_low), lim.length_high)  # NaN stays NaN
+        flags = (at != L) * _LENGTH_OUT16
+        if self._extrapolates:  # else the lengths served lie inside the identified ones
+            domain = self.domain
+            flags |= ((at < domain.length_min) | (at > domain.length_max)) * _EXTRAPOLATED16
+        usable = (L > 0) & (L < self.max_length)  # False for NaN
+        if not usable.all():
+            at = np.where(usable, at, lim.length_high)
+            flags = np.where(usable, flags, _INVALID16)
+        branch = 0.0
+        if self.model.hysteresis:
+            if length_rate is not None:
+                rate = np.asarray(length_rate, float)
+                branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
+            flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN16, _NONE16)
         with np.errstate(invalid='ignore', over='ignore'):
-            usable = (L > 0) & (L < self.max_length)  # False for NaN
-            at = np.where(usable, np.clip(L, lim.length_low, lim.length_high), lim.length_high)
-            outside = (at < self.domain.length_min) | (at > self.domain.length_max)
-            flags = np.where(
-                usable,
-                np.where(at != L, _LENGTH_OUT, 0) | np.where(outside, _EXTRAPOLATED, 0),
-                _INVALID,
-            )
-            branch = 0.0
-            if self.model.hysteresis:
-                if length_rate is not None:
-                    rate = np.asarray(length_rate, float)
-                    branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
-                flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN, 0)
             q2, q1, q0 = self.model.coefficients(self.theta, self.spec, self.domain, at, branch)
         if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
             q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
-        return Operating(usable, flags.astype(np.uint16), q2, q1, q0, lim)
+        return Operating(usable, flags, q2, q1, q0, lim)
 
     def force(
         self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None
