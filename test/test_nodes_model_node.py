@@ -10,6 +10,7 @@ import math
 import subprocess
 import sys
 
+from builtin_interfaces.msg import Time
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
@@ -49,6 +50,17 @@ def make_node():
         rclpy.shutdown(context=context)
 
 
+def frozen_clock(node, back: float = 0.0):
+    """Stop the node's clock (its callbacks read ``node.now()``) at its current time, so that the
+    test's stamps stay fresh however slowly a loaded machine runs it; that time less ``back`` [s],
+    as a stamp.
+    """
+    t = node.now()
+    node.now = lambda: t
+    t -= round(back * 1e9)
+    return Time(sec=t // 10**9, nanosec=t % 10**9)
+
+
 def record(publisher) -> list:
     """What ``publisher`` publishes from now on, as messages (the node publishes some
     serialized).
@@ -65,7 +77,7 @@ def record(publisher) -> list:
 def test_one_muscle_answers_each_input_with_the_newest_pair(make_node):
     node = make_node(CONFIGS['DMSP-10-250'])
     estimates = record(node._estimate_pubs[0])
-    first, second = node.get_clock().now().to_msg(), node.get_clock().now().to_msg()
+    first, second = frozen_clock(node, 0.001), frozen_clock(node)
     node._on_pressure(0, raw(pressure(first, AMBIENT + 300e3)))
     assert estimates == []  # no length yet
     node._on_state(0, raw(state(second, 0.23, 0.0)))
@@ -83,7 +95,7 @@ def test_one_muscle_command_and_diagnostics_on_change(make_node):
     # every change at once (the callbacks run within the 1.5 ms limit)
     node.engine.health.report_interval = 0
     commands, diagnostics = record(node._command_pubs[0]), record(node._diag_pub)
-    now = node.get_clock().now().to_msg()
+    now = frozen_clock(node)
     node._on_state(0, raw(state(now, 0.23, 0.0)))
     assert [d.status[0].message for d in diagnostics] == [
         'no pressure received yet'
@@ -107,7 +119,7 @@ def test_gauge_sensor_readings_and_commands(make_node):
     """
     node = make_node(CONFIGS['DMSP-10-250'], pressure_reference='gauge')
     estimates, commands = record(node._estimate_pubs[0]), record(node._command_pubs[0])
-    now = node.get_clock().now().to_msg()
+    now = frozen_clock(node)
     node._on_state(0, raw(state(now, 0.25, 0.0)))
     node._on_pressure(0, raw(pressure(now, 300e3)))
     assert estimates[-1].wrench.force.x == pytest.approx(
@@ -150,7 +162,7 @@ def joint_states(stamp, names, values, rates=()):
 def test_combined_mode_one_vector_call_per_message(make_node):
     node = make_node(EXAMPLE)
     estimates = record(node._estimate_pubs[0])
-    stamp = node.get_clock().now().to_msg()
+    stamp = frozen_clock(node)
     order = list(reversed(INPUTS))  # states in another order than the pressures
     node._on_states(
         raw(
@@ -185,7 +197,7 @@ def test_approximate_time_pairing_answers_once_per_tick(make_node):
     node = make_node(CONFIGS['DMSP-10-250'], pairing='approximate_time')
     estimates = record(node._estimate_pubs[0])
     for _ in range(3):
-        tick = node.get_clock().now().to_msg()
+        tick = frozen_clock(node)
         node._on_state(0, raw(state(tick, 0.23, 0.0)))
         node._on_pressure(0, raw(pressure(tick, AMBIENT + 300e3)))
     assert len(estimates) == 3
@@ -201,7 +213,7 @@ def test_runtime_model_swap_is_used_by_the_next_estimate(make_node):
     estimates = record(node._estimate_pubs[0])
     assert node.set_parameters([Parameter('model', value='hildebrandt')])[0].successful
     assert not node.set_parameters([Parameter('model', value='nope')])[0].successful
-    now = node.get_clock().now().to_msg()
+    now = frozen_clock(node)
     node._on_state(0, raw(state(now, 0.23, 0.0)))
     node._on_pressure(0, raw(pressure(now, AMBIENT + 300e3)))
     hildebrandt = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')

@@ -198,8 +198,6 @@ class Engine:
         health.count(Counter.ESTIMATES, pairs)
         if (self.flags & WARN_MASK).any():
             health.warn(pairs, self.flags, now)
-        elif pairs is None:
-            health.quiet(now)
         common = pairing.common()
         if common is not None:
             self.stamp = common
@@ -248,10 +246,7 @@ class Engine:
             self._invalid(k, 'muscle_state', reason, now)
             return self._one(False)
         health.count(Counter.ESTIMATES, k)
-        if flags & WARN_MASK:
-            health.warn_one(k, flags, now)
-        elif len(self.configs) == 1:
-            health.quiet(now)
+        health.warn_one(k, flags, now)
         self.stamp = max(pairing.stamps.item(PRESSURE, k), pairing.stamps.item(LENGTH, k))
         return self._one(True)
 

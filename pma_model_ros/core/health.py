@@ -102,7 +102,11 @@ class Health:
         self._reported = np.full(count, -1, np.int64)  # level of the last report (-1: none)
         self._window_start = np.full(count, NEVER, np.int64)
         self._window_arrivals = np.zeros(shape, np.int64)
-        self._last_report, self._steady, self._quiet = NEVER, False, None
+        self._last_report = NEVER
+        #: every level was reported OK and no event changed one since (rejections, warnings and
+        #: stale inputs clear it): then only time raises one, after _fresh_until [ns], when an
+        #: input is older than max_age (or if the clock went back before _checked_at [ns])
+        self._steady, self._checked_at, self._fresh_until = False, NEVER, NEVER
 
     # --- events
     def count(self, counter: int, which: Which = None) -> None:
@@ -121,6 +125,8 @@ class Health:
         :attr:`stamps`).
         """
         delay = (now - stamp) / SECOND
+        if abs(now - stamp) > self.max_age:  # a stale input: the levels may have changed
+            self._steady = False
         if which is None:
             self._arrivals_all[i] += 1
             low_high = self._delay_all[i]
@@ -138,7 +144,7 @@ class Health:
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
-        self._rejected_at[k], self._reason[k], self._quiet = now, reason, None
+        self._rejected_at[k], self._reason[k], self._steady = now, reason, False
 
     def warn(self, which: np.ndarray | None, flags: np.ndarray, now: int) -> None:
         """The entities ``which`` (a mask, None: all) gave results with ``flags`` (one word per
@@ -149,7 +155,7 @@ class Health:
             hit &= which[:, None]
         if hit.any():
             self._warned_at[hit] = now
-            self._quiet = None
+            self._steady = False
 
     def warn_one(self, k: int, flags: int, now: int) -> None:
         """:meth:`warn` of entity ``k``'s result with ``flags``."""
@@ -157,13 +163,7 @@ class Health:
             for j, bit in enumerate(_WARN_BITS):
                 if flags & bit:
                     self._warned_at[k, j] = now
-            self._quiet = None
-
-    def quiet(self, now: int) -> None:
-        """The input taken at ``now`` gave every entity a fresh result without a warning: no level
-        can have risen (:meth:`due` then skips the level check).
-        """
-        self._quiet = now
+            self._steady = False
 
     # --- levels and reports
     def levels(self, now: int) -> np.ndarray:
@@ -203,11 +203,13 @@ class Health:
         """
         if 0 <= now - self._last_report < self.report_interval:
             return False
-        if self._steady and self._quiet == now:
-            return False
+        if self._steady and self._checked_at <= now <= self._fresh_until:
+            return False  # every level was reported OK and nothing happened since
         levels = self.levels(now)
         due = bool((levels != self._reported).any())
         self._steady = not due and not levels.any()
+        if self._steady:  # until an input goes stale, only an event can change a level
+            self._checked_at, self._fresh_until = now, int(self.stamps.min()) + self.max_age
         return due
 
     def report(self, now: int, own: Callable[[int], dict[str, str]] | None = None) -> list[Status]:
