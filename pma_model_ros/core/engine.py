@@ -76,9 +76,9 @@ class Engine:
     ``hold`` [s]: how long a rejected input (ERROR) or a warning flag (WARN) keeps a muscle's
     level up; ``pairing``, ``slop`` [s]: :mod:`.pairing`; ``report_interval`` [s]: see
     :meth:`~.health.Health.due`.  After an input, until the next one: ``estimated`` (a mask over
-    the input's muscles: N, or 1 for one muscle's input), ``forces`` [N] and ``flags`` (over the
-    same muscles) describe the answer, ``stamp`` [ns] is its stamp (the newest input stamp among
-    the muscles estimated).
+    the input's muscles: N, or 1 for one muscle's input; ``every``: all N of an input of every
+    muscle), ``forces`` [N] and ``flags`` (over the same muscles) describe the answer, ``stamp``
+    [ns] is its stamp (the newest input stamp among the muscles estimated).
     """
 
     def __init__(
@@ -112,7 +112,7 @@ class Engine:
         for constant in (self._all, self._none, self._yes, self._no):
             constant.flags.writeable = False
         self._force, self._flag = np.zeros(1), np.zeros(1, np.uint16)  # one muscle's answer
-        self.stamp, self.estimated = 0, self._none
+        self.stamp, self.estimated, self.every = 0, self._none, False
         self.forces, self.flags = np.zeros(n), np.zeros(n, np.uint16)
 
     def __len__(self) -> int:
@@ -182,9 +182,13 @@ class Engine:
             health.count(Counter.STALE, stale)
         if unpaired is not pairing.none:
             health.count(Counter.UNPAIRED, unpaired)
-        if pairs is not None and not pairs.any():
-            self.estimated = self._none
-            return self._none
+        if pairs is not None:
+            paired = np.count_nonzero(pairs)
+            if not paired:
+                self.estimated, self.every = self._none, False
+                return self._none
+            if paired == pairs.size:
+                pairs = None
         self.forces, self.flags, ok = muscles.forces(pairs)
         if ok is not None:
             asked = self._all if pairs is None else pairs
@@ -196,7 +200,11 @@ class Engine:
                 self._invalid(k, 'muscle_state', reason, now)
             pairs = None if ok.all() else ok
         health.count(Counter.ESTIMATES, pairs)
-        if (self.flags & WARN_MASK).any():
+        if (
+            muscles.length_warns
+            if self.flags is muscles.lflags
+            else np.count_nonzero(self.flags & WARN_MASK)
+        ):
             health.warn(pairs, self.flags, now)
         common = pairing.common()
         if common is not None:
@@ -204,7 +212,7 @@ class Engine:
         else:
             newest = pairing.stamps.max(axis=0)
             self.stamp = int(newest.max() if pairs is None else newest[pairs].max())
-        self.estimated = self._all if pairs is None else pairs
+        self.estimated, self.every = (self._all, True) if pairs is None else (pairs, False)
         return self.estimated
 
     # --- one muscle (the fast path)

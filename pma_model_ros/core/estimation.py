@@ -21,6 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from .flags import Flag
+from .health import WARN_MASK
 from .hysteresis import Follow, play
 from .muscle_bank import MuscleBank
 from .muscle_model import force_at, MuscleModel, Operating, served_pressure
@@ -137,7 +138,7 @@ class Muscles:
 
     def take_lengths(self, lengths: np.ndarray) -> np.ndarray | None:
         """Which ``lengths`` [m] of every muscle the geometry can take (None: all)."""
-        if lengths.min() > 0 and (lengths < self.max_length).all():
+        if lengths.min() > 0 and not np.count_nonzero(lengths >= self.max_length):
             return None
         return (lengths > 0) & (lengths < self.max_length)
 
@@ -173,13 +174,14 @@ class Muscles:
             self.length[:], self.rate[:] = lengths, rates
         else:
             self.length[valid], self.rate[valid] = lengths[valid], rates[valid]
-        self._operate(valid, lengths)
+        self._operate(valid, lengths, plain=valid is None)
 
-    def _operate(self, which: np.ndarray | None, lengths: np.ndarray) -> None:
+    def _operate(self, which: np.ndarray | None, lengths: np.ndarray, plain: bool = False) -> None:
         """The coefficients and length flags of the muscles ``which`` (None: all) at ``lengths``,
-        on their branches.  New arrays: a result handed out before stays as it was.
+        on their branches (``plain``: every length is one the geometry takes).  New arrays: a
+        result handed out before stays as it was.
         """
-        op = self.bank.operating(lengths, self.branch)
+        op = self.bank.operating(lengths, self.branch, plain)
         if which is None:  # (broadcast results are read-only: the fast path writes into them)
             self.lflags, self.q2, self.q1, self.q0 = (
                 a if a.flags.writeable else a.copy() for a in (op.flags, op.q2, op.q1, op.q0)
@@ -191,14 +193,21 @@ class Muscles:
                     (op.flags, op.q2, op.q1, op.q0), (self.lflags, self.q2, self.q1, self.q0)
                 )
             )
-        self._plain = not (self.lflags & _INVALID).any()  # every kept length is one
+        self._plain = plain or not np.count_nonzero(self.lflags & _INVALID)  # each kept is one
+        #: whether the length flags alone make a result WARN
+        self.length_warns = bool(np.count_nonzero(self.lflags & WARN_MASK))
 
     def forces(self, which: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(force [N], flags, which have a force: None if all) of every muscle at its newest
         inputs, where ``which`` (a mask; None: all).
         """
         gauge = self.pressure - self.ambient
-        if which is None and self._plain and gauge.min() >= 0 and (gauge <= self._known).all():
+        if (
+            which is None
+            and self._plain
+            and gauge.min() >= 0
+            and not np.count_nonzero(gauge > self._known)
+        ):
             # force_at's rule where no pressure is moved or flagged
             raw = (self.q2 * gauge + self.q1) * gauge + self.q0
             low = raw.min()

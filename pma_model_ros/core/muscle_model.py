@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from functools import cached_property
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -25,8 +26,7 @@ from .geometry import MuscleSpec
 from .models import Domain, Model
 
 
-@dataclass(frozen=True)
-class ForceResult:
+class ForceResult(NamedTuple):
     force: np.ndarray  #: physical tension [N], >= 0; NaN only where INVALID_INPUT
     raw: np.ndarray  #: model value [N] at the operating point, before clipping at 0 N
     flags: np.ndarray  #: uint16 Flag words
@@ -62,6 +62,7 @@ class PressureResult:
 )
 
 
+_EVERY = np.bool_(True)  #: ``usable`` of lengths checked by the caller
 _LENGTH_OUT16, _EXTRAPOLATED16, _INVALID16, _BRANCH_UNKNOWN16, _NONE16 = (
     np.uint16(f) for f in (_LENGTH_OUT, _EXTRAPOLATED, _INVALID, _BRANCH_UNKNOWN, 0)
 )
@@ -104,10 +105,9 @@ def limits_of(spec, domain, shortest) -> Limits:
     )
 
 
-@dataclass(frozen=True)
-class Operating:
+class Operating(NamedTuple):
     """What the force at given lengths needs besides the pressure: F_raw = (q2 p + q1) p + q0 at
-    the operating length.
+    the operating length (a NamedTuple: built once per message of every muscle).
 
     ``usable`` is False where the length is no length of the muscle (INVALID_INPUT in ``flags``);
     ``flags`` also holds LENGTH_OUT_OF_RANGE, EXTRAPOLATED (of the length) and BRANCH_UNKNOWN.
@@ -170,7 +170,9 @@ class Evaluator:
         """Whether any of the muscles serves lengths outside its identified ones."""
         return bool(np.any(self.domain.extrapolates))
 
-    def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
+    def operating(
+        self, length: ArrayLike, length_rate: ArrayLike | None = None, valid: bool = False
+    ) -> Operating:
         """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see
         :class:`Operating`).
 
@@ -180,7 +182,8 @@ class Evaluator:
         (EXTRAPOLATED outside the identified range;
         :class:`~.models.Domain`).  ``length_rate`` [m/s] picks the hysteresis branch (+1
         lengthening, -1 shortening, 0 unknown: BRANCH_UNKNOWN).  Computed once per new length and
-        reused for every pressure at it (:func:`force_at`).
+        reused for every pressure at it (:func:`force_at`).  ``valid``: the caller checked that
+        the geometry takes every length.
         """
         L = np.asarray(length, float)
         lim = self.limits
@@ -190,8 +193,8 @@ class Evaluator:
         if self._extrapolates:  # else the lengths served lie inside the identified ones
             domain = self.domain
             flags |= ((at < domain.length_min) | (at > domain.length_max)) * _EXTRAPOLATED16
-        usable = (L > 0) & (L < self.max_length)  # False for NaN
-        if not usable.all():
+        usable = _EVERY if valid else (L > 0) & (L < self.max_length)  # False for NaN
+        if not valid and np.count_nonzero(usable) < usable.size:
             at = np.where(usable, at, lim.length_high)
             flags = np.where(usable, flags, _INVALID16)
         branch = 0.0

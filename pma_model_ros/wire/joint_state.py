@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import struct
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -24,8 +24,7 @@ _STAMP = struct.Struct('<iI')
 _FIELDS = ('position', 'velocity', 'effort')
 
 
-@dataclass(frozen=True)
-class JointStateArrays:
+class JointStateArrays(NamedTuple):
     """One JointState's content: stamp [ns], names and the three arrays (float64)."""
 
     stamp: int

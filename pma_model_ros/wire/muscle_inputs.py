@@ -121,7 +121,7 @@ class MuscleInputs:
         lengths = msg.position if take is _IN_ORDER else msg.position[take]
         if len(msg.velocity):
             rates = msg.velocity if take is _IN_ORDER else msg.velocity[take]
-            if not np.isfinite(rates.sum()):  # inf or NaN: unknown
+            if not math.isfinite(rates.sum()):  # inf or NaN: unknown
                 rates = np.where(np.isfinite(rates), rates, math.nan)
         else:
             rates = self._unknown
@@ -141,7 +141,7 @@ class MuscleInputs:
 
     def _many(self, estimated: np.ndarray) -> bytes | None:
         engine = self.engine
-        if estimated.all():
+        if engine.every:
             self._all.values[:] = engine.forces
             return self._all(engine.stamp)
         if not estimated.any():
