@@ -94,9 +94,7 @@ def main() -> None:
             position=[0.1 * (k % 5) for k in range(args.joints)],
             velocity=[0.0] * args.joints,
         )
-        node.now = lambda: (
-            stamp.sec + stamp.nanosec * 1e-9
-        )  # inputs stay fresh however long this runs
+        node.now = lambda: stamp.sec * 10**9 + stamp.nanosec  # inputs stay fresh [ns]
         states.header.stamp = stamp
         states = serialize_message(states)
         torque = serialize_message(JointState(name=[names[0]], effort=[1.0]))
@@ -107,7 +105,7 @@ def main() -> None:
                 lambda: node._on_torque(torque), args.repeat // 4
             ),
         }
-        node.engine.stiffness(0, 4.5, 0.0)
+        node.engine.stiffness(0, 4.5, node.now())
         rows['torque command, stiffness'] = best(
             lambda: node._on_torque(torque), args.repeat // 20
         )

@@ -104,9 +104,40 @@ def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
     node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
     node._on_states(raw(joint_state(node, 0.0)))
     assert torques == []
-    node.publish_status()
+    node.publish_status(node.now())
     status = diagnostics[-1].status[0]
-    assert status.level == b'\x02' and 'no estimate yet' in status.message
+    assert (status.level, status.name, status.hardware_id) == (
+        b'\x02',
+        'joint_node: elbow',
+        'elbow',
+    )
+    assert status.message.startswith('stale flexor pressure: newest stamp is 5 s old')
+
+
+def test_diagnostics_on_change_as_model_node_with_the_hardware_id(make_node):
+    """The statuses are model_node's (texts, counters, input rates), published when a level
+    changes, not only at 1 Hz; ``hardware_id`` is the joint's parameter.
+    """
+    node = make_node(**{'elbow.hardware_id': 'left arm, elbow valves'})
+    node.engine.health.report_interval = 0  # every change at once
+    diagnostics = record(node._diag_pub)
+    node._on_states(raw(joint_state(node, 0.0)))
+    assert [d.status[0].message for d in diagnostics] == ['no flexor pressure received yet']
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
+    assert [d.status[0].message for d in diagnostics[1:]] == ['estimating']  # all inputs fresh
+    node._on_states(raw(joint_state(node, 0.0)))
+    assert len(diagnostics) == 2  # no change
+    node.publish_status(node.now())  # the 1 Hz timer's report
+    status = diagnostics[-1].status[0]
+    values = {kv.key: kv.value for kv in status.values}
+    assert (status.level, status.message, status.hardware_id) == (
+        b'\x00',
+        'estimating',
+        'left arm, elbow valves',
+    )
+    assert (values['received joint_states'], values['estimates']) == ('2', '1')
+    assert values['joint_states: Events since startup'] == '2'
 
 
 def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_node):
@@ -145,13 +176,13 @@ def test_out_of_reach_command_saturates_and_warns(make_node):
     node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 300e3)))
     node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
     node._on_states(raw(joint_state(node, 0.0)))
-    node.publish_status()
+    node.publish_status(node.now())
     assert diagnostics[-1].status[0].level == b'\x00'
     node._on_torque(raw(command(elbow=100.0)))
     assert flexor[-1].fluid_pressure == pytest.approx(
         650e3 + AMBIENT
     )  # the map's top (hildebrandt: no extrapolation)
-    node.publish_status()
+    node.publish_status(node.now())
     status = diagnostics[-1].status[0]
     assert status.level == b'\x01' and 'SATURATED' in status.message
 
@@ -168,7 +199,7 @@ def test_bad_joint_states_are_errors(make_node, message, problem):
     node = make_node()
     diagnostics = record(node._diag_pub)
     node._on_states(raw(message))
-    node.publish_status()
+    node.publish_status(node.now())
     status = diagnostics[-1].status[0]
     assert status.level == b'\x02' and problem in status.message
 
@@ -177,10 +208,10 @@ def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
     node = make_node()
     diagnostics = record(node._diag_pub)
     node._on_torque(raw(command(elbow=1.0)))
-    node.publish_status()
+    node.publish_status(node.now())
     assert 'before any angle' in diagnostics[-1].status[0].message
     node._on_pressure(0, 1, raw(pressure(node, -3.0)))
-    node.publish_status()
+    node.publish_status(node.now())
     assert "muscle 'extensor': negative absolute pressure" in diagnostics[-1].status[0].message
 
 

@@ -41,8 +41,9 @@ import numpy as np
 from rosbags.interfaces import Connection
 from rosbags.rosbag2 import Reader
 
-from ..core.engine import Engine, REPORT_INTERVAL_PER_MUSCLE
+from ..core.engine import Engine
 from ..core.flags import describe
+from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.param_file import NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
@@ -221,7 +222,7 @@ class _OfflineNode:
         self.engine = Engine(
             [s.config for s in settings],
             hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
-            report_interval=REPORT_INTERVAL_PER_MUSCLE * len(settings),
+            report_interval=REPORT_INTERVAL_PER_STATUS * len(settings),
         )
         self.joints = [s.joint_name for s in settings]
         self._inputs = MuscleInputs(

@@ -26,12 +26,6 @@ from .pairing import LENGTH, nanoseconds, Pairing, PRESSURE
 
 __all__ = ['Config', 'Counter', 'Engine', 'Level', 'Status']
 
-#: [s] Shortest time between two on-change status reports of model_node (and of its offline twin),
-#: per muscle reported: building and publishing a status of 64 muscles took about 3 ms under
-#: cProfile, so on-change reports stay a few percent of a core however many muscles flap (N = 64:
-#: at most one every 0.1 s).
-REPORT_INTERVAL_PER_MUSCLE = 0.0015
-
 
 class Counter(enum.IntEnum):
     """The counters of each muscle (columns of ``health.counts``); labels in :data:`LABELS`."""

@@ -10,7 +10,8 @@ Parameters: a joint file (``config/example_joint.yaml``, layout in
 * out, once per joint_states message, for its joints whose pressures are fresh: ``torque_estimate``
   (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate``
   (JointState: effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics``
-  (one status per joint, 1 Hz);
+  (one status per joint, named ``joint_node: <joint>``, ``hardware_id`` the joint's parameter;
+  1 Hz and when a level changes, as model_node's);
 * commands: ``torque_command`` (JointState: effort = wanted torque [N·m]) → each muscle's
   ``<muscle>/pressure_command`` (FluidPressure, absolute Pa), at the newest angle, with the joint's
   co-contraction level, or with its wanted stiffness once a ``stiffness_command`` (JointState:
@@ -31,6 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import FluidPressure, JointState
 
+from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import JOINT_PARAMETERS, joints, MUSCLE_PARAMETERS, NODE_PARAMETERS
 from ..core.node_parameters import ParameterSpec
@@ -84,7 +86,9 @@ class JointNode(Node):
                 float(flat['ambient_pressure']),
                 float(flat['max_input_age']),
                 hold=DIAGNOSTIC_PERIOD,
+                report_interval=REPORT_INTERVAL_PER_STATUS * len(found),
             )
+            self._hardware = [str(nested[j.name].get('hardware_id') or j.name) for j in found]
         self.add_on_set_parameters_callback(self._refuse_changes)
         self._ros_clock = self.get_clock().handle
         self._names = [j.name for j in found]
@@ -136,7 +140,7 @@ class JointNode(Node):
             self.create_subscription(
                 JointState, topic, partial(self._on_level, topic, apply), 10, raw=True
             )
-        self.create_timer(DIAGNOSTIC_PERIOD, self.publish_status)
+        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
 
     def _refuse_changes(self, changes: list[Parameter]) -> SetParametersResult:
         """Parameters are read at start-up: a change of a declared one is refused (a declaration,
@@ -149,43 +153,30 @@ class JointNode(Node):
             )
         return SetParametersResult(successful=True)
 
-    def now(self) -> float:
-        """The node clock (ROS time) [s], without building an rclpy Time."""
-        return self._ros_clock.get_now().nanoseconds * 1e-9
+    def now(self) -> int:
+        """The node clock (ROS time) [ns], read without building an rclpy Time."""
+        return self._ros_clock.get_now().nanoseconds
 
     def _on_pressure(self, k: int, m: int, data: bytes) -> None:
+        now = self.now()
         stamp, value = stamped_value(data, DESERIALIZE['FluidPressure'], 'fluid_pressure')
-        self.engine.pressure(k, m, value, stamp * 1e-9, self.now())
+        self.engine.pressure(k, m, value, stamp, now)
+        self._report(now)
 
     def _on_states(self, data: bytes) -> None:
         now, msg = self.now(), self._readers['joint_states'](data)
-        t = msg.stamp * 1e-9
-        names, positions = msg.names, msg.position
-        done, torques, stiffnesses = [], [], []
-        if len(positions) != len(names):
-            for k in {self.engine.index[n] for n in names if n in self.engine.index}:
-                self.engine.reject(
-                    k, f'joint_states: {len(names)} names, {len(positions)} positions', now
-                )
-            return
-        for i, (name, theta) in enumerate(zip(names, positions.tolist())):
-            k = self.engine.index.get(name)
-            if k is None:
-                continue
-            result = self.engine.angle(k, theta, t, now)
-            if result is not None:
-                done.append(name)
-                torques.append(result[0])
-                stiffnesses.append(result[1])
-        if not done:
-            return
-        every = done == self._names
-        for pub, template, values in zip(
-            (self._torque_pub, self._stiffness_pub), self._all, (torques, stiffnesses)
-        ):
-            out = template if every else joint_state(done, 'effort')
-            out.values[:] = values
-            pub.publish(out(msg.stamp))
+        done, torques, stiffnesses = self.engine.joint_states(
+            msg.names, msg.position.tolist(), msg.stamp, now
+        )
+        if done:
+            every = done == self._names
+            for pub, template, values in zip(
+                (self._torque_pub, self._stiffness_pub), self._all, (torques, stiffnesses)
+            ):
+                out = template if every else joint_state(done, 'effort')
+                out.values[:] = values
+                pub.publish(out(msg.stamp))
+        self._report(now)
 
     def _on_torque(self, data: bytes) -> None:
         now = self.now()
@@ -193,19 +184,20 @@ class JointNode(Node):
             k = self.engine.index[name]
             absolute = self.engine.command(k, torque, now)
             if absolute is not None:
-                stamp = self._ros_clock.get_now().nanoseconds
                 for pub, value, template in zip(
                     self._command_pubs[k], absolute, self._commands[k]
                 ):
                     template.values[0] = value
-                    pub.publish(template(stamp))
+                    pub.publish(template(now))
+        self._report(now)
 
     def _on_level(self, topic: str, apply, data: bytes) -> None:
         now = self.now()
         for name, value in self._entries(self._readers[topic](data), now):
             apply(self.engine.index[name], value, now)
+        self._report(now)
 
-    def _entries(self, msg: JointStateArrays, now: float) -> list[tuple[str, float]]:
+    def _entries(self, msg: JointStateArrays, now: int) -> list[tuple[str, float]]:
         """(joint, effort) of a command's entries of this node's joints; mismatched arrays are
         rejected.
         """
@@ -214,27 +206,25 @@ class JointNode(Node):
             for name in ours:
                 self.engine.reject(
                     self.engine.index[name],
+                    'command',
                     f'command: {len(msg.names)} names, {len(msg.effort)} efforts',
                     now,
                 )
             return []
         return [(n, e) for n, e in zip(msg.names, msg.effort.tolist()) if n in self.engine.index]
 
-    def publish_status(self) -> None:
+    def _report(self, now: int) -> None:
+        if self.engine.status_due(now):
+            self.publish_status(now)
+
+    def publish_status(self, now: int) -> None:
         """One DiagnosticStatus per joint in one DiagnosticArray."""
-        now = self.now()
-        entries = []
-        for k, joint in enumerate(self.engine.joints):
-            level, message, values = self.engine.status(k, now)
-            entries.append(
-                (
-                    joint.name,
-                    ' / '.join(m.spec.name for m in joint.muscles),
-                    level,
-                    message,
-                    values,
-                )
+        entries = [
+            (joint.name, hardware, status.level, status.message, status.values)
+            for joint, hardware, status in zip(
+                self.engine.joints, self._hardware, self.engine.statuses(now)
             )
+        ]
         self._diag_pub.publish(diagnostic_array(self, entries))
 
 

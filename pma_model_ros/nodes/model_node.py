@@ -32,7 +32,8 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
-from ..core.engine import Engine, REPORT_INTERVAL_PER_MUSCLE
+from ..core.engine import Engine
+from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.param_file import NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
@@ -70,7 +71,7 @@ class ModelNode(Node):
             self.engine = Engine(
                 [s.config for s in self.settings],
                 hold=DIAGNOSTIC_PERIOD,
-                report_interval=REPORT_INTERVAL_PER_MUSCLE * len(self.settings),
+                report_interval=REPORT_INTERVAL_PER_STATUS * len(self.settings),
                 **model_params.pairing(flat),
             )
         self.add_on_set_parameters_callback(self._validate)
