@@ -93,13 +93,16 @@ class Health:
         shape = (len(names[0]), count)
         self.inputs, self.labels, self.stamps = names, tuple(counters), stamps
         self.max_age, self.hold, self.report_interval = max_age, hold, report_interval
-        self._counts = np.zeros((count, len(counters)), np.int64)
-        self._counts_all = [0] * len(counters)  # counted for every entity
+        # per entity in Python lists (one entity's event costs no numpy call); every entity's as
+        # one number
+        self._counts = [[0] * len(counters) for _ in range(count)]
+        self._counts_all = [0] * len(counters)
         #: static key-values added to each entity's status (e.g. identification results)
         self.extra: list[dict[str, str]] = [{} for _ in range(count)]
-        self._arrivals = np.zeros(shape, np.int64)  # valid inputs
+        self._arrivals = [[0] * count for _ in range(shape[0])]  # valid inputs, [input][entity]
         self._arrivals_all = [0] * shape[0]
-        self._delay_min, self._delay_max = np.full(shape, np.inf), np.full(shape, -np.inf)
+        self._delay_min = [[np.inf] * count for _ in range(shape[0])]  # [s]
+        self._delay_max = [[-np.inf] * count for _ in range(shape[0])]
         self._delay_all = [[np.inf, -np.inf] for _ in range(shape[0])]  # (min, max) [s]
         self._late, self._early, self._zero = (np.zeros(shape, np.int64) for _ in range(3))
         self._rejected_at, self._reason = np.full(count, NEVER, np.int64), [''] * count
@@ -118,12 +121,15 @@ class Health:
         """Add 1 to ``counter`` of the entities ``which``."""
         if which is None:
             self._counts_all[counter] += 1
+        elif isinstance(which, int):
+            self._counts[which][counter] += 1
         else:
-            self._counts[which, counter] += 1
+            for k in np.flatnonzero(which).tolist():
+                self._counts[k][counter] += 1
 
     def counts(self, k: int) -> list[int]:
         """Entity ``k``'s counters, in the order of the labels."""
-        return [n + m for n, m in zip(self._counts[k].tolist(), self._counts_all)]
+        return [n + m for n, m in zip(self._counts[k], self._counts_all)]
 
     def arrived(self, i: int, which: Which, stamp: int, now: int) -> None:
         """Input ``i`` of the entities ``which`` was valid, stamped ``stamp`` (its owner writes
@@ -136,16 +142,14 @@ class Health:
             self._arrivals_all[i] += 1
             low_high = self._delay_all[i]
             low_high[0], low_high[1] = min(low_high[0], delay), max(low_high[1], delay)
-        elif isinstance(which, int):
-            self._arrivals[i, which] += 1
-            if delay < self._delay_min.item(i, which):
-                self._delay_min[i, which] = delay
-            if delay > self._delay_max.item(i, which):
-                self._delay_max[i, which] = delay
         else:
-            self._arrivals[i, which] += 1
-            np.minimum(self._delay_min[i], np.where(which, delay, np.inf), out=self._delay_min[i])
-            np.maximum(self._delay_max[i], np.where(which, delay, -np.inf), out=self._delay_max[i])
+            arrivals, low, high = self._arrivals[i], self._delay_min[i], self._delay_max[i]
+            for k in [which] if isinstance(which, int) else np.flatnonzero(which).tolist():
+                arrivals[k] += 1
+                if delay < low[k]:
+                    low[k] = delay
+                if delay > high[k]:
+                    high[k] = delay
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
@@ -220,7 +224,7 @@ class Health:
     def report(self, now: int, own: Callable[[int], dict[str, str]] | None = None) -> list[Status]:
         """Every entity's status; ``own(k)``: the engine's values of entity ``k``."""
         statuses = []
-        arrivals = self._arrivals + np.array(self._arrivals_all)[:, None]
+        arrivals = np.array(self._arrivals) + np.array(self._arrivals_all)[:, None]
         low = np.minimum(self._delay_min, np.array([d[0] for d in self._delay_all])[:, None])
         high = np.maximum(self._delay_max, np.array([d[1] for d in self._delay_all])[:, None])
         for k in range(len(self._reported)):
@@ -233,7 +237,10 @@ class Health:
             statuses.append(Status(level, message, values))
             self._reported[k], self._window_start[k] = level, now
         self._window_arrivals[:] = arrivals
-        self._delay_min[:], self._delay_max[:] = np.inf, -np.inf
+        for row in self._delay_min:
+            row[:] = [np.inf] * len(row)
+        for row in self._delay_max:
+            row[:] = [-np.inf] * len(row)
         self._delay_all = [[np.inf, -np.inf] for _ in self._delay_all]
         self._steady, self._last_report = False, now
         return statuses
