@@ -274,10 +274,17 @@ class _OfflineNode:
             return
         self.writer.write_raw(self._estimates[k or 0], time_ns, out)
         engine = self.engine
+        if self.rows is None:
+            self.summary.estimates += (
+                1
+                if k is not None
+                else len(self.joints)
+                if engine.every
+                else int(np.count_nonzero(engine.estimated))
+            )
+            return
         estimated = np.flatnonzero(engine.estimated).tolist()
         self.summary.estimates += len(estimated)
-        if self.rows is None:
-            return
         stamp = f'{engine.stamp // 10**9}.{engine.stamp % 10**9:09d}'
         for i in estimated:
             muscle = i if k is None else k
