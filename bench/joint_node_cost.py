@@ -22,6 +22,7 @@ import time
 
 import rclpy
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
@@ -81,8 +82,9 @@ def main() -> None:
         )
     try:
         stamp = node.get_clock().now().to_msg()
-        p = FluidPressure(fluid_pressure=AMBIENT + 400e3)
-        p.header.stamp = stamp
+        msg = FluidPressure(fluid_pressure=AMBIENT + 400e3)
+        msg.header.stamp = stamp
+        p = serialize_message(msg)  # raw subscriptions: callbacks take bytes
         for k in range(args.joints):
             node._on_pressure(k, 0, p)
             node._on_pressure(k, 1, p)
@@ -92,9 +94,10 @@ def main() -> None:
             position=[0.1 * (k % 5) for k in range(args.joints)],
             velocity=[0.0] * args.joints,
         )
-        node.now = lambda: stamp.sec + stamp.nanosec * 1e-9  # inputs stay fresh however long
+        node.now = lambda: stamp.sec * 10**9 + stamp.nanosec  # inputs stay fresh [ns]
         states.header.stamp = stamp
-        torque = JointState(name=[names[0]], effort=[1.0])
+        states = serialize_message(states)
+        torque = serialize_message(JointState(name=[names[0]], effort=[1.0]))
         rows = {
             'joint_states, all joints': best(lambda: node._on_states(states), args.repeat),
             'one pressure': best(lambda: node._on_pressure(0, 0, p), args.repeat),
@@ -102,7 +105,7 @@ def main() -> None:
                 lambda: node._on_torque(torque), args.repeat // 4
             ),
         }
-        node.engine.stiffness(0, 4.5, 0.0)
+        node.engine.stiffness(0, 4.5, node.now())
         rows['torque command, stiffness'] = best(
             lambda: node._on_torque(torque), args.repeat // 20
         )

@@ -3,23 +3,28 @@ relay, same run, same settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
+        [--code DIR]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
-stamped with the cycle's time (the stamp is the sequence number), and measures the time until
-the second answer carrying that stamp (both inputs of the cycle processed).  The responder, a
-separate process, is model_node or a relay that subscribes the same input types and publishes the
-same output type with no model.  N = 1: ``pressure``/``muscle_state`` -> ``force_estimate`` (the
-single-muscle file); N > 1: ``muscle_pressures``/``muscle_states`` -> ``force_estimates`` (combined
-mode, a homogeneous arm of DMSP-10-250).  ``--joints N``: joint_node with N copies of the example
-elbow (config/example_joint.yaml, as bench/joint_node_cost.py builds them: 2 N muscles); a cycle
-is each muscle's ``<muscle>/pressure`` (FluidPressure, absolute) then one ``joint_states`` of all N
-angles, and the round trip runs from the joint_states publish to the ``torque_estimate`` carrying
-its stamp (1 answer per cycle); its relay subscribes the same inputs (with joint_node's input QoS)
-and answers each joint_states with a JointState of N efforts on ``torque_estimate`` and
-``stiffness_estimate``, no model.  Default: muscle rows N = 1 and 64 and joint rows N = 4; naming
-only ``--muscles`` or only ``--joints`` runs only those rows.  Lost = answers expected minus
-received over the measured window; Hz = the pinger's achieved cycle rate (it publishes 2 N + 1
-messages per joint cycle).  Timings are noisy on a shared machine: read the model/relay ratios,
+stamped with the cycle's time (the stamp is the sequence number), and measures the time until the
+second answer carrying that stamp (both inputs of the cycle processed).  It publishes serialized
+bytes (the wire layer's templates, velocities empty), which both responders receive.  The
+responder, a separate process, is model_node or a relay that subscribes the same input types and
+publishes the same output type with no model.  N = 1: ``pressure``/``muscle_state`` ->
+``force_estimate`` (the single-muscle file); N > 1: ``muscle_pressures``/``muscle_states`` ->
+``force_estimates`` (combined mode, a homogeneous arm of DMSP-10-250).  ``--joints N``: joint_node
+with N copies of the example elbow (config/example_joint.yaml, as bench/joint_node_cost.py builds
+them: 2 N muscles); a cycle is each muscle's ``<muscle>/pressure`` (FluidPressure, absolute) then
+one ``joint_states`` of all N angles, and the round trip runs from the joint_states publish to the
+``torque_estimate`` carrying its stamp (1 answer per cycle); its relay subscribes the same inputs
+(with joint_node's input QoS) and answers each joint_states with a JointState of N efforts on
+``torque_estimate`` and ``stiffness_estimate``, no model.  Default: muscle rows N = 1 and 64 and
+joint rows N = 4; naming only ``--muscles`` or only ``--joints`` runs only those rows.  Lost =
+answers expected minus received over the measured window; Hz = the pinger's achieved cycle rate (it
+publishes 2 N + 1 messages per joint cycle).  Lengths (and pressures) change every cycle.  ``--code
+DIR`` runs the model's node from another checkout (PYTHONPATH and working directory DIR; e.g. a
+``git worktree`` of the commit before a change), the relay and the pinger from this one:
+before/after in one script.  Timings are noisy on a shared machine: read the model/relay ratios,
 not the absolute times.  Not a pass/fail test.
 """
 
@@ -57,6 +62,7 @@ from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
 from pma_model_ros.nodes.model_node import INPUT_QOS, ModelNode  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
 from pma_model_ros.tools import node_process  # noqa: E402
+from pma_model_ros.wire.cdr import fluid_pressure, joint_state  # noqa: E402
 
 SINGLE = REPO / 'config' / 'dmsp_10_250.yaml'
 AMBIENT = STANDARD_ATMOSPHERE  # [Pa]
@@ -204,39 +210,44 @@ class Pinger(Node):
                 JointState, f'{namespace}/force_estimates', self._on_answer, reliable
             )
         self._names = [f'j{k}' if joints else f'm{k:02d}' for k in range(muscles)]
+        if joints:
+            self._templates = (fluid_pressure(''), joint_state(self._names, 'position'))
+        elif muscles == 1:
+            self._templates = (fluid_pressure(''), joint_state(['DMSP-10-250'], 'position'))
+        else:
+            self._templates = tuple(joint_state(self._names, 'position') for _ in range(2))
 
     def _on_answer(self, msg) -> None:
         t = time.perf_counter()
         key = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         self.answers.setdefault(key, []).append(t)
 
-    def messages(self, k: int) -> tuple:
-        """Cycle ``k``'s pressure and length (or angle) messages, unstamped, in their order."""
+    def messages(self, k: int, stamp: int) -> tuple[bytes, ...]:
+        """Cycle ``k``'s pressure and length (or angle) messages stamped ``stamp`` [ns], as bytes,
+        in their order (the wire layer's templates: a pinger of 33 messages per cycle at 16 joints
+        must not be the bottleneck).
+        """
         gauge = 300e3 + 100e3 * np.sin(k * 1e-3)
+        first, second = self._templates
         if self.joints:
-            return tuple(
-                FluidPressure(fluid_pressure=AMBIENT + gauge) for _ in range(2 * self.n)
-            ) + (JointState(name=self._names, position=[ANGLE] * self.n),)
+            first.values[0], second.values[:] = AMBIENT + gauge, ANGLE
+            return (first(stamp),) * (2 * self.n) + (second(stamp),)
         if self.n == 1:
-            return (
-                FluidPressure(fluid_pressure=AMBIENT + gauge),
-                JointState(name=['DMSP-10-250'], position=[0.23], velocity=[0.0]),
-            )
-        return (
-            JointState(name=self._names, position=[AMBIENT + gauge] * self.n),
-            JointState(name=self._names, position=[0.23] * self.n, velocity=[0.0] * self.n),
-        )
+            first.values[0] = AMBIENT + gauge
+            second.values[0] = 0.23 + 0.005 * np.sin(k * 1e-3)
+        else:
+            first.values[:] = AMBIENT + gauge
+            second.values[:] = 0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * np.arange(self.n))
+        return first(stamp), second(stamp)
 
     def cycle(self, k: int) -> int:
         """Publish one cycle's messages, all with one stamp; the stamp [ns]."""
-        now = self.get_clock().now()
-        messages, stamp = self.messages(k), now.to_msg()
-        for i, (pub, msg) in enumerate(zip(self._pubs, messages)):
-            msg.header.stamp = stamp
+        stamp = self.get_clock().now().nanoseconds
+        for i, (pub, data) in enumerate(zip(self._pubs, self.messages(k, stamp))):
             if i == self._timed:
-                self.sent[now.nanoseconds] = time.perf_counter()
-            pub.publish(msg)
-        return now.nanoseconds
+                self.sent[stamp] = time.perf_counter()
+            pub.publish(data)
+        return stamp
 
 
 def publish_loop(
@@ -269,12 +280,14 @@ def measure(
     rate: float,
     namespace: str,
     joints: bool = False,
+    code: Path | None = None,
 ) -> dict:
-    """Start ``responder``, ping it, stop it; round trips [ms], loss, its CPU use and the achieved
-    cycle rate.
+    """Start ``responder`` (from checkout ``code``, if given), ping it, stop it; round trips [ms],
+    loss, its CPU use and the achieved cycle rate.
     """
+    env = None if code is None else os.environ | {'PYTHONPATH': str(code)}
     with tempfile.TemporaryFile('w+') as log:
-        proc = node_process.start(responder, log)
+        proc = node_process.start(responder, log, env, code)
         context = rclpy.Context()
         rclpy.init(context=context)
         pinger = Pinger(namespace, muscles, context, joints)
@@ -376,44 +389,38 @@ def profiled_node(name: str, out: Path, args: list[str]) -> int:
 
 
 def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float]:
-    """CPU time of model_node's callbacks per cycle (both inputs, called directly: no executor, no
-    wait) and of the engine's share of it (its two calls per cycle, without the messages) [us];
-    answers go nowhere.
+    """CPU time of model_node's callbacks per cycle (both inputs as bytes, called directly: no
+    executor, no wait) and of the engine's share of it (its two calls per cycle) [us]; answers go
+    nowhere.
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     rclpy.init(args=['--ros-args', '-r', '__ns:=/cost', '--params-file', str(params)])
     try:
         node = Pinger('/unused', muscles, rclpy.get_default_context())  # builds the input messages
         model = ModelNode()
-        first, second = node.messages(0)
-        topics = model.topics
         handlers = (
-            (partial(topics._on_pressure, 0), partial(topics._on_state, 0))
+            (partial(model._on_pressure, 0), partial(model._on_state, 0))
             if muscles == 1
-            else (topics._on_pressures, topics._on_states)
+            else (model._on_pressures, model._on_states)
         )
+        inputs = [node.messages(k, model.now()) for k in range(cycles)]
         start = time.process_time()
-        for _ in range(cycles):
-            first.header.stamp = second.header.stamp = model.get_clock().now().to_msg()
+        for first, second in inputs:
             handlers[0](first)
             handlers[1](second)
         per_cycle = (time.process_time() - start) / cycles
         engine, now = model.engine, model.now()
-        pressure, length = AMBIENT + 300e3, 0.23
-        pressures, lengths, rates = (
-            np.full(muscles, pressure),
-            np.full(muscles, length),
-            np.zeros(muscles),
-        )
+        pressures, rates = np.full(muscles, AMBIENT + 300e3), np.zeros(muscles)
+        lengths = [0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * rates) for k in range(cycles)]
         start = time.process_time()
         for k in range(cycles):
-            t = now + k * 1e-6
+            t = now + k * 1000
             if muscles == 1:
-                engine.pressure(0, pressure, t, t)
-                engine.length(0, length, 0.0, t, t)
+                engine.pressure(0, pressures.item(0), t, t)
+                engine.length(0, lengths[k].item(0), 0.0, t, t)
             else:
                 engine.pressures(pressures, t, t)
-                engine.lengths(lengths, rates, t, t)
+                engine.lengths(lengths[k], rates, t, t)
         own = (time.process_time() - start) / cycles
         model.destroy_node()
         node.destroy_node()
@@ -445,7 +452,10 @@ def print_rows(
             profile = args.profile if (joints, n, executor) == last else None
             result = {}
             for name, cmd in responders(n, executor, folder, profile, joints).items():
-                result[name] = r = measure(cmd, n, args.duration, args.rate, '/bench', joints)
+                code = args.code if name == node else None
+                result[name] = r = measure(
+                    cmd, n, args.duration, args.rate, '/bench', joints, code
+                )
                 base = result[node]
                 ratio = (
                     ''
@@ -489,6 +499,11 @@ def main() -> int:
     parser.add_argument(
         '--quick', action='store_true', help='2 s per row (what bench/run --quick passes)'
     )
+    parser.add_argument(
+        '--code',
+        type=Path,
+        help="run the model's node from this checkout (before/after); skips the callback costs",
+    )
     if '--relay' in sys.argv:
         return run('relay', Relay, [a for a in sys.argv if a != '--relay'])
     if sys.argv[1:2] and sys.argv[1].startswith('--profiled-'):
@@ -506,12 +521,12 @@ def main() -> int:
         else (False, muscles[-1], args.executor[-1])
     )
     with tempfile.TemporaryDirectory() as tmp:
-        if muscles:
+        if muscles and not args.code:
             print(
                 'model_node callbacks called directly (no executor, no DDS), CPU per cycle (both '
                 'inputs):'
             )
-        for n in muscles:
+        for n in muscles if not args.code else []:
             cycle, bank = callback_cost(n, Path(tmp))
             print(
                 f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"

@@ -2,6 +2,7 @@
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 AMBIENT = 101325.0  # [Pa], the config's ambient_pressure
@@ -10,6 +11,11 @@ JOINT = 'DMSP-10-250'  # the config's joint_name
 #: so at a few hundred messages per second a shallow queue would drop some.
 SENSOR_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
 RELIABLE_QOS = QoSProfile(depth=1000)
+
+
+def raw(msg) -> bytes:
+    """``msg`` serialized by rclpy: what a raw subscription's callback receives."""
+    return serialize_message(msg)
 
 
 def pressure(stamp, absolute: float) -> FluidPressure:
@@ -36,10 +42,11 @@ def stamp_key(msg) -> int:
 
 
 def model_statuses(diagnostics: list, namespace: str) -> list:
-    """The DiagnosticStatus entries of the model_node in ``namespace``, oldest first."""
-    return [
-        s for d in diagnostics for s in d.status if s.name.startswith(f'{namespace}/model_node')
-    ]
+    """The DiagnosticStatus entries of model_node (named ``model_node: <joint>``, as
+    diagnostic_updater names them), oldest first; ``namespace``: the test's, which its own
+    /diagnostics subscription already isolates.
+    """
+    return [s for d in diagnostics for s in d.status if s.name.startswith('model_node: ')]
 
 
 def status_values(status) -> dict[str, str]:

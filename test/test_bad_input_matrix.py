@@ -16,15 +16,20 @@ import subprocess
 from typing import Callable
 import uuid
 
+from geometry_msgs.msg import WrenchStamped
 import pytest
+from rclpy.serialization import deserialize_message, serialize_message
 from scipy.optimize import brentq
+from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
 from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
 from pma_model_ros.core.engine import Engine, Level
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.nodes.model_node import DESERIALIZE
 from pma_model_ros.tools import node_process
+from pma_model_ros.wire.muscle_inputs import MuscleInputs
 
 CONFIG = CONFIGS['DMSP-10-250']
 P = 300e3  # gauge pressure of the good inputs [Pa]
@@ -193,30 +198,46 @@ def good_force(model: MuscleModel) -> float:
 # -----------------------------------------------------------------------------------------
 
 
-def feed(est: Engine, msg: Msg, now: float) -> tuple[float, float] | None:
-    """``msg`` into ``est`` at ``now`` [s]: its output (estimate [N] or command gauge [Pa], stamp
-    [s]), or None.
+def feed(inputs: MuscleInputs, msg: Msg, now: int) -> tuple[float, int] | None:
+    """``msg``, serialized by rclpy, into the node's wire layer and engine at ``now`` [ns]: its
+    output (estimate [N] or command gauge [Pa], stamp [ns]), or None.
     """
-    stamp = 0.0 if msg.age is None else now - msg.age
+    stamp = 0 if msg.age is None else now - round(msg.age * 1e9)
     if msg.topic == 'force_command':
-        pressure = est.command(0, msg.value, now)
+        pressure = inputs.force_command(0, serialize_message(_wrench(msg.value)), now)
         return None if pressure is None else (pressure - AMBIENT, now)
     if msg.topic == 'pressure':
-        force = est.pressure(0, msg.value, stamp, now)
+        out = FluidPressure(fluid_pressure=msg.value)
+        out.header.stamp.sec, out.header.stamp.nanosec = divmod(stamp, 10**9)
+        answer = inputs.pressure(0, serialize_message(out), now)
     else:
-        force = est.joint_state(0, msg.names, msg.positions, msg.velocities, JOINT, stamp, now)
-    return None if force is None else (force, est.stamp)
+        out = JointState(
+            name=list(msg.names), position=list(msg.positions), velocity=list(msg.velocities)
+        )
+        out.header.stamp.sec, out.header.stamp.nanosec = divmod(stamp, 10**9)
+        answer = inputs.muscle_state(0, serialize_message(out), now)
+    if answer is None:
+        return None
+    got = deserialize_message(answer, WrenchStamped)
+    return got.wrench.force.x, got.header.stamp.sec * 10**9 + got.header.stamp.nanosec
+
+
+def _wrench(force: float) -> WrenchStamped:
+    out = WrenchStamped()
+    out.wrench.force.x = force
+    return out
 
 
 @pytest.mark.parametrize('row', MESSAGES)
 def test_core(row):
     msg, expect = MESSAGES[row]
     settings = node_settings(read_parameters(CONFIG))
-    est, now = Engine([settings.config], hold=1.0), 100.0
+    est, now = Engine([settings.config], hold=1.0), 100 * 10**9
+    inputs = MuscleInputs(est, [JOINT], [settings.frame_id], DESERIALIZE)
     for good in expect.context:
-        feed(est, good, now)
+        feed(inputs, good, now)
     before = est.counts(0).get(expect.counter, 0)
-    out = feed(est, msg, now)
+    out = feed(inputs, msg, now)
     level, message = est.level(0, now)
     assert level == expect.level and re.search(expect.pattern, message), message
     assert est.counts(0)[expect.counter] == before + 1, est.counts(0)

@@ -7,6 +7,8 @@ import math
 import subprocess
 import sys
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import numpy as np
 import pytest
 
@@ -30,7 +32,7 @@ from pma_model_ros.bags.bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
-from pma_model_ros.bags.estimate import estimate_bag, WrenchStampedCdr
+from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.hysteresis import branches
@@ -80,33 +82,26 @@ def eventful_bag(path, storage):
 
 
 def node_reference(bag):
-    """What model_node's callbacks make of the bag, message by message (the engine's one-muscle
-    calls).
+    """What model_node's callbacks make of the bag, message by message: the engine's calls on the
+    messages rosbags deserializes (not the wire layer).
     """
     est = Engine([SETTINGS.config], hold=1.0)
     estimates, commands = [], []
-    for topic, time_ns, msg in read(bag):
-        now, stamp = time_ns * 1e-9, msg.header.stamp
-        force = None
+    for topic, now, msg in read(bag):
+        stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        estimated = None
         if topic.endswith('/pressure'):
-            force = est.pressure(
-                0, msg.fluid_pressure, stamp.sec + stamp.nanosec * 1e-9, now, stamp
-            )
+            estimated = est.pressure(0, float(msg.fluid_pressure), stamp, now)
         elif topic.endswith('/muscle_state'):
-            force = est.joint_state(
-                0,
-                msg.name,
-                msg.position,
-                msg.velocity,
-                JOINT,
-                stamp.sec + stamp.nanosec * 1e-9,
-                now,
-                stamp,
-            )
+            if list(msg.name) == [JOINT]:
+                rate = msg.velocity[0] if len(msg.velocity) else math.nan
+                estimated = est.length(0, float(msg.position[0]), float(rate), stamp, now)
+            else:
+                est.reject(0, 'muscle_state', f"joint '{JOINT}' not in {list(msg.name)}", now)
         elif (pressure := est.command(0, msg.wrench.force.x, now)) is not None:
-            commands.append((time_ns, pressure))
-        if force is not None:
-            estimates.append((time_ns, est.tag.sec * 10**9 + est.tag.nanosec, force))
+            commands.append((now, pressure))
+        if estimated:
+            estimates.append((now, est.stamp, est.forces.item(0)))
     return estimates, commands, est.counts(0)
 
 
@@ -152,23 +147,12 @@ def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
     assert any(m.startswith('invalid input: pressure is nan') for _, _, m in levels)
     assert any("joint 'DMSP-10-250' not in ['elbow']" in m for _, _, m in levels)
     assert any(m == 'estimating' for _, level, m in levels) and levels[-1][1] < 2, levels[-1]
-    assert {m.status[0].name for _, m in out['/diagnostics']} == {f'{NS}/model_node: {JOINT}'}
+    assert {m.status[0].name for _, m in out['/diagnostics']} == {f'model_node: {JOINT}'}
     with open(tmp_path / 'est.csv') as f:
         rows = list(csv.DictReader(f))
     assert [(int(r['log_time_ns']), float(r['force_n'])) for r in rows] == [
         (t, f) for t, _, f in expected
     ]
-
-
-def test_wrench_template_serializes_like_rosbags():
-    cdr = WrenchStampedCdr('dmsp_10_250')
-    msg = TYPESTORE.deserialize_cdr(cdr(1767225600, 123456789, 321.5), WRENCH_STAMPED)
-    assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (
-        1767225600,
-        123456789,
-        'dmsp_10_250',
-    )
-    assert (msg.wrench.force.x, msg.wrench.force.y, msg.wrench.torque.z) == (321.5, 0.0, 0.0)
 
 
 def test_storage_conversion_and_cli(tmp_path):
@@ -388,4 +372,85 @@ def test_multi_muscle_parameter_file(tmp_path, mode):
         assert [got[t][n] for n in names] == pytest.approx(expected[t], rel=1e-9, abs=1e-6), t
     assert summary.counts['estimates'] == summary.estimates == 4 * (2 * len(inputs) - 1)
     statuses = [m.status for topic, _, m in read(tmp_path / 'out') if topic == '/diagnostics']
-    assert {s.name for s in statuses[-1]} == {f'{NS}/model_node: {n}' for n in names}
+    assert {s.name for s in statuses[-1]} == {f'model_node: {n}' for n in names}
+
+
+# --- random recordings: the offline estimate is the node's, message for message
+# ----------------------------------------------------------------------------------
+
+#: One recorded message: topic, log-time step [ms] (0: same time), stamp - log time [ms] (some
+#: stale, some from the future), value (pressure [kPa gauge], length [m] or force [N]; NaN, out of
+#: range), and whether a JointState names another joint.
+messages_strategy = st.lists(
+    st.tuples(
+        st.sampled_from(['pressure', 'muscle_state', 'pressure', 'muscle_state', 'force_command']),
+        st.sampled_from([0, 1, 1, 2, 5, 150, 1300]),
+        st.sampled_from([0, 0, 0, -1, -2, -120, 80]),
+        st.one_of(
+            st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.sampled_from([math.nan, -2.0, 30.0])
+        ),
+        st.sampled_from([False, False, False, False, True]),
+    ),
+    min_size=1,
+    max_size=40,
+)
+
+
+def random_bag(path, storage, steps):
+    """A recording of the steps (DMSP-10-250 values from unit draws), with its log times."""
+    Vector3, Wrench = T['geometry_msgs/msg/Vector3'], T['geometry_msgs/msg/Wrench']
+    with BagWriter(path, storage) as bag:
+        conns = {
+            'pressure': bag.topic(f'{NS}/pressure', FLUID_PRESSURE, [SENSOR_DATA]),
+            'muscle_state': bag.topic(f'{NS}/muscle_state', JOINT_STATE, [SENSOR_DATA]),
+            'force_command': bag.topic(f'{NS}/force_command', WRENCH_STAMPED),
+        }
+        t = START_NS
+        for topic, step, offset, unit, other in steps:
+            t += step * 10**6
+            stamp = t + offset * 10**6
+            if topic == 'pressure':
+                value = 101325.0 + 9e5 * unit - 1e5 if 0 <= unit <= 1 else unit * 1e5
+                msg = T[FLUID_PRESSURE](header(stamp), value, 0.0)
+            elif topic == 'muscle_state':
+                length = 0.19 + 0.07 * unit if 0 <= unit <= 1 else unit
+                rates = np.array([0.01 * (unit - 0.5)]) if unit == unit else np.array([])
+                msg = T[JOINT_STATE](
+                    header(stamp),
+                    ['elbow' if other else JOINT],
+                    np.array([length]),
+                    rates,
+                    np.array([]),
+                )
+            else:
+                force = 300 * unit if unit == unit else math.nan
+                msg = T[WRENCH_STAMPED](
+                    header(stamp), Wrench(Vector3(force, 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
+                )
+            bag.write(conns[topic], t, msg)
+    return path
+
+
+@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@given(steps=messages_strategy)
+def test_random_recordings_estimate_as_the_node_message_by_message(tmp_path_factory, steps):
+    """Random interleavings of pressure, muscle_state and force_command, with gaps (up to 1.3 s:
+    the 1 Hz status between), stale and future stamps and bad messages (NaN, out of range, another
+    joint): every force estimate and pressure command of ``bag estimate --outputs-only`` is the
+    one the engine gives the rosbags-deserialized messages in log order, and the counters agree.
+    """
+    tmp = tmp_path_factory.mktemp('bag')
+    bag = random_bag(tmp / 'in', 'sqlite3', steps)
+    summary = estimate_bag(bag, SETTINGS, tmp / 'out', progress=False, outputs_only=True)
+    expected, commands, counts = node_reference(bag)
+    got = {'estimates': [], 'commands': []}
+    for topic, time_ns, msg in read(tmp / 'out'):
+        if topic.endswith('force_estimate'):
+            stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            got['estimates'].append((time_ns, stamp, msg.wrench.force.x))
+        elif topic.endswith('pressure_command'):
+            got['commands'].append((time_ns, msg.fluid_pressure))
+        else:
+            assert topic == '/diagnostics', topic  # outputs only: no copied inputs
+    assert got == {'estimates': expected, 'commands': commands}
+    assert summary.counts == counts

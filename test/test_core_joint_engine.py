@@ -82,10 +82,43 @@ def stiffness_of(torque, theta, p0, p1, h=1e-5):
     return -(torque(theta + h, p0, p1) - torque(theta - h, p0, p1)) / (2 * h)
 
 
+def ns(seconds: float) -> int:
+    """A time [s] in the engine's integer nanoseconds."""
+    return round(seconds * 1e9)
+
+
+class InSeconds:
+    """A JointEngine whose times the tests write in seconds (it takes integer ns); ``status`` is
+    one joint's (level, message, values) of a report at ``now``.
+    """
+
+    def __init__(self, engine: JointEngine) -> None:
+        self.engine, self.index, self.state = engine, engine.index, engine.state
+
+    def angle(self, k, theta, stamp, now):
+        return self.engine.angle(k, theta, ns(stamp), ns(now))
+
+    def pressure(self, k, muscle, absolute, stamp, now):
+        return self.engine.pressure(k, muscle, absolute, ns(stamp), ns(now))
+
+    def command(self, k, torque, now):
+        return self.engine.command(k, torque, ns(now))
+
+    def stiffness(self, k, value, now):
+        return self.engine.stiffness(k, value, ns(now))
+
+    def cocontraction(self, k, value, now):
+        return self.engine.cocontraction(k, value, ns(now))
+
+    def status(self, k, now):
+        status = self.engine.statuses(ns(now))[k]
+        return status.level, status.message, status.values
+
+
 def engine(*joints, settings=None, hold=1.0):
     joints = joints or (ELBOW,)
     settings = settings or [Settings(300e3, 'min')] * len(joints)
-    return JointEngine(joints, settings, AMBIENT, AGE, hold)
+    return InSeconds(JointEngine(joints, settings, AMBIENT, AGE, hold))
 
 
 def feed(e, k, p0, p1, t=0.0):
@@ -117,12 +150,20 @@ def test_three_joints_estimate_r_times_the_force_difference():
         tau, stiffness = e.angle(k, theta, 10.01, 10.02)
         assert tau == pytest.approx(torque(theta, *pair), rel=1e-9)
         assert stiffness == pytest.approx(stiffness_of(torque, theta, *pair), rel=1e-6)
-        assert e.status(k, 10.02)[:2] == (Level.OK, 'OK')
+        assert e.status(k, 10.02)[:2] == (Level.OK, 'estimating')
     # the README's rounded numbers of the worked example
     assert (round(e.state[0].torque, 3), round(e.state[0].stiffness_estimate, 2)) == (-0.692, 3.84)
     # counts of joint 1 alone: its two pressures, one angle, one estimate
     values = e.status(1, 10.02)[2]
-    assert (values['pressures'], values['joint_states'], values['estimates']) == ('2', '1', '1')
+    assert (
+        values['received pressure'],
+        values['received joint_states'],
+        values['estimates'],
+    ) == ('2', '1', '1')
+    assert (
+        values['wrist_flexor pressure: Events since startup'],
+        values['joint_states: Events since startup'],
+    ) == ('1', '1')
     assert values['commands'] == 'co-contraction sum 600000 Pa'
 
 
@@ -151,9 +192,10 @@ def test_before_any_motion_the_branches_are_unknown_and_served_as_their_mean():
     single = Engine([Config(SAROSI, AMBIENT, 10.0)] * 2)
     served = []
     for m, (p, length) in enumerate(((600e3, 0.0855), (500e3, 0.0895))):
-        single.pressure(m, AMBIENT + p, 0.0, 0.0)
-        served.append(single.length(m, length, None, 0.0, 0.0))
-        assert single.flags & Flag.BRANCH_UNKNOWN
+        single.pressure(m, AMBIENT + p, 0, 0)
+        assert single.length(m, length, math.nan, 0, 0)
+        served.append(single.forces.item(0))
+        assert single.flags.item(0) & Flag.BRANCH_UNKNOWN
     assert tau == pytest.approx(0.01 * (served[0] - served[1]), rel=1e-12)
     level, message, values = e.status(0, 0.0)
     assert (level, message) == (Level.WARN, 'hysteresis branch unknown (BRANCH_UNKNOWN)')
@@ -190,7 +232,10 @@ def test_angle_noise_keeps_the_branches_of_the_last_motion():
     assert e.state[0].stiffness_estimate == pytest.approx(
         stiffness_of(held, theta, 600e3, 500e3), rel=1e-6
     )
-    assert e.status(0, 1.5)[:2] == (Level.OK, 'OK')  # no BRANCH_UNKNOWN since the 0 s warning
+    assert e.status(0, 1.5)[:2] == (
+        Level.OK,
+        'estimating',
+    )  # no BRANCH_UNKNOWN since the 0 s warning
 
 
 def test_a_reversal_beyond_the_deadband_sends_the_muscles_to_opposite_branches():
@@ -287,12 +332,16 @@ def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_
     slope = (force(HILDEBRANDT, 500e3, 0.213 + h) - force(HILDEBRANDT, 500e3, 0.213 - h)) / (2 * h)
     assert stiffness == pytest.approx(0.03**2 * slope, rel=1e-6)
     assert e.status(0, 0.0)[:2] == (Level.WARN, 'outside validity domain (LENGTH_OUT_OF_RANGE)')
-    feed(e, 0, 500e3, 200e3, t=0.5)
-    assert e.angle(0, 0.0, 0.5, 0.5) is not None  # inside again: 0.234 m both
-    assert e.status(0, 0.5)[0] == Level.WARN  # 0.5 s after the flag, within the 1 s hold
-    assert e.status(0, 1.0)[0] == Level.WARN  # exactly 1 s after: still held (<=)
-    assert e.status(0, 1.5)[:2] == (Level.OK, 'OK')
-    assert e.status(0, 1.5)[2]['last warning flags'] == 'LENGTH_OUT_OF_RANGE'
+
+    def inside(t):  # fresh inputs at t, the joint at 0 rad: 0.234 m both, no flag
+        feed(e, 0, 500e3, 200e3, t)
+        assert e.angle(0, 0.0, t, t) is not None
+        return e.status(0, t)
+
+    assert inside(0.5)[0] == Level.WARN  # 0.5 s after the flag, within the 1 s hold
+    assert inside(0.999)[0] == Level.WARN  # just within the 1 s hold
+    assert inside(1.0)[:2] == (Level.OK, 'estimating')  # held for 1 s: model_node's rule
+    assert inside(1.5)[2]['last warning flags'] == 'LENGTH_OUT_OF_RANGE'
 
 
 @pytest.mark.parametrize(
@@ -333,7 +382,7 @@ def test_pressure_flags_follow_the_readme_rule(muscle, gauge, served, flags):
 def test_only_fresh_pressures_give_an_estimate():
     e = engine()
     assert e.angle(0, 0.0, 0.0, 0.0) is None  # no pressure yet
-    assert e.status(0, 0.0)[:2] == (Level.ERROR, 'no estimate yet: pressures missing or stale')
+    assert e.status(0, 0.0)[:2] == (Level.ERROR, 'no flexor pressure received yet')
     e.pressure(0, 0, AMBIENT + 300e3, 0.0, 0.0)
     assert e.angle(0, 0.0, 0.0, 0.0) is None  # the extensor's still missing
     e.pressure(0, 1, AMBIENT + 300e3, 0.125, 0.125)  # stamped 0.125 s after the flexor's
@@ -341,11 +390,15 @@ def test_only_fresh_pressures_give_an_estimate():
     assert e.angle(0, 0.0, 0.125, 0.25) is None  # the angle and flexor now 0.125/0.25 s old
     assert e.angle(0, 0.0, 0.25, 0.25) is None  # the flexor 0.25 s old
     assert e.angle(0, 0.0, 0.0625, 0.0625) is not None  # a stamp ahead by 0.0625 s: fresh
-    counts = e.status(0, 0.25)[2]
-    assert (counts['joint_states'], counts['stale skipped'], counts['estimates']) == (
+    level, message, counts = e.status(0, 0.25)
+    assert (counts['received joint_states'], counts['stale skipped'], counts['estimates']) == (
         '6',
         '4',
         '2',
+    )
+    assert (level, message) == (
+        Level.ERROR,
+        'stale flexor pressure: newest stamp is 0.25 s old (max_input_age 0.125 s)',
     )
 
 
@@ -375,7 +428,7 @@ def test_a_torque_command_round_trips_through_the_hand_torque():
     assert p0 == pytest.approx(400e3, abs=1e-6) and elbow_torque(0.2, p0, p1) == pytest.approx(
         -1.0, abs=1e-8
     )
-    assert e.status(0, 0.0)[:2] == (Level.OK, 'OK')
+    assert e.status(0, 0.0)[:2] == (Level.OK, 'estimating')
     assert e.status(0, 0.0)[2]['pressure commands'] == '3'  # the elbow's three
 
 
@@ -406,45 +459,64 @@ def _nan_angle(e):
 
 
 @pytest.mark.parametrize(
-    'act, problem',
+    'act, problem, source',
     [
-        (_nan_angle, 'angle is nan rad'),
+        (_nan_angle, 'angle is nan rad', 'rejected joint_states'),
         # 9 rad: the extensor would be 0.234 + 0.015·9 = 0.369 m, longer than L0/cos Θ0 = 0.2847 m
         (
             lambda e: e.angle(0, 9.0, 0.0, 0.0),
             "angle 9 rad puts muscle 'extensor' at 0.369 m, outside its geometry (0, 0.2847) m",
+            'rejected joint_states',
         ),
-        (lambda e: e.pressure(0, 0, math.nan, 0.0, 0.0), "muscle 'flexor': pressure is nan Pa"),
+        (
+            lambda e: e.pressure(0, 0, math.nan, 0.0, 0.0),
+            "muscle 'flexor': pressure is nan Pa",
+            'rejected pressure',
+        ),
         (
             lambda e: e.pressure(0, 1, -3.0, 0.0, 0.0),
             "muscle 'extensor': negative absolute pressure -3 Pa",
+            'rejected pressure',
         ),
-        (lambda e: e.command(0, math.inf, 0.0), 'torque command is inf N·m'),
-        (lambda e: e.stiffness(0, -1.0, 0.0), 'stiffness -1 N·m/rad is not >= 0'),
+        (
+            lambda e: e.command(0, math.inf, 0.0),
+            'torque command is inf N·m',
+            'rejected command',
+        ),
+        (
+            lambda e: e.stiffness(0, -1.0, 0.0),
+            'stiffness -1 N·m/rad is not >= 0',
+            'rejected command',
+        ),
         (
             lambda e: e.cocontraction(0, math.nan, 0.0),
             'co-contraction nan Pa is no gauge pressure >= 0',
+            'rejected command',
         ),
     ],
 )
-def test_a_bad_input_is_rejected_and_changes_nothing(act, problem):
+def test_a_bad_input_is_rejected_and_changes_nothing(act, problem, source):
     e = engine()
     feed(e, 0, 400e3, 300e3)
     before = e.angle(0, 0.5, 0.0, 0.0)
     before_command = e.command(0, 1.0, 0.0)
     assert act(e) is None
     level, message, values = e.status(0, 0.0)
-    assert (level, message, values['rejected']) == (Level.ERROR, problem, '1')
+    rejected = [key for key in values if key.startswith('rejected')]
+    assert (level, message, rejected) == (Level.ERROR, f'invalid input: {problem}', [source])
+    assert values[source] == '1'
     # the newest inputs are untouched: the same estimate and command as before
     assert e.angle(0, 0.5, 0.0, 0.0) == before and e.command(0, 1.0, 0.0) == before_command
     assert before == pytest.approx(
         (elbow_torque(0.5, 400e3, 300e3), stiffness_of(elbow_torque, 0.5, 400e3, 300e3)), rel=1e-6
     )
-    assert e.status(0, 1.0)[0] == Level.ERROR  # held for 1 s
-    assert e.status(0, 1.5)[:2] == (Level.OK, 'OK')
+    for t, level in ((0.999, Level.ERROR), (1.0, Level.OK)):  # held for 1 s, inputs fresh
+        feed(e, 0, 400e3, 300e3, t)
+        e.angle(0, 0.5, t, t)
+        assert e.status(0, t)[0] == level
 
 
 def test_a_command_before_any_angle_is_rejected():
     e = engine()
     assert e.command(0, 1.0, 0.0) is None
-    assert e.status(0, 0.0)[1] == 'torque command before any angle (joint_states)'
+    assert e.status(0, 0.0)[1] == 'invalid input: torque command before any angle (joint_states)'

@@ -19,7 +19,7 @@ def test_one_status_per_entry_named_after_the_node_with_its_level_and_values(ros
     before = ros.node.get_clock().now()
     msg = diagnostic_array(ros.node, entries)
     after = ros.node.get_clock().now()
-    full = ros.node.get_fully_qualified_name()
+    full = ros.node.get_name()
     assert [s.name for s in msg.status] == [f'{full}: elbow', f'{full}: wrist']
     assert [s.hardware_id for s in msg.status] == ['DMSP-10-250', 'DMSP-20-300']
     # the level is one byte with the standard values (OK = 0, ERROR = 2)

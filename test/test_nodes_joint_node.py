@@ -17,7 +17,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
 from conftest import REPO
-from node_messages import AMBIENT
+from node_messages import AMBIENT, raw
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
@@ -78,12 +78,12 @@ def command(**efforts):
 def test_estimate_is_the_worked_example(make_node):
     node = make_node()
     torques, stiffnesses = record(node._torque_pub), record(node._stiffness_pub)
-    node._on_states(joint_state(node, 0.5))
+    node._on_states(raw(joint_state(node, 0.5)))
     assert torques == []  # no pressures yet
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 400e3))  # flexor
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))  # extensor
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 400e3)))  # flexor
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))  # extensor
     state = joint_state(node, 0.5)
-    node._on_states(state)
+    node._on_states(raw(state))
     expected = ELBOW.forward(0.5, 400e3, 300e3)
     assert torques[-1].name == ['elbow'] and torques[-1].header.stamp == state.header.stamp
     assert torques[-1].effort[0] == pytest.approx(float(expected.torque), rel=1e-9)
@@ -98,20 +98,51 @@ def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
     torques, diagnostics = record(node._torque_pub), record(node._diag_pub)
     old = pressure(node, AMBIENT + 400e3)
     old.header.stamp.sec -= 5
-    node._on_pressure(0, 0, old)
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
-    node._on_states(joint_state(node, 0.0))
+    node._on_pressure(0, 0, raw(old))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_states(raw(joint_state(node, 0.0)))
     assert torques == []
-    node.publish_status()
+    node.publish_status(node.now())
     status = diagnostics[-1].status[0]
-    assert status.level == b'\x02' and 'no estimate yet' in status.message
+    assert (status.level, status.name, status.hardware_id) == (
+        b'\x02',
+        'joint_node: elbow',
+        'elbow',
+    )
+    assert status.message.startswith('stale flexor pressure: newest stamp is 5 s old')
+
+
+def test_diagnostics_on_change_as_model_node_with_the_hardware_id(make_node):
+    """The statuses are model_node's (texts, counters, input rates), published when a level
+    changes, not only at 1 Hz; ``hardware_id`` is the joint's parameter.
+    """
+    node = make_node(**{'elbow.hardware_id': 'left arm, elbow valves'})
+    node.engine.health.report_interval = 0  # every change at once
+    diagnostics = record(node._diag_pub)
+    node._on_states(raw(joint_state(node, 0.0)))
+    assert [d.status[0].message for d in diagnostics] == ['no flexor pressure received yet']
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
+    assert [d.status[0].message for d in diagnostics[1:]] == ['estimating']  # all inputs fresh
+    node._on_states(raw(joint_state(node, 0.0)))
+    assert len(diagnostics) == 2  # no change
+    node.publish_status(node.now())  # the 1 Hz timer's report
+    status = diagnostics[-1].status[0]
+    values = {kv.key: kv.value for kv in status.values}
+    assert (status.level, status.message, status.hardware_id) == (
+        b'\x00',
+        'estimating',
+        'left arm, elbow valves',
+    )
+    assert (values['received joint_states'], values['estimates']) == ('2', '1')
+    assert values['joint_states: Events since startup'] == '2'
 
 
 def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_node):
     node = make_node()
     flexor, extensor = (record(p) for p in node._command_pubs[0])
-    node._on_states(joint_state(node, -0.3))
-    node._on_torque(command(elbow=2.5))
+    node._on_states(raw(joint_state(node, -0.3)))
+    node._on_torque(raw(command(elbow=2.5)))
     expected = ELBOW.pressures_one(-0.3, 2.5, 300e3, 'min')  # the file's co-contraction
     assert flexor[-1].fluid_pressure == pytest.approx(expected.pressures[0] + AMBIENT, rel=1e-12)
     assert extensor[-1].fluid_pressure == pytest.approx(300e3 + AMBIENT, rel=1e-12)
@@ -123,30 +154,30 @@ def test_torque_command_publishes_absolute_pressures_at_the_newest_angle(make_no
 def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
     node = make_node()
     flexor, extensor = (record(p) for p in node._command_pubs[0])
-    node._on_states(joint_state(node, 0.2))
-    node._on_level(node.engine.stiffness, command(elbow=4.5))
-    node._on_torque(command(elbow=1.0))
+    node._on_states(raw(joint_state(node, 0.2)))
+    node._on_level('stiffness_command', node.engine.stiffness, raw(command(elbow=4.5)))
+    node._on_torque(raw(command(elbow=1.0)))
     got = ELBOW.forward(
         0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT
     )
     assert (float(got.torque), float(got.stiffness)) == pytest.approx((1.0, 4.5), rel=1e-9)
-    node._on_level(node.engine.cocontraction, command(elbow=400e3))
-    node._on_torque(command(elbow=-1.0))
+    node._on_level('cocontraction_command', node.engine.cocontraction, raw(command(elbow=400e3)))
+    node._on_torque(raw(command(elbow=-1.0)))
     assert flexor[-1].fluid_pressure == pytest.approx(400e3 + AMBIENT, rel=1e-12)
 
 
 def test_out_of_reach_command_saturates_and_warns(make_node):
     node = make_node()
     flexor, diagnostics = record(node._command_pubs[0][0]), record(node._diag_pub)
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 300e3))
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 300e3))
-    node._on_states(joint_state(node, 0.0))
-    node.publish_status()
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 300e3)))
+    node._on_states(raw(joint_state(node, 0.0)))
+    node.publish_status(node.now())
     assert diagnostics[-1].status[0].level == b'\x00'
-    node._on_torque(command(elbow=100.0))
+    node._on_torque(raw(command(elbow=100.0)))
     top = 650e3  # the map's top (hildebrandt: no extrapolation)
     assert flexor[-1].fluid_pressure == pytest.approx(top + AMBIENT)
-    node.publish_status()
+    node.publish_status(node.now())
     status = diagnostics[-1].status[0]
     assert status.level == b'\x01' and 'SATURATED' in status.message
 
@@ -162,8 +193,8 @@ def test_out_of_reach_command_saturates_and_warns(make_node):
 def test_bad_joint_states_are_errors(make_node, message, problem):
     node = make_node()
     diagnostics = record(node._diag_pub)
-    node._on_states(message)
-    node.publish_status()
+    node._on_states(raw(message))
+    node.publish_status(node.now())
     status = diagnostics[-1].status[0]
     assert status.level == b'\x02' and problem in status.message
 
@@ -171,11 +202,11 @@ def test_bad_joint_states_are_errors(make_node, message, problem):
 def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
     node = make_node()
     diagnostics = record(node._diag_pub)
-    node._on_torque(command(elbow=1.0))
-    node.publish_status()
+    node._on_torque(raw(command(elbow=1.0)))
+    node.publish_status(node.now())
     assert 'before any angle' in diagnostics[-1].status[0].message
-    node._on_pressure(0, 1, pressure(node, -3.0))
-    node.publish_status()
+    node._on_pressure(0, 1, raw(pressure(node, -3.0)))
+    node.publish_status(node.now())
     assert "muscle 'extensor': negative absolute pressure" in diagnostics[-1].status[0].message
 
 
@@ -214,7 +245,7 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
     pressures = [(100e3 * (k + 2), 100e3 * (5 - k)) for k in range(4)]
     for k, pair in enumerate(pressures):
         for m in (0, 1):
-            node._on_pressure(k, m, pressure(node, AMBIENT + pair[m]))
+            node._on_pressure(k, m, raw(pressure(node, AMBIENT + pair[m])))
     angles = [-0.6, -0.2, 0.2, 0.6]
     msg = JointState(
         name=['j3', 'j0', 'j2', 'j1'],
@@ -222,14 +253,14 @@ def test_four_joints_answer_one_joint_states_with_one_message_each(make_node, tm
         velocity=[0.0] * 4,
     )
     msg.header.stamp = node.get_clock().now().to_msg()
-    node._on_states(msg)
+    node._on_states(raw(msg))
     assert len(torques) == 1 and torques[0].name == msg.name  # in the order of joint_states
     for k in range(4):
         expected, i = ELBOW.forward(angles[k], *pressures[k]), msg.name.index(f'j{k}')
         assert torques[0].effort[i] == pytest.approx(float(expected.torque), rel=1e-9)
         assert stiffnesses[0].effort[i] == pytest.approx(float(expected.stiffness), rel=1e-9)
     msg.name, msg.position = ['j0', 'j1', 'j2', 'j3'], angles  # the node's order: prebuilt
-    node._on_states(msg)
+    node._on_states(raw(msg))
     assert torques[1].name == msg.name and torques[1].effort == pytest.approx(
         [float(ELBOW.forward(angles[k], *pressures[k]).torque) for k in range(4)], rel=1e-9
     )
@@ -262,12 +293,12 @@ def test_hysteresis_branches_follow_the_muscle_lengths_not_the_velocity(make_nod
     node = make_node(params_file=path, config_dir=str(tmp_path))
     assert node.engine.joints[0].follows == (Follow('length', 0.001),) * 2
     torques = record(node._torque_pub)
-    node._on_pressure(0, 0, pressure(node, AMBIENT + 600e3))
-    node._on_pressure(0, 1, pressure(node, AMBIENT + 500e3))
-    node._on_states(joint_state(node, 0.0, 'finger'))
+    node._on_pressure(0, 0, raw(pressure(node, AMBIENT + 600e3)))
+    node._on_pressure(0, 1, raw(pressure(node, AMBIENT + 500e3)))
+    node._on_states(raw(joint_state(node, 0.0, 'finger')))
     angles = [0.2] + [0.2 + 0.004 * (-1) ** k for k in range(20)]
     for k, theta in enumerate(angles):
-        node._on_states(joint_state(node, theta, 'finger', velocity=(-1) ** k * 0.5))
+        node._on_states(raw(joint_state(node, theta, 'finger', velocity=(-1) ** k * 0.5)))
     sarosi = muscle_model(single)
     expected = [
         0.01
@@ -341,11 +372,11 @@ def test_gauge_pressure_reference_reads_and_commands_gauge_pressures(make_node):
     for reference, offset in (('absolute', AMBIENT), ('gauge', 0.0)):
         node = make_node(pressure_reference=reference)
         torques, flexor = record(node._torque_pub), record(node._command_pubs[0][0])
-        node._on_pressure(0, 0, pressure(node, offset + 400e3))
-        node._on_pressure(0, 1, pressure(node, offset + 300e3))
-        node._on_states(joint_state(node, 0.5))
+        node._on_pressure(0, 0, raw(pressure(node, offset + 400e3)))
+        node._on_pressure(0, 1, raw(pressure(node, offset + 300e3)))
+        node._on_states(raw(joint_state(node, 0.5)))
         assert torques[-1].effort[0] == pytest.approx(-0.691819, abs=5e-6)  # README, by hand
-        node._on_torque(command(elbow=1.0))
+        node._on_torque(raw(command(elbow=1.0)))
         commanded[reference] = flexor[-1].fluid_pressure
     assert commanded['gauge'] == pytest.approx(574986, abs=1)  # README: flexor 574986 Pa gauge
     assert commanded['absolute'] - commanded['gauge'] == pytest.approx(AMBIENT, rel=1e-12)
@@ -355,7 +386,7 @@ def test_identification_results_are_values_of_the_joint_status(make_node):
     """Each muscle's results of its model (the example: hildebrandt of config/dmsp_10_250.yaml)."""
     node = make_node()
     diagnostics = record(node._diag_pub)
-    node.publish_status()
+    node.publish_status(node.now())
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     err = read_parameters(REPO / 'config' / 'dmsp_10_250.yaml')['models']['hildebrandt']['err']
     for muscle in ('flexor', 'extensor'):

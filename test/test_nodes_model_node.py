@@ -10,6 +10,7 @@ import math
 import subprocess
 import sys
 
+from builtin_interfaces.msg import Time
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
@@ -17,7 +18,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from conftest import CONFIGS, REPO
-from node_messages import AMBIENT, force_command, JOINT, pressure, state
+from node_messages import AMBIENT, force_command, JOINT, pressure, raw, state
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
 
@@ -48,6 +49,17 @@ def make_node():
         rclpy.shutdown(context=context)
 
 
+def frozen_clock(node, back: float = 0.0):
+    """Stop the node's clock (its callbacks read ``node.now()``) at its current time, so that the
+    test's stamps stay fresh however slowly a loaded machine runs it; that time less ``back`` [s],
+    as a stamp.
+    """
+    t = node.now()
+    node.now = lambda: t
+    t -= round(back * 1e9)
+    return Time(sec=t // 10**9, nanosec=t % 10**9)
+
+
 def record(publisher) -> list:
     """What ``publisher`` publishes from now on, as messages (the node publishes some
     serialized).
@@ -63,13 +75,12 @@ def record(publisher) -> list:
 
 def test_one_muscle_answers_each_input_with_the_newest_pair(make_node):
     node = make_node(CONFIGS['DMSP-10-250'])
-    topics = node.topics
-    estimates = record(topics._estimate_pubs[0])
-    first, second = node.get_clock().now().to_msg(), node.get_clock().now().to_msg()
-    topics._on_pressure(0, pressure(first, AMBIENT + 300e3))
+    estimates = record(node._estimate_pubs[0])
+    first, second = frozen_clock(node, 0.001), frozen_clock(node)
+    node._on_pressure(0, raw(pressure(first, AMBIENT + 300e3)))
     assert estimates == []  # no length yet
-    topics._on_state(0, state(second, 0.23, 0.0))
-    topics._on_pressure(0, pressure(second, AMBIENT + 500e3))
+    node._on_state(0, raw(state(second, 0.23, 0.0)))
+    node._on_pressure(0, raw(pressure(second, AMBIENT + 500e3)))
     assert [m.wrench.force.x for m in estimates] == pytest.approx(
         [float(MARTENS.force(300e3, 0.23).force), float(MARTENS.force(500e3, 0.23).force)],
         rel=1e-9,
@@ -81,21 +92,20 @@ def test_one_muscle_answers_each_input_with_the_newest_pair(make_node):
 def test_one_muscle_command_and_diagnostics_on_change(make_node):
     node = make_node(CONFIGS['DMSP-10-250'])
     # every change at once (the callbacks run within the 1.5 ms limit)
-    node.engine.report_interval = 0.0
-    topics = node.topics
-    commands, diagnostics = record(topics._command_pubs[0]), record(node._diag_pub)
-    now = node.get_clock().now().to_msg()
-    topics._on_state(0, state(now, 0.23, 0.0))
+    node.engine.health.report_interval = 0
+    commands, diagnostics = record(node._command_pubs[0]), record(node._diag_pub)
+    now = frozen_clock(node)
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
     assert [d.status[0].message for d in diagnostics] == [
         'no pressure received yet'
     ]  # first report: a change
-    topics._on_command(0, force_command(100.0))
+    node._on_command(0, raw(force_command(100.0)))
     gauge = commands[0].fluid_pressure - AMBIENT
     assert float(MARTENS.force(gauge, 0.23).force) == pytest.approx(100.0, abs=1e-6)
-    topics._on_pressure(0, pressure(now, AMBIENT + 300e3))
+    node._on_pressure(0, raw(pressure(now, AMBIENT + 300e3)))
     assert diagnostics[-1].status[0].message == 'estimating' and len(diagnostics) == 2
-    topics._on_state(
-        0, state(now, 0.23, 0.0, name='elbow')
+    node._on_state(
+        0, raw(state(now, 0.23, 0.0, name='elbow'))
     )  # not this muscle's joint: rejected, ERROR at once
     assert (
         diagnostics[-1].status[0].message == "invalid input: joint 'DMSP-10-250' not in ['elbow']"
@@ -107,15 +117,14 @@ def test_gauge_sensor_readings_and_commands(make_node):
     in gauge.
     """
     node = make_node(CONFIGS['DMSP-10-250'], pressure_reference='gauge')
-    topics = node.topics
-    estimates, commands = record(topics._estimate_pubs[0]), record(topics._command_pubs[0])
-    now = node.get_clock().now().to_msg()
-    topics._on_state(0, state(now, 0.25, 0.0))
-    topics._on_pressure(0, pressure(now, 300e3))
+    estimates, commands = record(node._estimate_pubs[0]), record(node._command_pubs[0])
+    now = frozen_clock(node)
+    node._on_state(0, raw(state(now, 0.25, 0.0)))
+    node._on_pressure(0, raw(pressure(now, 300e3)))
     assert estimates[-1].wrench.force.x == pytest.approx(
         float(MARTENS.force(300e3, 0.25).force), rel=1e-9
     )
-    topics._on_command(0, force_command(100.0))
+    node._on_command(0, raw(force_command(100.0)))
     assert float(MARTENS.force(commands[0].fluid_pressure, 0.25).force) == pytest.approx(
         100.0, abs=1e-6
     )
@@ -151,22 +160,30 @@ def joint_states(stamp, names, values, rates=()):
 
 def test_combined_mode_one_vector_call_per_message(make_node):
     node = make_node(EXAMPLE)
-    topics = node.topics
-    estimates = record(topics._states_pub)
-    stamp = node.get_clock().now().to_msg()
+    estimates = record(node._estimate_pubs[0])
+    stamp = frozen_clock(node)
     order = list(reversed(INPUTS))  # states in another order than the pressures
-    topics._on_states(
-        joint_states(stamp, order, [INPUTS[n][2] for n in order], [INPUTS[n][3] for n in order])
+    node._on_states(
+        raw(
+            joint_states(
+                stamp, order, [INPUTS[n][2] for n in order], [INPUTS[n][3] for n in order]
+            )
+        )
     )
     assert estimates == []
-    topics._on_pressures(joint_states(stamp, INPUTS, [AMBIENT + v[1] for v in INPUTS.values()]))
+    node._on_pressures(raw(joint_states(stamp, INPUTS, [AMBIENT + v[1] for v in INPUTS.values()])))
     expected = expected_forces(INPUTS)
     assert list(estimates[-1].name) == list(INPUTS) and estimates[-1].header.stamp == stamp
     assert list(estimates[-1].effort) == pytest.approx([expected[n] for n in INPUTS], rel=1e-9)
     # a states message without the finger: the others answered, the finger rejected
-    topics._on_states(
-        joint_states(
-            stamp, order[1:], [INPUTS[n][2] for n in order[1:]], [INPUTS[n][3] for n in order[1:]]
+    node._on_states(
+        raw(
+            joint_states(
+                stamp,
+                order[1:],
+                [INPUTS[n][2] for n in order[1:]],
+                [INPUTS[n][3] for n in order[1:]],
+            )
         )
     )
     assert list(estimates[-1].name) == ['biceps', 'triceps', 'wrist_flexor']
@@ -177,12 +194,11 @@ def test_combined_mode_one_vector_call_per_message(make_node):
 
 def test_approximate_time_pairing_answers_once_per_tick(make_node):
     node = make_node(CONFIGS['DMSP-10-250'], pairing='approximate_time')
-    topics = node.topics
-    estimates = record(topics._estimate_pubs[0])
+    estimates = record(node._estimate_pubs[0])
     for _ in range(3):
-        tick = node.get_clock().now().to_msg()
-        topics._on_state(0, state(tick, 0.23, 0.0))
-        topics._on_pressure(0, pressure(tick, AMBIENT + 300e3))
+        tick = frozen_clock(node)
+        node._on_state(0, raw(state(tick, 0.23, 0.0)))
+        node._on_pressure(0, raw(pressure(tick, AMBIENT + 300e3)))
     assert len(estimates) == 3
     assert (
         node.engine.counts(0)['received pressure']
@@ -193,13 +209,12 @@ def test_approximate_time_pairing_answers_once_per_tick(make_node):
 
 def test_runtime_model_swap_is_used_by_the_next_estimate(make_node):
     node = make_node(CONFIGS['DMSP-10-250'])
-    topics = node.topics
-    estimates = record(topics._estimate_pubs[0])
+    estimates = record(node._estimate_pubs[0])
     assert node.set_parameters([Parameter('model', value='hildebrandt')])[0].successful
     assert not node.set_parameters([Parameter('model', value='nope')])[0].successful
-    now = node.get_clock().now().to_msg()
-    topics._on_state(0, state(now, 0.23, 0.0))
-    topics._on_pressure(0, pressure(now, AMBIENT + 300e3))
+    now = frozen_clock(node)
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
+    node._on_pressure(0, raw(pressure(now, AMBIENT + 300e3)))
     hildebrandt = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')
     assert estimates[-1].wrench.force.x == pytest.approx(
         float(hildebrandt.force(300e3, 0.23).force), rel=1e-9

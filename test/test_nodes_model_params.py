@@ -10,7 +10,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS
-from node_messages import AMBIENT, pressure, state
+from node_messages import AMBIENT, pressure, raw, state
 from pma_model_ros.core.node_parameters import IDENTIFICATION
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
@@ -190,10 +190,10 @@ def node():
 def estimate(node) -> float:
     """The node's force estimate at 400 kPa gauge and 0.24 m (in-process)."""
     sent = []
-    node.topics._estimate_pubs[0].publish = sent.append
+    node._estimate_pubs[0].publish = sent.append
     now = node.get_clock().now()
-    node.topics._on_pressure(0, pressure(now.to_msg(), AMBIENT + 400e3))
-    node.topics._on_state(0, state(now.to_msg(), 0.24, name='DMSP-10-250'))
+    node._on_pressure(0, raw(pressure(now.to_msg(), AMBIENT + 400e3)))
+    node._on_state(0, raw(state(now.to_msg(), 0.24, name='DMSP-10-250')))
     return deserialize_message(sent[-1], WrenchStamped).wrench.force.x
 
 

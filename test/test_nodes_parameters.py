@@ -77,19 +77,19 @@ def test_every_node_passes_its_keywords_to_rclpy(make, cls):
 
 
 def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
-    """One muscle: 14 parameters of the muscle, 4 of its model's block (params, extrapolates,
-    nominal_length, pressure_offset), 7 node-wide, 2 of rclpy's: 27 (28 with ``executor``, which
-    startup.run declares).  Four muscles: 18 each.
+    """One muscle: 15 parameters of the muscle (hardware_id among them), 4 of its model's block
+    (params, extrapolates, nominal_length, pressure_offset), 7 node-wide, 2 of rclpy's: 28 (29 with
+    ``executor``, which startup.run declares).  Four muscles: 19 each.
     """
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     names = listed(node)
-    assert len(names) == 27
+    assert len(names) == 28
     assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
     multi = make(ModelNode, MULTI)
     muscles = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']['muscles']
     for muscle in muscles:
         own = [n for n in listed(multi) if n.startswith(f'{muscle}.')]
-        assert len(own) == 18 <= 25, own
+        assert len(own) == 19 <= 25, own
 
 
 def test_read_only_where_the_node_never_changes_a_parameter(make):

@@ -45,11 +45,11 @@ from .bag_io import (
     WRENCH_STAMPED,
 )
 from .estimate import muscle_namespace
-from ..core.engine import seconds
 from ..core.force_map import ForceMap
 from ..core.hysteresis import branches
 from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
 from ..core.progress import Meter
+from ..wire.cdr import stamp_ns
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope
 #: simulator_node's settings of a recording that fits (the README's, run verbatim by a test): five
@@ -154,7 +154,7 @@ def read_samples(
             if count % 1000 == 0:
                 meter.update(count)
             msg = deserialize(data, connection)
-            stamp = seconds(msg.header.stamp)
+            stamp = stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec) * 1e-9
             if connection.topic == pressure:
                 series['pressure'].append((stamp, msg.fluid_pressure - ambient_pressure))
             if connection.topic == force_topic and connection.msgtype == WRENCH_STAMPED:

@@ -49,6 +49,11 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--csv', help='also write the estimates to this CSV file')
     add_force_option(p, '--out', '--csv')
     p.add_argument(
+        '--outputs-only',
+        action='store_true',
+        help="write only what model_node publishes (no copy of the recording's other topics)",
+    )
+    p.add_argument(
         '--storage', choices=('mcap', 'sqlite3'), help="output storage (default: the input's)"
     )
     p.add_argument(
@@ -130,6 +135,7 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
             storage=args.storage,
             namespace=args.namespace,
             csv=args.csv,
+            outputs_only=args.outputs_only,
         )
     rejected = sum(n for key, n in summary.counts.items() if key.startswith('rejected'))
     print(

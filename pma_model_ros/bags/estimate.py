@@ -45,7 +45,6 @@ from .bag_io import (
     BagError,
     BagWriter,
     connections_of,
-    deserialize,
     DIAGNOSTIC_ARRAY,
     FLUID_PRESSURE,
     JOINT_STATE,
@@ -57,10 +56,12 @@ from .bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
+from ..core.engine import Engine
 from ..core.flags import describe
+from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.param_file import NodeSettings
+from ..wire.cdr import fluid_pressure
+from ..wire.muscle_inputs import MuscleInputs
 
 #: The node's input topics of one muscle (relative names) and their types.
 INPUTS = {'pressure': FLUID_PRESSURE, 'muscle_state': JOINT_STATE, 'force_command': WRENCH_STAMPED}
@@ -86,6 +87,15 @@ CSV_COLUMNS = (
 
 T = TYPESTORE.types
 Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+#: rosbags' deserializers of the input types: what the wire layer's fast readers do not read.
+DESERIALIZE = {
+    name: (lambda data, kind=kind: TYPESTORE.deserialize_cdr(data, kind))
+    for name, kind in (
+        ('FluidPressure', FLUID_PRESSURE),
+        ('JointState', JOINT_STATE),
+        ('WrenchStamped', WRENCH_STAMPED),
+    )
+}
 
 
 def muscle_namespace(
@@ -122,30 +132,6 @@ def muscle_namespace(
     return found[0]
 
 
-class WrenchStampedCdr:
-    """Little-endian CDR bytes of a WrenchStamped with a fixed ``frame_id``: stamp and force.x
-    patched in a template (:class:`~pma_model_ros.core.cdr.StampedTemplate`).
-    """
-
-    def __init__(self, frame_id: str) -> None:
-        Wrench, Vector3 = T['geometry_msgs/msg/Wrench'], T['geometry_msgs/msg/Vector3']
-        zero = Vector3(0.0, 0.0, 0.0)
-        self._template = StampedTemplate(
-            TYPESTORE.serialize_cdr(
-                T[WRENCH_STAMPED](
-                    Header(Time(0, 0), frame_id), Wrench(Vector3(sentinels(1)[0], 0.0, 0.0), zero)
-                ),
-                WRENCH_STAMPED,
-                little_endian=True,
-            ),
-            1,
-        )
-
-    def __call__(self, sec: int, nanosec: int, force: float) -> bytes:
-        self._template.values[0] = force
-        return self._template(sec, nanosec)
-
-
 @dataclass
 class Summary:
     """What :func:`estimate_bag` read and wrote."""
@@ -171,6 +157,7 @@ class _OfflineNode:
         reader: Reader,
         writer: BagWriter,
         rows: csv_module.writer | None,
+        outputs_only: bool = False,
     ) -> None:
         inputs = (
             {topic(namespace, name): (role, -1) for role, name in enumerate(COMBINED_INPUTS)}
@@ -200,7 +187,7 @@ class _OfflineNode:
         self.copies: dict[int, Connection] = {}
         self._diagnostics = None
         for c in reader.connections:
-            if c.topic in replaced:
+            if c.topic in replaced or outputs_only and c.topic != DIAGNOSTICS:
                 continue
             self.copies[c.id] = writer.copy_topic(c)
             if c.topic == DIAGNOSTICS and c.msgtype == DIAGNOSTIC_ARRAY:
@@ -235,153 +222,116 @@ class _OfflineNode:
         self.engine = Engine(
             [s.config for s in settings],
             hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
-            report_interval=REPORT_INTERVAL_PER_MUSCLE * len(settings),
+            report_interval=REPORT_INTERVAL_PER_STATUS * len(settings),
         )
         self.joints = [s.joint_name for s in settings]
-        self._inputs = CombinedInputs(self.engine, self.joints)
+        self._inputs = MuscleInputs(
+            self.engine, self.joints, [s.frame_id for s in settings], DESERIALIZE
+        )
+        self._commands_out = [fluid_pressure(s.frame_id) for s in settings]
         self.summary = Summary(namespace)
-        self._names = [f'{namespace.rstrip("/")}/model_node: {joint}' for joint in self.joints]
-        self._wrenches = [WrenchStampedCdr(s.frame_id) for s in settings]
+        self._names = [f'model_node: {joint}' for joint in self.joints]
         self._next_status_ns: int | None = None
 
     def process(self, chunk: list[tuple[Connection, int, bytes]]) -> None:
         """One chunk of the recording, in log-time order."""
-        engine, write, copies, roles, joints = (
-            self.engine,
-            self.writer.write_raw,
-            self.copies,
-            self.roles,
-            self.joints,
-        )
+        engine, write, copies, roles = self.engine, self.writer.write_raw, self.copies, self.roles
+        inputs = self._inputs
         if self._next_status_ns is None and chunk:
             self._next_status_ns = chunk[0][1] + DIAGNOSTIC_PERIOD_NS
         next_status = self._next_status_ns
-        for connection, time_ns, data in chunk:
-            while time_ns >= next_status:  # the node's status timer
+        for connection, now, data in chunk:
+            while now >= next_status:  # the node's status timer
                 self._status(next_status)
                 next_status += DIAGNOSTIC_PERIOD_NS
             copy = copies.get(connection.id)
             if copy is not None:
-                write(copy, time_ns, data)
+                write(copy, now, data)
             role, k = roles.get(connection.id, (None, 0))
             if role is None:
                 continue
-            msg, now = deserialize(data, connection), time_ns * 1e-9
-            tag = msg.header.stamp
-            if self.combined:
-                self._combined(role, msg, now, time_ns)
-                k = None
-            elif role == _PRESSURE:
-                self._estimate(
-                    k, engine.pressure(k, msg.fluid_pressure, seconds(tag), now, tag), time_ns
+            if role == _COMMAND:
+                self._command(k, data, now)
+            elif self.combined:
+                out = (
+                    inputs.pressures(data, now) if role == _PRESSURE else inputs.states(data, now)
                 )
-            elif role == _STATE:
-                self._estimate(
-                    k,
-                    engine.joint_state(
-                        k, msg.name, msg.position, msg.velocity, joints[k], seconds(tag), now, tag
-                    ),
-                    time_ns,
-                )
+                self._estimate(None, out, now)
             else:
-                self._command(k, engine.command(k, msg.wrench.force.x, now), time_ns)
-            if engine.status_due(now, k):
-                self._status(time_ns)
+                out = (
+                    inputs.pressure(k, data, now)
+                    if role == _PRESSURE
+                    else inputs.muscle_state(k, data, now)
+                )
+                self._estimate(k, out, now)
+            if engine.status_due(now):
+                self._status(now)
         self._next_status_ns = next_status
         self.summary.messages += len(chunk)
 
-    def _estimate(self, k: int, force: float | None, time_ns: int) -> None:
-        if force is None:
+    def _estimate(self, k: int | None, out: bytes | None, time_ns: int) -> None:
+        if out is None:
             return
-        tag = self.engine.tag
-        self.writer.write_raw(
-            self._estimates[k], time_ns, self._wrenches[k](tag.sec, tag.nanosec, force)
-        )
-        self.summary.estimates += 1
-        self._row(k, time_ns, tag, force, self.engine.flags)
-
-    def _row(self, k: int, time_ns: int, tag, force: float, flags: int) -> None:
-        if self.rows is not None:
-            gauge, length, rate = self.engine.inputs(k)
+        self.writer.write_raw(self._estimates[k or 0], time_ns, out)
+        engine = self.engine
+        if self.rows is None:
+            self.summary.estimates += (
+                1
+                if k is not None
+                else len(self.joints)
+                if engine.every
+                else int(np.count_nonzero(engine.estimated))
+            )
+            return
+        estimated = np.flatnonzero(engine.estimated).tolist()
+        self.summary.estimates += len(estimated)
+        stamp = f'{engine.stamp // 10**9}.{engine.stamp % 10**9:09d}'
+        for i in estimated:
+            muscle = i if k is None else k
+            gauge, length, rate = engine.inputs(muscle)
             self.rows.writerow(
                 (
                     time_ns,
-                    f'{tag.sec}.{tag.nanosec:09d}',
+                    stamp,
                     gauge,
                     length,
                     rate,
-                    force,
-                    describe(flags),
-                    self.joints[k],
+                    engine.forces.item(i),
+                    describe(int(engine.flags[i])),
+                    self.joints[muscle],
                 )
             )
 
-    def _command(self, k: int, pressure: float | None, time_ns: int) -> None:
+    def _command(self, k: int, data: bytes, time_ns: int) -> None:
+        if self.combined:
+            out = self._inputs.force_commands(data, time_ns)
+            if out is not None:
+                self.writer.write_raw(self._commands[0], time_ns, out(time_ns))
+                self.summary.commands += len(out.values)
+            return
+        pressure = self._inputs.force_command(k, data, time_ns)
         if pressure is None or not self._commands:
             return
-        header = Header(Time(time_ns // 10**9, time_ns % 10**9), self.settings[k].frame_id)
-        self.writer.write(self._commands[k], time_ns, T[FLUID_PRESSURE](header, pressure, 0.0))
+        template = self._commands_out[k]
+        template.values[0] = pressure
+        self.writer.write_raw(self._commands[k], time_ns, template(time_ns))
         self.summary.commands += 1
 
-    def _combined(self, role: int, msg, now: float, time_ns: int) -> None:
-        """One combined JointState: every muscle's pressure or length in one vectorised call, or
-        commands.
-        """
-        engine, inputs = self.engine, self._inputs
-        empty = np.zeros(0)
-        if role == _COMMAND:
-            joints, pressures = inputs.commands(list(msg.name), msg.effort, now)
-            if joints:
-                header = Header(Time(time_ns // 10**9, time_ns % 10**9), '')
-                self.writer.write(
-                    self._commands[0],
-                    time_ns,
-                    T[JOINT_STATE](header, joints, np.array(pressures), empty, empty),
-                )
-                self.summary.commands += len(joints)
-            return
-        if role == _PRESSURE:
-            estimated = inputs.pressures(list(msg.name), msg.position, msg.header.stamp, now)
-        else:
-            estimated = inputs.lengths(
-                list(msg.name), msg.position, msg.velocity, msg.header.stamp, now
-            )
-        if not estimated.any():
-            return
-        tag = engine.newest_tag(estimated)
-        self.writer.write(
-            self._estimates[0],
-            time_ns,
-            T[JOINT_STATE](
-                Header(Time(tag.sec, tag.nanosec), ''),
-                [j for j, e in zip(inputs.joints, estimated.tolist()) if e],
-                empty,
-                empty,
-                engine.forces[estimated],
-            ),
-        )
-        self.summary.estimates += int(estimated.sum())
-        for k in np.flatnonzero(estimated).tolist():
-            self._row(k, time_ns, tag, float(engine.forces[k]), int(engine.flags[k]))
-
     def _status(self, time_ns: int) -> None:
-        now = time_ns * 1e-9
         KeyValue, DiagnosticStatus = (
             T['diagnostic_msgs/msg/KeyValue'],
             T['diagnostic_msgs/msg/DiagnosticStatus'],
         )
-        entries = []
-        for k, (name, s) in enumerate(zip(self._names, self.settings)):
-            status = self.engine.status(k, now)
-            entries.append(
-                DiagnosticStatus(
-                    int(status.level),
-                    name,
-                    status.message,
-                    s.config.model.spec.name,
-                    [KeyValue(key, value) for key, value in status.values.items()],
-                )
+        entries = [
+            DiagnosticStatus(
+                int(status.level),
+                name,
+                status.message,
+                s.hardware_id,
+                [KeyValue(key, value) for key, value in status.values.items()],
             )
+            for name, s, status in zip(self._names, self.settings, self.engine.statuses(time_ns))
+        ]
         header = Header(Time(time_ns // 10**9, time_ns % 10**9), '')
         self.writer.write(self._diagnostics, time_ns, T[DIAGNOSTIC_ARRAY](header, entries))
         self.summary.diagnostics += 1
@@ -449,6 +399,7 @@ def estimate_bag(
     namespace: str | None = None,
     csv: str | Path | None = None,
     progress: bool = True,
+    outputs_only: bool = False,
 ) -> Summary:
     """Write ``out``: the recording ``bag`` plus what the model node with ``settings`` would
     publish.
@@ -456,8 +407,9 @@ def estimate_bag(
     ``settings``: one muscle's, or every muscle's of a ``muscles:`` file, with their ``names`` and
     ``combined`` for ``input_mode: combined``; ``storage``: of ``out`` (default: the input's);
     ``namespace``: of the muscles' topics (default: the only one in the bag); ``csv``: also write
-    the estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name).  Raises BagError
-    (nothing written) on bad input.
+    the estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name); ``outputs_only``:
+    write only what the node publishes (and a recorded /diagnostics), not the inputs.  Raises
+    BagError (nothing written) on bad input.
     """
     settings = [settings] if isinstance(settings, NodeSettings) else list(settings)
     names = list(names or [])
@@ -473,7 +425,7 @@ def estimate_bag(
     with open_bag(bag) as reader:
         ns = muscle_namespace(reader, namespace, first, second)
         with BagWriter(out, storage or storage_of(bag)) as writer, _csv_rows(csv) as rows:
-            node = _OfflineNode(settings, names, combined, ns, reader, writer, rows)
+            node = _OfflineNode(settings, names, combined, ns, reader, writer, rows, outputs_only)
             bar = _Progress(reader.message_count) if progress else None
             for chunk in _chunks(messages(reader, reader.connections), CHUNK):
                 node.process(chunk)

@@ -6,36 +6,66 @@ coefficients and length slopes computed once per new angle), each muscle's newes
 and each hysteresis muscle's branch: the play operator (:func:`~.hysteresis.play`, as model_node's
 engine) on the muscle's length computed from the angle, or on its gauge pressure (the joint's
 ``follows``), so that velocity noise cannot flip it and a joint held still keeps it.  A
-joint_states entry is answered with the joint's torque and stiffness if both pressures are fresh
-(within ``max_input_age`` of ``now``).  A torque command is inverted at the newest angle, on the
-kept branches, with the joint's co-contraction level or wanted stiffness.  All of it in plain
-floats per message: numpy's per-call overhead would dominate one joint's arithmetic.  Every time is
-in seconds on one clock (ROS time in the node); ``now`` is passed in.
+joint_states entry is answered with the joint's torque and stiffness if its angle and both
+pressures are fresh (within ``max_input_age`` of ``now``).  A torque command is inverted at the
+newest angle, on the kept branches, with the joint's co-contraction level or wanted stiffness.
+All of it in plain floats per message: numpy's per-call overhead would dominate one joint's
+arithmetic.  Counters, levels, texts and reports are model_node's (:mod:`.health`): both nodes
+report alike.  Times are integer nanoseconds on one clock (ROS time in the node); ``now`` is
+passed in.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import enum
 import math
 from typing import Sequence
 
-from .engine import Level, pressure_problem, WARN_FLAGS
+import numpy as np
+
+from .estimation import pressure_problem
 from .flags import describe
+from .health import Health, Level, Status, WARN_MASK
 from .hysteresis import play
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 from .muscle_model import served_pressure
 from .node_parameters import SPECS
+from .pairing import nanoseconds, NEVER
 
-COUNTERS = (
-    'joint_states',
-    'pressures',
-    'torque commands',
-    'rejected',
+
+class Counter(enum.IntEnum):
+    """The counters of each joint; labels in :data:`LABELS`."""
+
+    RECEIVED_JOINT_STATES = 0
+    RECEIVED_PRESSURE = 1
+    RECEIVED_COMMAND = 2
+    REJECTED_JOINT_STATES = 3
+    REJECTED_PRESSURE = 4
+    REJECTED_COMMAND = 5
+    STALE = 6
+    ESTIMATES = 7
+    COMMANDS = 8
+
+
+LABELS = (
+    'received joint_states',
+    'received pressure',
+    'received command',
+    'rejected joint_states',
+    'rejected pressure',
+    'rejected command',
     'stale skipped',
     'estimates',
     'pressure commands',
 )
-_WARN_MASK = int(sum(WARN_FLAGS))
+#: Inputs by kind: (received counter, rejected counter).
+SOURCES = {
+    'joint_states': (Counter.RECEIVED_JOINT_STATES, Counter.REJECTED_JOINT_STATES),
+    'pressure': (Counter.RECEIVED_PRESSURE, Counter.REJECTED_PRESSURE),
+    'command': (Counter.RECEIVED_COMMAND, Counter.REJECTED_COMMAND),
+}
+ANGLE = 2  #: row of the angle's stamps in :attr:`JointEngine.stamps` (0, 1: the muscles')
 
 
 @dataclass(frozen=True)
@@ -64,8 +94,8 @@ class _JointState:
 
     def __init__(self, settings: Settings, joint: Joint) -> None:
         self.at: tuple[MuscleAt, MuscleAt, float, float] | None = None
-        self.theta, self.theta_stamp = math.nan, math.nan
-        self.gauge, self.p_stamps = [math.nan, math.nan], [math.nan, math.nan]
+        self.theta = math.nan
+        self.gauge = [math.nan, math.nan]
         # play operator of each muscle (core.hysteresis): branch (+1, -1, 0) and anchor [m or Pa]
         self.branch, self.anchor = [0.0, 0.0], [math.nan, math.nan]
         follows = [f if m.model.hysteresis else None for m, f in zip(joint.muscles, joint.follows)]
@@ -77,22 +107,18 @@ class _JointState:
         self.by_pressure = tuple(
             f.deadband if f and f.input == 'pressure' else None for f in follows
         )
-        self.level, self.mode, self.stiffness = (
-            settings.cocontraction,
-            settings.cocontraction_mode,
-            None,
-        )
-        self.counts = dict.fromkeys(COUNTERS, 0)
-        self.problem, self.problem_time = '', -math.inf
-        self.flags, self.flags_time = 0, -math.inf
+        self.level, self.mode = settings.cocontraction, settings.cocontraction_mode
+        self.stiffness: float | None = None
+        self.flags = 0  # of the last estimate or command with a warning
         self.torque = self.stiffness_estimate = math.nan
 
 
 class JointEngine:
     """Estimates and commands of ``joints`` (with their ``settings``); ``ambient`` [Pa absolute],
     ``max_age`` [s], ``hold`` [s]: how long a rejected input (ERROR) or a warning flag (WARN) keeps
-    a joint's level up; ``pressure_reference``: what pressure readings and commands hold,
-    ``absolute`` or ``gauge`` pressure.
+    a joint's level up; ``report_interval`` [s]: see :meth:`~.health.Health.due`;
+    ``pressure_reference``: what pressure readings and commands hold, ``absolute`` or ``gauge``
+    pressure.
     """
 
     def __init__(
@@ -102,46 +128,93 @@ class JointEngine:
         ambient: float,
         max_age: float,
         hold: float = 1.0,
+        report_interval: float = 0.0,
         pressure_reference: str = SPECS['pressure_reference'].default,
     ) -> None:
-        self.joints, self.ambient, self.max_age, self.hold = tuple(joints), ambient, max_age, hold
+        self.joints, self.ambient = tuple(joints), ambient
+        self.max_age = nanoseconds(max_age)
         SPECS['pressure_reference'].check(pressure_reference)
         #: [Pa] what a pressure reading lacks of the absolute pressure: ambient for gauge readings
         self.reading_offset = ambient if pressure_reference == 'gauge' else 0.0
         self.index = {j.name: k for k, j in enumerate(joints)}
         self.state = [_JointState(s, j) for s, j in zip(settings, self.joints)]
+        #: [ns] newest valid stamp of each joint's muscle pressures (rows 0, 1) and angle (ANGLE)
+        self.stamps = np.full((3, len(self.joints)), NEVER, np.int64)
+        self.health = Health(
+            len(self.joints),
+            [
+                (f'{j.muscle_names[0]} pressure', f'{j.muscle_names[1]} pressure', 'joint_states')
+                for j in self.joints
+            ],
+            LABELS,
+            self.stamps,
+            self.max_age,
+            nanoseconds(hold),
+            nanoseconds(report_interval),
+        )
 
-    def reject(self, k: int, problem: str, now: float) -> None:
-        s = self.state[k]
-        s.counts['rejected'] += 1
-        s.problem, s.problem_time = problem, now
-
-    def angle(self, k: int, theta: float, stamp: float, now: float) -> tuple[float, float] | None:
-        """Joint ``k``'s angle [rad]; its (torque [N·m], stiffness [N·m/rad]) if both pressures
-        are fresh.
+    def reject(self, k: int, source: str, problem: str, now: int) -> None:
+        """Count a message of ``source`` (``joint_states``, ``pressure`` or ``command``) of joint
+        ``k`` refused for ``problem``.
         """
-        s, joint = self.state[k], self.joints[k]
-        s.counts['joint_states'] += 1
+        self.health.count(SOURCES[source][0], k)
+        self._invalid(k, source, problem, now)
+
+    def _invalid(self, k: int, source: str, problem: str, now: int) -> None:
+        self.health.count(SOURCES[source][1], k)
+        self.health.reject(k, problem, now)
+
+    def joint_states(
+        self, names: Sequence[str], positions: Sequence[float], stamp: int, now: int
+    ) -> tuple[list[str], list[float], list[float]]:
+        """A joint_states message: its entries of these joints, answered (names, torques [N·m],
+        stiffnesses [N·m/rad]) where their pressures are fresh; mismatched arrays are rejected.
+        """
+        done, torques, stiffnesses = [], [], []
+        if len(positions) != len(names):
+            for k in {self.index[n] for n in names if n in self.index}:
+                self.reject(
+                    k, 'joint_states', f'{len(names)} names, {len(positions)} positions', now
+                )
+            return done, torques, stiffnesses
+        for name, theta in zip(names, positions):
+            k = self.index.get(name)
+            if k is not None and (result := self.angle(k, theta, stamp, now)) is not None:
+                done.append(name)
+                torques.append(result[0])
+                stiffnesses.append(result[1])
+        return done, torques, stiffnesses
+
+    def angle(self, k: int, theta: float, stamp: int, now: int) -> tuple[float, float] | None:
+        """Joint ``k``'s angle [rad]; its (torque [N·m], stiffness [N·m/rad]) if it and both
+        pressures are fresh.
+        """
+        s, joint, health = self.state[k], self.joints[k], self.health
+        health.count(Counter.RECEIVED_JOINT_STATES, k)
         if not math.isfinite(theta):
-            return self.reject(k, f'angle is {theta} rad', now)
+            return self._invalid(k, 'joint_states', f'angle is {theta} rad', now)
         lengths = joint.lengths(theta)
         for muscle, length, name in zip(joint.muscles, lengths, joint.muscle_names):
             if not 0 < length < muscle.max_length:
-                return self.reject(
+                return self._invalid(
                     k,
+                    'joint_states',
                     f"angle {theta:g} rad puts muscle '{name}' at {length:.4g} m, outside its "
                     f'geometry (0, {muscle.max_length:.4g}) m',
                     now,
                 )
         for m, deadband in s.by_length:
             s.branch[m], s.anchor[m] = play(s.branch[m], s.anchor[m], lengths[m], deadband)
-        s.at, s.theta, s.theta_stamp = joint.at(theta, s.branch), theta, stamp
+        s.at, s.theta = joint.at(theta, s.branch), theta
+        stamps, max_age = self.stamps, self.max_age
+        stamps[ANGLE, k] = stamp
+        health.arrived(ANGLE, k, stamp, now)
         if not (
-            abs(now - stamp) <= self.max_age
-            and abs(now - s.p_stamps[0]) <= self.max_age
-            and abs(now - s.p_stamps[1]) <= self.max_age  # NaN (no pressure yet): False
-        ):
-            s.counts['stale skipped'] += 1
+            abs(now - stamp) <= max_age
+            and abs(now - stamps.item(0, k)) <= max_age
+            and abs(now - stamps.item(1, k)) <= max_age
+        ):  # (a pressure never received is NEVER: never fresh)
+            health.count(Counter.STALE, k)
             return None
         m0, m1, r, r_slope = s.at
         p0, p1 = s.gauge
@@ -149,25 +222,26 @@ class JointEngine:
         flags = m0.flags | m1.flags
         for muscle, p in zip(joint.muscles, s.gauge):
             flags |= served_pressure(p, muscle.limits)[0]
-        self._note(s, flags, now)
-        s.counts['estimates'] += 1
+        self._note(k, flags, now)
+        health.count(Counter.ESTIMATES, k)
         return s.torque, s.stiffness_estimate
 
-    def pressure(self, k: int, muscle: int, reading: float, stamp: float, now: float) -> None:
+    def pressure(self, k: int, muscle: int, reading: float, stamp: int, now: int) -> None:
         """Muscle ``muscle`` (0: the one shortening for positive θ) of joint ``k``: a pressure
         reading [Pa, absolute or gauge by ``pressure_reference``]; a branch following it changes
         for the next estimate and command.
         """
         s = self.state[k]
-        s.counts['pressures'] += 1
+        self.health.count(Counter.RECEIVED_PRESSURE, k)
         absolute = reading + self.reading_offset
         problem = pressure_problem(absolute)
         if problem:
-            return self.reject(
-                k, f"muscle '{self.joints[k].muscle_names[muscle]}': {problem}", now
-            )
+            name = self.joints[k].muscle_names[muscle]
+            return self._invalid(k, 'pressure', f"muscle '{name}': {problem}", now)
         gauge = absolute - self.ambient
-        s.gauge[muscle], s.p_stamps[muscle] = gauge, stamp
+        s.gauge[muscle] = gauge
+        self.stamps[muscle, k] = stamp
+        self.health.arrived(muscle, k, stamp, now)
         deadband = s.by_pressure[muscle]
         if deadband is not None:
             before = s.branch[muscle]
@@ -175,61 +249,65 @@ class JointEngine:
             if s.branch[muscle] != before and s.at is not None:  # the muscles at the new branch
                 s.at = self.joints[k].at(s.theta, s.branch)
 
-    def cocontraction(self, k: int, level: float, now: float) -> None:
+    def cocontraction(self, k: int, level: float, now: int) -> None:
         """Joint ``k``'s torque commands from now on: co-contraction ``level`` [Pa gauge] (its
         mode).
         """
+        self.health.count(Counter.RECEIVED_COMMAND, k)
         if not (math.isfinite(level) and level >= 0):
-            return self.reject(k, f'co-contraction {level:g} Pa is no gauge pressure >= 0', now)
+            return self._invalid(
+                k, 'command', f'co-contraction {level:g} Pa is no gauge pressure >= 0', now
+            )
         self.state[k].level, self.state[k].stiffness = level, None
 
-    def stiffness(self, k: int, stiffness: float, now: float) -> None:
+    def stiffness(self, k: int, stiffness: float, now: int) -> None:
         """Joint ``k``'s torque commands from now on: the wanted ``stiffness`` [N·m/rad]."""
+        self.health.count(Counter.RECEIVED_COMMAND, k)
         if not (math.isfinite(stiffness) and stiffness >= 0):
-            return self.reject(k, f'stiffness {stiffness:g} N·m/rad is not >= 0', now)
+            return self._invalid(k, 'command', f'stiffness {stiffness:g} N·m/rad is not >= 0', now)
         self.state[k].stiffness = stiffness
 
-    def command(self, k: int, torque: float, now: float) -> tuple[float, float] | None:
+    def command(self, k: int, torque: float, now: int) -> tuple[float, float] | None:
         """A wanted ``torque`` [N·m] of joint ``k``: both muscles' pressure commands [Pa, absolute
         or gauge by ``pressure_reference``], if any.
         """
         s = self.state[k]
-        s.counts['torque commands'] += 1
+        self.health.count(Counter.RECEIVED_COMMAND, k)
         if not math.isfinite(torque):
-            return self.reject(k, f'torque command is {torque} N·m', now)
+            return self._invalid(k, 'command', f'torque command is {torque} N·m', now)
         if s.at is None:
-            return self.reject(k, 'torque command before any angle (joint_states)', now)
+            return self._invalid(
+                k, 'command', 'torque command before any angle (joint_states)', now
+            )
         if s.stiffness is not None:
             result = self.joints[k].pressures_at(s.at, torque, stiffness=s.stiffness)
         else:
             result = self.joints[k].pressures_at(s.at, torque, s.level, s.mode)
-        self._note(s, result.flags, now)
-        s.counts['pressure commands'] += 1
+        self._note(k, result.flags, now)
+        self.health.count(Counter.COMMANDS, k)
         offset = self.ambient - self.reading_offset  # gauge + offset: the command's reference
         return result.pressures[0] + offset, result.pressures[1] + offset
 
-    def _note(self, s: _JointState, flags: int, now: float) -> None:
-        if flags & _WARN_MASK:
-            s.flags, s.flags_time = flags, now
+    def _note(self, k: int, flags: int, now: int) -> None:
+        self.health.warn_one(k, flags, now)
+        if flags & WARN_MASK:
+            self.state[k].flags = flags
 
-    def status(self, k: int, now: float) -> tuple[Level, str, dict[str, str]]:
-        """Joint ``k``'s level, reason and values: counters, newest estimate, how torque commands
-        are made.
+    def level(self, k: int, now: int) -> tuple[Level, str]:
+        return self.health.level(k, now)
+
+    def status_due(self, now: int) -> bool:
+        return self.health.due(now)
+
+    def statuses(self, now: int) -> list[Status]:
+        """Every joint's status: level, reason, counters, input rates and stamp ages, then the
+        newest estimate, the flags of the last warning and how torque commands are made.
         """
+        return self.health.report(now, self._values)
+
+    def _values(self, k: int) -> dict[str, str]:
         s = self.state[k]
-        if now - s.problem_time <= self.hold:
-            level, message = Level.ERROR, s.problem
-        elif s.counts['joint_states'] and s.counts['estimates'] == 0:
-            level, message = Level.ERROR, 'no estimate yet: pressures missing or stale'
-        elif now - s.flags_time <= self.hold:
-            texts = sorted(
-                {f'{text} ({flag.name})' for flag, text in WARN_FLAGS.items() if s.flags & flag}
-            )
-            level, message = Level.WARN, '; '.join(texts)
-        else:
-            level, message = Level.OK, 'OK'
-        values = {key: str(n) for key, n in s.counts.items() if n}
-        values |= {
+        return {
             'torque [N·m]': f'{s.torque:.6g}',
             'stiffness [N·m/rad]': f'{s.stiffness_estimate:.6g}',
             'angle [rad]': f'{s.theta:.6g}',
@@ -240,4 +318,7 @@ class JointEngine:
                 else f'co-contraction {s.mode} {s.level:g} Pa'
             ),
         }
-        return level, message, values
+
+    def counts(self, k: int) -> dict[str, int]:
+        """Joint ``k``'s non-zero counters by label."""
+        return {label: n for label, n in zip(LABELS, self.health.counts(k)) if n}

@@ -96,6 +96,12 @@ JOINT_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         'what the level is: `min` (the lower pressure) or `sum` (the pressure sum)',
         choices=('min', 'sum'),
     ),
+    ParameterSpec(
+        'hardware_id',
+        'string',
+        '',
+        "the device: `hardware_id` of the joint's /diagnostics status (empty: the joint's name)",
+    ),
 )
 MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     ParameterSpec(

@@ -111,14 +111,18 @@ class MuscleBank:
     def __len__(self) -> int:
         return len(self.muscles)
 
-    def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
+    def operating(
+        self, length: ArrayLike, length_rate: ArrayLike | None = None, valid: bool = False
+    ) -> Operating:
         """Length-dependent coefficients and flags of every muscle (one call per model); see
         :meth:`Evaluator.operating`.
         """
         L, _, rate = self._inputs(length, length, length_rate)
         if len(self.groups) == 1:  # every muscle, in bank order
-            return self.groups[0].operating(L, rate)
-        parts = [(g.index, g.operating(L[..., g.index], rate[..., g.index])) for g in self.groups]
+            return self.groups[0].operating(L, rate, valid)
+        parts = [
+            (g.index, g.operating(L[..., g.index], rate[..., g.index], valid)) for g in self.groups
+        ]
         out = Operating(
             np.empty(L.shape, bool),
             np.empty(L.shape, np.uint16),
@@ -129,7 +133,7 @@ class MuscleBank:
         )
         for index, part in parts:
             for name in ('usable', 'flags', 'q2', 'q1', 'q0'):
-                getattr(out, name)[..., index] = getattr(part, name)
+                getattr(out, name)[..., index] = getattr(part, name)  # (broadcast: valid)
         return out
 
     def force(

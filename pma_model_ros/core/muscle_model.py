@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from functools import cached_property
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -25,8 +26,7 @@ from .geometry import MuscleSpec
 from .models import Domain, Model
 
 
-@dataclass(frozen=True)
-class ForceResult:
+class ForceResult(NamedTuple):
     force: np.ndarray  #: physical tension [N], >= 0; NaN only where INVALID_INPUT
     raw: np.ndarray  #: model value [N] at the operating point, before clipping at 0 N
     flags: np.ndarray  #: uint16 Flag words
@@ -61,6 +61,11 @@ class PressureResult:
     )
 )
 
+
+_EVERY = np.bool_(True)  #: ``usable`` of lengths checked by the caller
+_LENGTH_OUT16, _EXTRAPOLATED16, _INVALID16, _BRANCH_UNKNOWN16, _NONE16 = (
+    np.uint16(f) for f in (_LENGTH_OUT, _EXTRAPOLATED, _INVALID, _BRANCH_UNKNOWN, 0)
+)
 
 #: [Pa] Gauge pressures this far below 0 are a vented muscle or sensor noise: served as 0 Pa,
 #: unflagged.
@@ -100,10 +105,9 @@ def limits_of(spec, domain, shortest) -> Limits:
     )
 
 
-@dataclass(frozen=True)
-class Operating:
+class Operating(NamedTuple):
     """What the force at given lengths needs besides the pressure: F_raw = (q2 p + q1) p + q0 at
-    the operating length.
+    the operating length (a NamedTuple: built once per message of every muscle).
 
     ``usable`` is False where the length is no length of the muscle (INVALID_INPUT in ``flags``);
     ``flags`` also holds LENGTH_OUT_OF_RANGE, EXTRAPOLATED (of the length) and BRANCH_UNKNOWN.
@@ -122,25 +126,25 @@ def force_at(op: Operating, pressure: ArrayLike) -> ForceResult:
 
     The pressure is held to [0, pressure_top] (PRESSURE_OUT_OF_RANGE where that moved it, except
     within ``VENTED_BAND`` below 0: a vented muscle; BELOW_AMBIENT below that band); EXTRAPOLATED
-    above the identified pressures.
+    above the identified pressures.  Written for few numpy calls: the engines call it per message.
     """
     p = np.asarray(pressure, float)
     lim = op.limits
-    with np.errstate(invalid='ignore', over='ignore'):
-        usable = op.usable & np.isfinite(p)
-        p_op = np.clip(p, 0.0, lim.pressure_top)
-        raw = np.where(usable, (op.q2 * p_op + op.q1) * p_op + op.q0, np.nan)
-        moved = (p_op != p) & ~((p < 0) & (p >= -VENTED_BAND))
-        flags = np.where(
-            usable,
-            op.flags
-            | np.where(moved, _PRESSURE_OUT, 0)
-            | np.where(raw < 0, _CLIPPED, 0)
-            | np.where(p < -VENTED_BAND, _BELOW_AMBIENT, 0)
-            | np.where(p_op > lim.pressure_known, _EXTRAPOLATED, 0),
-            op.flags | _INVALID,
-        ).astype(np.uint16)
-        return ForceResult(np.maximum(raw, 0.0), raw, flags)
+    p_op = np.minimum(np.maximum(p, 0.0), lim.pressure_top)  # NaN stays NaN
+    raw = (op.q2 * p_op + op.q1) * p_op + op.q0
+    below = p < -VENTED_BAND
+    flags = (
+        op.flags
+        | (p > lim.pressure_top) * _PRESSURE_OUT
+        | below * (_PRESSURE_OUT | _BELOW_AMBIENT)
+        | (raw < 0) * _CLIPPED
+        | (p_op > lim.pressure_known) * _EXTRAPOLATED
+    )
+    usable = op.usable & np.isfinite(p)
+    if not usable.all():
+        raw = np.where(usable, raw, np.nan)
+        flags = np.where(usable, flags, op.flags | _INVALID)
+    return ForceResult(np.maximum(raw, 0.0), raw, np.asarray(flags, np.uint16))
 
 
 class Evaluator:
@@ -161,7 +165,14 @@ class Evaluator:
         """Lengths and pressures served and commanded (:class:`Limits`)."""
         return limits_of(self.spec, self.domain, geo.shortest_length(self.spec))
 
-    def operating(self, length: ArrayLike, length_rate: ArrayLike | None = None) -> Operating:
+    @cached_property
+    def _extrapolates(self) -> bool:
+        """Whether any of the muscles serves lengths outside its identified ones."""
+        return bool(np.any(self.domain.extrapolates))
+
+    def operating(
+        self, length: ArrayLike, length_rate: ArrayLike | None = None, valid: bool = False
+    ) -> Operating:
         """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see
         :class:`Operating`).
 
@@ -171,29 +182,32 @@ class Evaluator:
         (EXTRAPOLATED outside the identified range;
         :class:`~.models.Domain`).  ``length_rate`` [m/s] picks the hysteresis branch (+1
         lengthening, -1 shortening, 0 unknown: BRANCH_UNKNOWN).  Computed once per new length and
-        reused for every pressure at it (:func:`force_at`).
+        reused for every pressure at it (:func:`force_at`).  ``valid``: the caller checked that
+        the geometry takes every length.
         """
         L = np.asarray(length, float)
         lim = self.limits
+        # written for few numpy calls: the engines call it per message of every muscle
+        at = np.minimum(np.maximum(L, lim.length_low), lim.length_high)  # NaN stays NaN
+        flags = (at != L) * _LENGTH_OUT16
+        if self._extrapolates:  # else the lengths served lie inside the identified ones
+            domain = self.domain
+            flags |= ((at < domain.length_min) | (at > domain.length_max)) * _EXTRAPOLATED16
+        usable = _EVERY if valid else (L > 0) & (L < self.max_length)  # False for NaN
+        if not valid and np.count_nonzero(usable) < usable.size:
+            at = np.where(usable, at, lim.length_high)
+            flags = np.where(usable, flags, _INVALID16)
+        branch = 0.0
+        if self.model.hysteresis:
+            if length_rate is not None:
+                rate = np.asarray(length_rate, float)
+                branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
+            flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN16, _NONE16)
         with np.errstate(invalid='ignore', over='ignore'):
-            usable = (L > 0) & (L < self.max_length)  # False for NaN
-            at = np.where(usable, np.clip(L, lim.length_low, lim.length_high), lim.length_high)
-            outside = (at < self.domain.length_min) | (at > self.domain.length_max)
-            flags = np.where(
-                usable,
-                np.where(at != L, _LENGTH_OUT, 0) | np.where(outside, _EXTRAPOLATED, 0),
-                _INVALID,
-            )
-            branch = 0.0
-            if self.model.hysteresis:
-                if length_rate is not None:
-                    rate = np.asarray(length_rate, float)
-                    branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
-                flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN, 0)
             q2, q1, q0 = self.model.coefficients(self.theta, self.spec, self.domain, at, branch)
         if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
             q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
-        return Operating(usable, flags.astype(np.uint16), q2, q1, q0, lim)
+        return Operating(usable, flags, q2, q1, q0, lim)
 
     def force(
         self, pressure: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None

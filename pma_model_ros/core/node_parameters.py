@@ -245,6 +245,13 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         per_muscle=True,
     ),
     ParameterSpec(
+        'hardware_id',
+        'string',
+        '',
+        "the device: `hardware_id` of the muscle's /diagnostics status (empty: `joint_name`)",
+        per_muscle=True,
+    ),
+    ParameterSpec(
         'ambient_pressure',
         'double',
         STANDARD_ATMOSPHERE,

@@ -41,7 +41,7 @@ import math
 from pathlib import Path
 
 from . import calibration
-from .engine import Config
+from .estimation import Config
 from .geometry import MuscleSpec
 from .hysteresis import Follow
 from .models import ALIASES, Domain, get_model, MODELS
@@ -78,6 +78,7 @@ class NodeSettings:
     config: Config
     joint_name: str  #: JointState entry of the muscle
     frame_id: str  #: header.frame_id of the estimates
+    hardware_id: str  #: the device: hardware_id of the muscle's diagnostic status
 
 
 def read_parameters(path: str | Path) -> dict:
@@ -290,7 +291,12 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
     follow = hysteresis_follow(parameters)
     config = Config(muscle, ambient, max_age, values['pressure_reference'], follow)
     joint = str(parameters.get('joint_name') or muscle.spec.name)
-    return NodeSettings(config, joint, str(parameters.get('frame_id') or joint))
+    return NodeSettings(
+        config,
+        joint,
+        str(parameters.get('frame_id') or joint),
+        str(parameters.get('hardware_id') or joint),
+    )
 
 
 def all_node_settings(parameters: dict, model: str | None = None) -> list[NodeSettings]:

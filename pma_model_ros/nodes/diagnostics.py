@@ -1,4 +1,6 @@
-"""The /diagnostics message of model_node and joint_node: a status per muscle or joint."""
+"""The /diagnostics message of model_node and joint_node: a status per muscle or joint, named as
+diagnostic_updater names its tasks' statuses (``<node name>: <muscle or joint>``).
+"""
 
 from __future__ import annotations
 
@@ -14,9 +16,9 @@ def diagnostic_array(
     """A DiagnosticArray stamped with the node clock.
 
     Each entry is (name, hardware_id, level, message, values); its status is named
-    ``<node's full name>: <name>``.
+    ``<node name>: <name>``.
     """
-    full = node.get_fully_qualified_name()
+    full = node.get_name()
     msg = DiagnosticArray(
         status=[
             DiagnosticStatus(

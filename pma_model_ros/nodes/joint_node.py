@@ -10,7 +10,8 @@ a namespace applies; pressures absolute, or gauge with ``pressure_reference: gau
 * out, once per joint_states message, for its joints whose pressures are fresh: ``torque_estimate``
   (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate``
   (JointState: effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics``
-  (one status per joint, 1 Hz);
+  (one status per joint, named ``joint_node: <joint>``, ``hardware_id`` the joint's parameter;
+  1 Hz and when a level changes, as model_node's);
 * commands: ``torque_command`` (JointState: effort = wanted torque [N·m]) → each muscle's
   ``<muscle>/pressure_command`` (FluidPressure, absolute Pa), at the newest angle, with the joint's
   co-contraction level, or with its wanted stiffness once a ``stiffness_command`` (JointState:
@@ -27,15 +28,13 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
-from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from . import model_params, parameters
 from .diagnostics import diagnostic_array
-from .model_node import DIAGNOSTIC_PERIOD, INPUT_QOS
+from .model_node import DESERIALIZE, DIAGNOSTIC_PERIOD, INPUT_QOS
 from .startup import refusing, run
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import seconds
+from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import (
     identification,
@@ -45,6 +44,9 @@ from ..core.joint_file import (
     NODE_PARAMETERS,
 )
 from ..core.shipped_data import share_directory
+from ..wire.cdr import fluid_pressure, joint_state
+from ..wire.joint_state import JointStateArrays, JointStateReader
+from ..wire.muscle_inputs import stamped_value
 
 
 def declare(node: Node) -> None:
@@ -86,48 +88,26 @@ class JointNode(Node):
                 float(flat['ambient_pressure']),
                 float(flat['max_input_age']),
                 hold=DIAGNOSTIC_PERIOD,
+                report_interval=REPORT_INTERVAL_PER_STATUS * len(found),
                 pressure_reference=str(flat['pressure_reference']),
             )
+            self._hardware = [str(nested[j.name].get('hardware_id') or j.name) for j in found]
         parameters.warn_unknown(self, model_params.expected_undeclared)  # inline muscles' models
         self._ros_clock = self.get_clock().handle
-        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
-        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self._command_pubs = []
-        for k, joint in enumerate(found):
-            pubs = []
-            for m, muscle in enumerate(joint.muscle_names):
-                self.create_subscription(
-                    FluidPressure,
-                    f'{muscle}/pressure',
-                    partial(self._on_pressure, k, m),
-                    INPUT_QOS,
-                )
-                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
-            self._command_pubs.append(pubs)
-        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS)
-        self.create_subscription(JointState, 'torque_command', self._on_torque, 10)
-        self.create_subscription(
-            JointState, 'stiffness_command', partial(self._on_level, self.engine.stiffness), 10
-        )
-        self.create_subscription(
-            JointState,
-            'cocontraction_command',
-            partial(self._on_level, self.engine.cocontraction),
-            10,
-        )
-        names = [
-            j.name for j in found
-        ]  # prebuilt messages of every joint (the usual joint_states)
-        self._all = [
-            StampedTemplate(
-                serialize_message(JointState(name=names, effort=sentinels(len(names)).tolist())),
-                len(names),
+        self._names = [j.name for j in found]
+        # prebuilt answers of every joint (the usual joint_states), and each muscle's command
+        self._all = [joint_state(self._names, 'effort') for _ in range(2)]
+        self._commands = [[fluid_pressure(m) for m in j.muscle_names] for j in found]
+        self._readers = {
+            topic: JointStateReader(DESERIALIZE['JointState'])
+            for topic in (
+                'joint_states',
+                'torque_command',
+                'stiffness_command',
+                'cocontraction_command',
             )
-            for _ in range(2)
-        ]
-        self._names = names
-        self.create_timer(DIAGNOSTIC_PERIOD, self.publish_status)
+        }
+        self.create_interfaces()
         self.get_logger().info(
             '; '.join(
                 f"joint '{j.name}': {j.muscle_names[0]} ({j.muscles[0].model.name}) "
@@ -136,94 +116,107 @@ class JointNode(Node):
             )
         )
 
-    def now(self) -> float:
-        """The node clock (ROS time) [s], without building an rclpy Time."""
-        return self._ros_clock.get_now().nanoseconds * 1e-9
-
-    def _on_pressure(self, k: int, m: int, msg: FluidPressure) -> None:
-        self.engine.pressure(k, m, msg.fluid_pressure, seconds(msg.header.stamp), self.now())
-
-    def _on_states(self, msg: JointState) -> None:
-        now, stamp = self.now(), msg.header.stamp
-        t = seconds(stamp)
-        names, positions = msg.name, msg.position
-        done, torques, stiffnesses = [], [], []
-        if len(positions) != len(names):
-            for k in {self.engine.index[n] for n in names if n in self.engine.index}:
-                self.engine.reject(
-                    k, f'joint_states: {len(names)} names, {len(positions)} positions', now
+    def create_interfaces(self) -> None:
+        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
+        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
+        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._command_pubs = []
+        for k, joint in enumerate(self.engine.joints):
+            pubs = []
+            for m, muscle in enumerate(joint.muscle_names):
+                self.create_subscription(
+                    FluidPressure,
+                    f'{muscle}/pressure',
+                    partial(self._on_pressure, k, m),
+                    INPUT_QOS,
+                    raw=True,
                 )
-            return
-        for i, name in enumerate(names):
-            k = self.engine.index.get(name)
-            if k is None:
-                continue
-            result = self.engine.angle(k, positions[i], t, now)
-            if result is not None:
-                done.append(name)
-                torques.append(result[0])
-                stiffnesses.append(result[1])
-        if done == self._names:
+                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
+            self._command_pubs.append(pubs)
+        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS, raw=True)
+        self.create_subscription(JointState, 'torque_command', self._on_torque, 10, raw=True)
+        for topic, apply in (
+            ('stiffness_command', self.engine.stiffness),
+            ('cocontraction_command', self.engine.cocontraction),
+        ):
+            self.create_subscription(
+                JointState, topic, partial(self._on_level, topic, apply), 10, raw=True
+            )
+        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
+
+    def now(self) -> int:
+        """The node clock (ROS time) [ns], read without building an rclpy Time."""
+        return self._ros_clock.get_now().nanoseconds
+
+    def _on_pressure(self, k: int, m: int, data: bytes) -> None:
+        now = self.now()
+        stamp, value = stamped_value(data, DESERIALIZE['FluidPressure'], 'fluid_pressure')
+        self.engine.pressure(k, m, value, stamp, now)
+        self._report(now)
+
+    def _on_states(self, data: bytes) -> None:
+        now, msg = self.now(), self._readers['joint_states'](data)
+        done, torques, stiffnesses = self.engine.joint_states(
+            msg.names, msg.position.tolist(), msg.stamp, now
+        )
+        if done:
+            every = done == self._names
             for pub, template, values in zip(
                 (self._torque_pub, self._stiffness_pub), self._all, (torques, stiffnesses)
             ):
-                template.values[:] = values
-                pub.publish(template(stamp.sec, stamp.nanosec))
-        elif done:
-            for pub, values in ((self._torque_pub, torques), (self._stiffness_pub, stiffnesses)):
-                out = JointState(name=done, effort=values)
-                out.header.stamp = stamp
-                pub.publish(out)
+                out = template if every else joint_state(done, 'effort')
+                out.values[:] = values
+                pub.publish(out(msg.stamp))
+        self._report(now)
 
-    def _on_torque(self, msg: JointState) -> None:
+    def _on_torque(self, data: bytes) -> None:
         now = self.now()
-        for name, torque in self._entries(msg, now):
+        for name, torque in self._entries(self._readers['torque_command'](data), now):
             k = self.engine.index[name]
             absolute = self.engine.command(k, torque, now)
             if absolute is not None:
-                stamp = self.get_clock().now().to_msg()
-                for pub, value, muscle in zip(
-                    self._command_pubs[k], absolute, self.engine.joints[k].muscle_names
+                for pub, value, template in zip(
+                    self._command_pubs[k], absolute, self._commands[k]
                 ):
-                    out = FluidPressure(fluid_pressure=value)
-                    out.header.stamp, out.header.frame_id = stamp, muscle
-                    pub.publish(out)
+                    template.values[0] = value
+                    pub.publish(template(now))
+        self._report(now)
 
-    def _on_level(self, apply, msg: JointState) -> None:
+    def _on_level(self, topic: str, apply, data: bytes) -> None:
         now = self.now()
-        for name, value in self._entries(msg, now):
+        for name, value in self._entries(self._readers[topic](data), now):
             apply(self.engine.index[name], value, now)
+        self._report(now)
 
-    def _entries(self, msg: JointState, now: float) -> list[tuple[str, float]]:
+    def _entries(self, msg: JointStateArrays, now: int) -> list[tuple[str, float]]:
         """(joint, effort) of a command's entries of this node's joints; mismatched arrays are
         rejected.
         """
-        ours = [n for n in msg.name if n in self.engine.index]
-        if len(msg.effort) != len(msg.name):
+        ours = [n for n in msg.names if n in self.engine.index]
+        if len(msg.effort) != len(msg.names):
             for name in ours:
                 self.engine.reject(
                     self.engine.index[name],
-                    f'command: {len(msg.name)} names, {len(msg.effort)} efforts',
+                    'command',
+                    f'command: {len(msg.names)} names, {len(msg.effort)} efforts',
                     now,
                 )
             return []
-        return [(n, e) for n, e in zip(msg.name, msg.effort) if n in self.engine.index]
+        return [(n, e) for n, e in zip(msg.names, msg.effort.tolist()) if n in self.engine.index]
 
-    def publish_status(self) -> None:
+    def _report(self, now: int) -> None:
+        if self.engine.status_due(now):
+            self.publish_status(now)
+
+    def publish_status(self, now: int) -> None:
         """One DiagnosticStatus per joint in one DiagnosticArray."""
-        now = self.now()
-        entries = []
-        for k, joint in enumerate(self.engine.joints):
-            level, message, values = self.engine.status(k, now)
-            entries.append(
-                (
-                    joint.name,
-                    ' / '.join(m.spec.name for m in joint.muscles),
-                    level,
-                    message,
-                    values | self.identification[k],
-                )
+        entries = [
+            (joint.name, hardware, status.level, status.message, status.values | ident)
+            for joint, hardware, status, ident in zip(
+                self.engine.joints, self._hardware, self.engine.statuses(now), self.identification
             )
+        ]
         self._diag_pub.publish(diagnostic_array(self, entries))
 
 

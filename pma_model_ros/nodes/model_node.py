@@ -13,33 +13,34 @@ length, one ``muscle_pressures`` JointState with every absolute pressure [Pa] in
 answered by one ``force_estimates`` JointState (effort = tension [N]); commands come in one
 ``force_commands`` JointState (effort = wanted tension [N]) and go out in one ``pressure_commands``
 JointState (position = absolute pressure [Pa]).  Every decision is the
-:class:`~pma_model_ros.core.engine.Engine`'s; the two adapters only turn messages into its calls.
+:class:`~pma_model_ros.core.engine.Engine`'s.  Subscriptions are raw: the wire layer
+(:mod:`pma_model_ros.wire.muscle_inputs`) reads the bytes into its calls and writes the answers'
+bytes; every entity is created in :meth:`ModelNode.create_interfaces`.
 """
 
 from __future__ import annotations
 
 from functools import partial
 import sys
-from typing import Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Vector3, Wrench, WrenchStamped
-import numpy as np
+from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
-from std_msgs.msg import Header
 
 from . import model_params
 from .diagnostics import diagnostic_array
 from .parameters import warn_unknown
 from .startup import refusing, run
-from ..core.cdr import sentinels, StampedTemplate
-from ..core.engine import CombinedInputs, Engine, REPORT_INTERVAL_PER_MUSCLE, seconds
+from ..core.engine import Engine
+from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.param_file import NodeSettings
+from ..wire.cdr import fluid_pressure
+from ..wire.muscle_inputs import MuscleInputs
 
 DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
 
@@ -52,17 +53,20 @@ INPUT_QOS = QoSProfile(
     durability=qos_profile_sensor_data.durability,
     history=qos_profile_sensor_data.history,
 )
+#: rclpy's deserializers of the input types: what the wire layer's fast readers do not read.
+DESERIALIZE = {
+    kind.__name__: partial(lambda kind, data: deserialize_message(data, kind), kind)
+    for kind in (FluidPressure, JointState, WrenchStamped)
+}
 
 
 class ModelNode(Node):
-    """Thin ROS shell around one :class:`Engine` for all its muscles; topics by the input mode's
-    adapter.
-    """
+    """Thin ROS shell around one :class:`Engine` for all its muscles."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__('model_node', **kwargs)
         with refusing(self):
-            self._names, mode = model_params.declare(self)
+            self._names, self.mode = model_params.declare(self)
             self._blocks = model_params.ModelBlocks(self, self._names)
             flat = self._blocks.would_be([])
             self.settings = model_params.all_settings(flat, self._names)
@@ -70,17 +74,16 @@ class ModelNode(Node):
             self.engine = Engine(
                 [s.config for s in self.settings],
                 hold=DIAGNOSTIC_PERIOD,
-                report_interval=REPORT_INTERVAL_PER_MUSCLE * len(self.settings),
+                report_interval=REPORT_INTERVAL_PER_STATUS * len(self.settings),
                 **model_params.pairing(flat),
             )
         warn_unknown(self, model_params.expected_undeclared)
         self.add_pre_set_parameters_callback(self._blocks.hold)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._ros_clock = self.get_clock().handle  # see now()
-        self.topics = (CombinedTopics if mode == 'combined' else MuscleTopics)(self, self._names)
-        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
+        self.use(self.settings)
+        self.create_interfaces()
         muscles = [
             f'{s.config.model.spec.name} with model {s.config.model.model.name}, joint '
             f"'{s.joint_name}'"
@@ -89,14 +92,53 @@ class ModelNode(Node):
         self.get_logger().info(
             muscles[0]
             if not self._names
-            else f'{len(muscles)} muscles, {mode}: ' + '; '.join(muscles)
+            else f'{len(muscles)} muscles, {self.mode}: ' + '; '.join(muscles)
         )
 
-    def now(self) -> float:
-        """The node clock (ROS time; sim time with use_sim_time) [s], read without building an
+    def create_interfaces(self) -> None:
+        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
+        if self.mode == 'combined':
+            self._estimate_pubs = [self.create_publisher(JointState, 'force_estimates', 10)]
+            self._command_pubs = [self.create_publisher(JointState, 'pressure_commands', 10)]
+            for topic, callback, qos in (
+                ('muscle_pressures', self._on_pressures, INPUT_QOS),
+                ('muscle_states', self._on_states, INPUT_QOS),
+                ('force_commands', self._on_commands, 10),
+            ):
+                self.create_subscription(JointState, topic, callback, qos, raw=True)
+            return
+        prefixes = [f'{name}/' for name in self._names] or ['']
+        self._estimate_pubs = [
+            self.create_publisher(WrenchStamped, f'{p}force_estimate', 10) for p in prefixes
+        ]
+        self._command_pubs = [
+            self.create_publisher(FluidPressure, f'{p}pressure_command', 10) for p in prefixes
+        ]
+        for k, p in enumerate(prefixes):
+            for kind, topic, callback, qos in (
+                (FluidPressure, 'pressure', self._on_pressure, INPUT_QOS),
+                (JointState, 'muscle_state', self._on_state, INPUT_QOS),
+                (WrenchStamped, 'force_command', self._on_command, 10),
+            ):
+                self.create_subscription(kind, p + topic, partial(callback, k), qos, raw=True)
+
+    def use(self, settings: list[NodeSettings]) -> None:
+        """Translate messages for the muscles of ``settings`` (their joint names and frames)."""
+        self.inputs = MuscleInputs(
+            self.engine,
+            [s.joint_name for s in settings],
+            [s.frame_id for s in settings],
+            DESERIALIZE,
+        )
+        self._commands = [fluid_pressure(s.frame_id) for s in settings]
+
+    def now(self) -> int:
+        """The node clock (ROS time; sim time with use_sim_time) [ns], read without building an
         rclpy Time.
         """
-        return self._ros_clock.get_now().nanoseconds * 1e-9
+        return self._ros_clock.get_now().nanoseconds
 
     def _validate(self, changes: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the whole would-be parameter set builds every muscle."""
@@ -115,163 +157,59 @@ class ModelNode(Node):
         self.engine.configure([s.config for s in settings])
         self.settings = settings
         self.identification = model_params.identifications(flat, self._names)
-        self.topics.use(settings)
+        self.use(settings)
 
-    def check_status(self, now: float, k: int | None = None) -> None:
-        """Publish the diagnostics at once if a level (muscle ``k``'s, or any) changed since the
-        last report.
-        """
-        if self.engine.status_due(now, k):
+    # --- callbacks: bytes in, bytes out
+    def _on_pressure(self, k: int, data: bytes) -> None:
+        now = self.now()
+        self._answer(k, self.inputs.pressure(k, data, now), now)
+
+    def _on_state(self, k: int, data: bytes) -> None:
+        now = self.now()
+        self._answer(k, self.inputs.muscle_state(k, data, now), now)
+
+    def _on_pressures(self, data: bytes) -> None:
+        now = self.now()
+        self._answer(0, self.inputs.pressures(data, now), now)
+
+    def _on_states(self, data: bytes) -> None:
+        now = self.now()
+        self._answer(0, self.inputs.states(data, now), now)
+
+    def _answer(self, k: int, estimate: bytes | None, now: int) -> None:
+        if estimate is not None:
+            self._estimate_pubs[k].publish(estimate)
+        if self.engine.status_due(now):
             self.publish_status(now)
 
-    def publish_status(self, now: float) -> None:
-        """One DiagnosticStatus per muscle in one DiagnosticArray."""
-        entries = []
-        for k, s in enumerate(self.settings):
-            status = self.engine.status(k, now)
-            entries.append(
-                (
-                    s.joint_name,
-                    s.config.model.spec.name,
-                    status.level,
-                    status.message,
-                    status.values | self.identification[k],
-                )
-            )
-        self._diag_pub.publish(diagnostic_array(self, entries))
-
-
-class MuscleTopics:
-    """``pressure``, ``muscle_state``, ``force_command`` in and ``force_estimate``,
-    ``pressure_command`` out, per muscle (under ``<name>/`` with several): each message is one call
-    of the engine's one-muscle path.
-    """
-
-    def __init__(self, node: ModelNode, names: Sequence[str]) -> None:
-        self.node, self.engine = node, node.engine
-        prefixes = [f'{name}/' for name in names] or ['']
-        self._estimate_pubs = [
-            node.create_publisher(WrenchStamped, f'{p}force_estimate', 10) for p in prefixes
-        ]
-        self._command_pubs = [
-            node.create_publisher(FluidPressure, f'{p}pressure_command', 10) for p in prefixes
-        ]
-        for k, prefix in enumerate(prefixes):
-            node.create_subscription(
-                FluidPressure, f'{prefix}pressure', partial(self._on_pressure, k), INPUT_QOS
-            )
-            node.create_subscription(
-                JointState, f'{prefix}muscle_state', partial(self._on_state, k), INPUT_QOS
-            )
-            node.create_subscription(
-                WrenchStamped, f'{prefix}force_command', partial(self._on_command, k), 10
-            )
-        self.use(node.settings)
-
-    def use(self, settings: list[NodeSettings]) -> None:
-        self._joints = [s.joint_name for s in settings]
-        self._estimates = [
-            StampedTemplate(
-                serialize_message(
-                    WrenchStamped(
-                        header=Header(frame_id=s.frame_id),
-                        wrench=Wrench(force=Vector3(x=sentinels(1)[0])),
-                    )
-                ),
-                1,
-            )
-            for s in settings
-        ]
-
-    def _on_pressure(self, k: int, msg: FluidPressure) -> None:
-        now, stamp = self.node.now(), msg.header.stamp
-        force = self.engine.pressure(k, msg.fluid_pressure, seconds(stamp), now, stamp)
-        self._answer(k, force, now)
-
-    def _on_state(self, k: int, msg: JointState) -> None:
-        now, stamp = self.node.now(), msg.header.stamp
-        force = self.engine.joint_state(
-            k, msg.name, msg.position, msg.velocity, self._joints[k], seconds(stamp), now, stamp
-        )
-        self._answer(k, force, now)
-
-    def _answer(self, k: int, force: float | None, now: float) -> None:
-        if force is not None:
-            estimate, tag = self._estimates[k], self.engine.tag
-            estimate.values[0] = force
-            self._estimate_pubs[k].publish(estimate(tag.sec, tag.nanosec))
-        self.node.check_status(now, k)
-
-    def _on_command(self, k: int, msg: WrenchStamped) -> None:
-        now = self.node.now()
-        pressure = self.engine.command(k, msg.wrench.force.x, now)
+    def _on_command(self, k: int, data: bytes) -> None:
+        now = self.now()
+        pressure = self.inputs.force_command(k, data, now)
         if pressure is not None:
-            out = FluidPressure(fluid_pressure=pressure)
-            out.header.stamp = self.node.get_clock().now().to_msg()
-            out.header.frame_id = self.node.settings[k].frame_id
-            self._command_pubs[k].publish(out)
-        self.node.check_status(now, k)
+            command = self._commands[k]
+            command.values[0] = pressure
+            self._command_pubs[k].publish(command(now))
+        if self.engine.status_due(now):
+            self.publish_status(now)
 
+    def _on_commands(self, data: bytes) -> None:
+        """Pressure commands of the muscles named in the message (the others are not commanded)."""
+        now = self.now()
+        commands = self.inputs.force_commands(data, now)
+        if commands is not None:
+            self._command_pubs[0].publish(commands(now))
+        if self.engine.status_due(now):
+            self.publish_status(now)
 
-class CombinedTopics:
-    """``muscle_pressures``, ``muscle_states``, ``force_commands`` in and ``force_estimates``,
-    ``pressure_commands`` out, each a JointState of every muscle: each message is one vectorised
-    call of the engine.
-    """
-
-    def __init__(self, node: ModelNode, names: Sequence[str]) -> None:
-        self.node, self.engine = node, node.engine
-        self._states_pub = node.create_publisher(JointState, 'force_estimates', 10)
-        self._commands_pub = node.create_publisher(JointState, 'pressure_commands', 10)
-        node.create_subscription(JointState, 'muscle_pressures', self._on_pressures, INPUT_QOS)
-        node.create_subscription(JointState, 'muscle_states', self._on_states, INPUT_QOS)
-        node.create_subscription(JointState, 'force_commands', self._on_commands, 10)
-        self.use(node.settings)
-
-    def use(self, settings: list[NodeSettings]) -> None:
-        self._inputs = CombinedInputs(self.engine, [s.joint_name for s in settings])
-        n = len(settings)  # a message of every muscle's estimate
-        self._all = StampedTemplate(
-            serialize_message(JointState(name=self._inputs.joints, effort=sentinels(n).tolist())),
-            n,
-        )
-
-    def _on_pressures(self, msg: JointState) -> None:
-        now = self.node.now()
-        self._answer(self._inputs.pressures(msg.name, msg.position, msg.header.stamp, now), now)
-
-    def _on_states(self, msg: JointState) -> None:
-        now = self.node.now()
-        self._answer(
-            self._inputs.lengths(msg.name, msg.position, msg.velocity, msg.header.stamp, now), now
-        )
-
-    def _answer(self, estimated: np.ndarray, now: float) -> None:
-        """One force_estimates of the muscles that got an estimate (the prebuilt message when all
-        did).
-        """
-        if estimated.all():
-            tag = self.engine.newest_tag(estimated)
-            self._all.values[:] = self.engine.forces
-            self._states_pub.publish(self._all(tag.sec, tag.nanosec))
-        elif estimated.any():
-            msg = JointState(
-                name=[j for j, e in zip(self._inputs.joints, estimated.tolist()) if e],
-                effort=self.engine.forces[estimated].tolist(),
+    def publish_status(self, now: int) -> None:
+        """One DiagnosticStatus per muscle in one DiagnosticArray."""
+        entries = [
+            (s.joint_name, s.hardware_id, status.level, status.message, status.values | ident)
+            for s, status, ident in zip(
+                self.settings, self.engine.statuses(now), self.identification
             )
-            msg.header.stamp = self.engine.newest_tag(estimated)
-            self._states_pub.publish(msg)
-        self.node.check_status(now)
-
-    def _on_commands(self, msg: JointState) -> None:
-        """Pressure commands of the muscles named in ``msg`` (the others are not commanded)."""
-        now = self.node.now()
-        joints, pressures = self._inputs.commands(msg.name, msg.effort, now)
-        if joints:
-            out = JointState(name=joints, position=pressures)
-            out.header.stamp = self.node.get_clock().now().to_msg()
-            self._commands_pub.publish(out)
-        self.node.check_status(now)
+        ]
+        self._diag_pub.publish(diagnostic_array(self, entries))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -1,0 +1,272 @@
+"""Health of N entities (muscles or joints): named counters, latched problems and warnings, input
+rates and stamp ages, diagnostic levels with their texts, and when to report (no ROS).
+
+One implementation for model_node's and joint_node's engines, so both nodes report alike:
+
+* ERROR for ``hold`` after a rejected input (``invalid input: <reason>``), and while an input was
+  never received or is stale (``no <input> received yet``, ``stale <input>: ...``);
+* WARN for ``hold`` after a warning flag of an estimate or command (:data:`WARN_FLAGS`);
+* else OK, ``estimating``.
+
+A report is due when a level differs from the last report (at most every ``report_interval``);
+the nodes also report every second.  Each status's values: the non-zero counters, then per input
+what diagnostic_updater's FrequencyStatus and TimeStampStatus report, over the window since the
+previous report, then the engine's own values and :attr:`Health.extra` (static key-values per
+entity: a hook for, e.g., identification results).
+
+An event concerns every entity (``which`` None: kept as one number, so that an input of every
+muscle costs no array operation), the entities of a boolean mask, or one entity (an int).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import enum
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .flags import Flag
+from .pairing import fresh, NEVER, SECOND
+
+Which = np.ndarray | int | None  #: every entity (None), a mask, or one entity
+
+
+class Level(enum.IntEnum):
+    """Diagnostic level; values equal diagnostic_msgs/DiagnosticStatus levels."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+
+
+#: Flags that make an estimate or command WARN, with their diagnostic wording.
+WARN_FLAGS = {
+    Flag.SATURATED: 'saturated',
+    Flag.LENGTH_OUT_OF_RANGE: 'outside validity domain',
+    Flag.PRESSURE_OUT_OF_RANGE: 'outside validity domain',
+    Flag.BRANCH_UNKNOWN: 'hysteresis branch unknown',
+    Flag.EXTRAPOLATED: 'extrapolated beyond the identified data',
+    Flag.BELOW_AMBIENT: (
+        'pressure far below ambient: a gauge sensor read as absolute? (pressure_reference)'
+    ),
+}
+WARN_MASK = int(sum(WARN_FLAGS))
+_WARN_TEXTS = tuple(f'{text} ({flag.name})' for flag, text in WARN_FLAGS.items())
+_WARN_BITS = tuple(int(flag) for flag in WARN_FLAGS)
+_WARN_ARRAY = np.array(_WARN_BITS, np.uint16)
+OK_TEXT = 'estimating'
+#: [s] Shortest time between two on-change reports of a node (model_node, joint_node and the
+#: offline twin), per status reported: building and publishing the statuses of 64 muscles took
+#: about 3 ms, so on-change reports stay a few percent of a core however many entities flap
+#: (N = 64: at most one every 0.1 s).
+REPORT_INTERVAL_PER_STATUS = 0.0015
+
+
+@dataclass(frozen=True)
+class Status:
+    level: Level
+    message: str
+    values: dict[str, str]
+
+
+class Health:
+    """Diagnostics of ``count`` entities fed by ``inputs`` (names, e.g. ``pressure``; or one tuple
+    of names per entity), with the ``counters`` (labels) counted by :meth:`count`.
+
+    ``stamps`` (inputs x count, [ns]) is the newest valid stamp of each input, written by its
+    owner (:meth:`arrived`; NEVER: none); ``max_age`` [ns]: freshness; ``hold`` [ns]: how long a
+    rejection or warning keeps the level up.
+    """
+
+    def __init__(
+        self,
+        count: int,
+        inputs: Sequence[str] | Sequence[Sequence[str]],
+        counters: Sequence[str],
+        stamps: np.ndarray,
+        max_age: int,
+        hold: int = SECOND,
+        report_interval: int = 0,
+    ) -> None:
+        names = [tuple(inputs)] * count if isinstance(inputs[0], str) else list(map(tuple, inputs))
+        shape = (len(names[0]), count)
+        self.inputs, self.labels, self.stamps = names, tuple(counters), stamps
+        self.max_age, self.hold, self.report_interval = max_age, hold, report_interval
+        # per entity in Python lists (one entity's event costs no numpy call); every entity's as
+        # one number
+        self._counts = [[0] * len(counters) for _ in range(count)]
+        self._counts_all = [0] * len(counters)
+        #: static key-values added to each entity's status (e.g. identification results)
+        self.extra: list[dict[str, str]] = [{} for _ in range(count)]
+        self._arrivals = [[0] * count for _ in range(shape[0])]  # valid inputs, [input][entity]
+        self._arrivals_all = [0] * shape[0]
+        self._delay_min = [[np.inf] * count for _ in range(shape[0])]  # [s]
+        self._delay_max = [[-np.inf] * count for _ in range(shape[0])]
+        self._delay_all = [[np.inf, -np.inf] for _ in range(shape[0])]  # (min, max) [s]
+        self._late, self._early, self._zero = (np.zeros(shape, np.int64) for _ in range(3))
+        self._rejected_at, self._reason = np.full(count, NEVER, np.int64), [''] * count
+        self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
+        self._reported = np.full(count, -1, np.int64)  # level of the last report (-1: none)
+        self._window_start = np.full(count, NEVER, np.int64)
+        self._window_arrivals = np.zeros(shape, np.int64)
+        self._last_report = NEVER
+        #: every level was reported OK and no event changed one since (rejections, warnings and
+        #: stale inputs clear it): then only time raises one, after _fresh_until [ns], when an
+        #: input is older than max_age (or if the clock went back before _checked_at [ns])
+        self._steady, self._checked_at, self._fresh_until = False, NEVER, NEVER
+
+    # --- events
+    def count(self, counter: int, which: Which = None) -> None:
+        """Add 1 to ``counter`` of the entities ``which``."""
+        if which is None:
+            self._counts_all[counter] += 1
+        elif isinstance(which, int):
+            self._counts[which][counter] += 1
+        else:
+            for k in np.flatnonzero(which).tolist():
+                self._counts[k][counter] += 1
+
+    def counts(self, k: int) -> list[int]:
+        """Entity ``k``'s counters, in the order of the labels."""
+        return [n + m for n, m in zip(self._counts[k], self._counts_all)]
+
+    def arrived(self, i: int, which: Which, stamp: int, now: int) -> None:
+        """Input ``i`` of the entities ``which`` was valid, stamped ``stamp`` (its owner writes
+        :attr:`stamps`).
+        """
+        delay = (now - stamp) / SECOND
+        if abs(now - stamp) > self.max_age:  # a stale input: the levels may have changed
+            self._steady = False
+        if which is None:
+            self._arrivals_all[i] += 1
+            low_high = self._delay_all[i]
+            low_high[0], low_high[1] = min(low_high[0], delay), max(low_high[1], delay)
+        else:
+            arrivals, low, high = self._arrivals[i], self._delay_min[i], self._delay_max[i]
+            for k in [which] if isinstance(which, int) else np.flatnonzero(which).tolist():
+                arrivals[k] += 1
+                if delay < low[k]:
+                    low[k] = delay
+                if delay > high[k]:
+                    high[k] = delay
+
+    def reject(self, k: int, reason: str, now: int) -> None:
+        """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
+        self._rejected_at[k], self._reason[k], self._steady = now, reason, False
+
+    def warn(self, which: np.ndarray | None, flags: np.ndarray, now: int) -> None:
+        """The entities ``which`` (a mask, None: all) gave results with ``flags`` (one word per
+        entity): their warning flags hold the level at WARN.
+        """
+        hit = (flags[:, None] & _WARN_ARRAY) != 0
+        if which is not None:
+            hit &= which[:, None]
+        if hit.any():
+            self._warned_at[hit] = now
+            self._steady = False
+
+    def warn_one(self, k: int, flags: int, now: int) -> None:
+        """:meth:`warn` of entity ``k``'s result with ``flags``."""
+        if flags & WARN_MASK:
+            for j, bit in enumerate(_WARN_BITS):
+                if flags & bit:
+                    self._warned_at[k, j] = now
+            self._steady = False
+
+    # --- levels and reports
+    def levels(self, now: int) -> np.ndarray:
+        """Every entity's level."""
+        error = (now - self._rejected_at < self.hold) | ~fresh(self.stamps, now, self.max_age).all(
+            axis=0
+        )
+        warn = now - self._warned_at.max(axis=1) < self.hold
+        return np.where(error, int(Level.ERROR), warn.view(np.int8))
+
+    def level(self, k: int, now: int) -> tuple[Level, str]:
+        """Entity ``k``'s level and its one-line reason."""
+        if now - self._rejected_at.item(k) < self.hold:
+            return Level.ERROR, f'invalid input: {self._reason[k]}'
+        for name, stamp in zip(self.inputs[k], self.stamps[:, k].tolist()):
+            if stamp == NEVER:
+                return Level.ERROR, f'no {name} received yet'
+            age = (now - stamp) / SECOND
+            if abs(now - stamp) > self.max_age:
+                when = f'{age:.3g} s old' if age > 0 else f'{-age:.3g} s in the future'
+                return (
+                    Level.ERROR,
+                    f'stale {name}: newest stamp is {when} (max_input_age '
+                    f'{self.max_age / SECOND:g} s)',
+                )
+        warned = self._warned_at[k].tolist()
+        if now - max(warned) < self.hold:
+            return Level.WARN, '; '.join(
+                sorted({text for text, at in zip(_WARN_TEXTS, warned) if now - at < self.hold})
+            )
+        return Level.OK, OK_TEXT
+
+    def due(self, now: int) -> bool:
+        """Whether a level differs from the last report, and ``report_interval`` has passed since
+        it (a node that falls behind, its inputs flapping between fresh and stale, must not spend
+        its time reporting).
+        """
+        if 0 <= now - self._last_report < self.report_interval:
+            return False
+        if self._steady and self._checked_at <= now <= self._fresh_until:
+            return False  # every level was reported OK and nothing happened since
+        levels = self.levels(now)
+        due = bool((levels != self._reported).any())
+        self._steady = not due and not levels.any()
+        if self._steady:  # until an input goes stale, only an event can change a level
+            self._checked_at, self._fresh_until = now, int(self.stamps.min()) + self.max_age
+        return due
+
+    def report(self, now: int, own: Callable[[int], dict[str, str]] | None = None) -> list[Status]:
+        """Every entity's status; ``own(k)``: the engine's values of entity ``k``."""
+        statuses = []
+        arrivals = np.array(self._arrivals) + np.array(self._arrivals_all)[:, None]
+        low = np.minimum(self._delay_min, np.array([d[0] for d in self._delay_all])[:, None])
+        high = np.maximum(self._delay_max, np.array([d[1] for d in self._delay_all])[:, None])
+        for k in range(len(self._reported)):
+            level, message = self.level(k, now)
+            values = {label: str(n) for label, n in zip(self.labels, self.counts(k)) if n}
+            for i, name in enumerate(self.inputs[k]):
+                values |= self._input_values(i, k, now, name, arrivals, low, high)
+            values |= own(k) if own else {}
+            values |= self.extra[k]
+            statuses.append(Status(level, message, values))
+            self._reported[k], self._window_start[k] = level, now
+        self._window_arrivals[:] = arrivals
+        for row in self._delay_min:
+            row[:] = [np.inf] * len(row)
+        for row in self._delay_max:
+            row[:] = [-np.inf] * len(row)
+        self._delay_all = [[np.inf, -np.inf] for _ in self._delay_all]
+        self._steady, self._last_report = False, now
+        return statuses
+
+    def _input_values(self, i, k, now, name, arrivals, low, high) -> dict[str, str]:
+        """FrequencyStatus and TimeStampStatus of input ``i`` of entity ``k`` over its window."""
+        total = arrivals.item(i, k)
+        events = total - self._window_arrivals.item(i, k)
+        start = self._window_start.item(k)
+        window = (now - start) / SECOND if start != NEVER else 0.0
+        early, late = low.item(i, k), high.item(i, k)
+        limit = self.max_age / SECOND
+        if not events:
+            self._zero[i, k] += 1
+        self._late[i, k] += late > limit
+        self._early[i, k] += early < -limit
+        return {
+            f'{name}: Events in window': str(events),
+            f'{name}: Events since startup': str(total),
+            f'{name}: Duration of window (s)': f'{window:f}',
+            f'{name}: Actual frequency (Hz)': f'{events / window if window > 0 else 0.0:f}',
+            f'{name}: Earliest timestamp delay:': f'{early if events else 0.0:f}',
+            f'{name}: Latest timestamp delay:': f'{late if events else 0.0:f}',
+            f'{name}: Earliest acceptable timestamp delay:': f'{-limit:f}',
+            f'{name}: Latest acceptable timestamp delay:': f'{limit:f}',
+            f'{name}: Late diagnostic update count:': str(self._late.item(i, k)),
+            f'{name}: Early diagnostic update count:': str(self._early.item(i, k)),
+            f'{name}: Zero seen diagnostic update count:': str(self._zero.item(i, k)),
+        }

@@ -1,0 +1,161 @@
+"""Plain CDR (little-endian, the encapsulation every ROS 2 Jazzy publisher and rosbag2 recording
+uses): the stamped messages of this package written once and patched per use, and their stamp and
+first float read in place.
+
+Alignment is counted from the end of the 4-byte encapsulation header, as CDR defines it.  Messages
+with a header (``std_msgs/Header``) first: ``header.stamp`` at bytes 4..12, ``header.frame_id``
+(uint32 length with its NUL, the bytes) from 12.  A reader refuses (returns None for) anything
+else: another encapsulation or endianness, a truncated message; its caller then uses a full
+deserializer.
+Serializers may leave arbitrary bytes in padding and after the message: nothing here reads them.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Sequence
+
+import numpy as np
+
+LITTLE_ENDIAN = b'\x00\x01'  #: encapsulation: plain CDR, little-endian (options 0)
+_ORIGIN = 4  # alignment origin: after the encapsulation header
+_STAMP = struct.Struct('<iI')
+_U32 = struct.Struct('<I')
+_F64 = struct.Struct('<d')
+_SECOND = 10**9
+
+
+def aligned(offset: int, size: int) -> int:
+    """``offset`` [bytes] moved up to the next multiple of ``size`` counted from the CDR origin."""
+    return offset + (-(offset - _ORIGIN)) % size
+
+
+def split(stamp_ns: int) -> tuple[int, int]:
+    """A time [ns] as ``builtin_interfaces/Time`` (sec, nanosec), nanosec in [0, 1e9)."""
+    return stamp_ns // _SECOND, stamp_ns % _SECOND
+
+
+def stamp_ns(sec: int, nanosec: int) -> int:
+    """A ``builtin_interfaces/Time`` in integer nanoseconds."""
+    return sec * _SECOND + nanosec
+
+
+def frame_end(data: bytes) -> int | None:
+    """Where the header's frame_id ends (its NUL included) in a little-endian message, or None."""
+    if data[:2] != LITTLE_ENDIAN or len(data) < 16:
+        return None
+    end = 16 + _U32.unpack_from(data, 12)[0]
+    return end if end <= len(data) else None
+
+
+def stamped_float(data: bytes) -> tuple[int, float] | None:
+    """(header stamp [ns], the first float64 after the header) of a little-endian message: the
+    ``fluid_pressure`` of a FluidPressure, the ``wrench.force.x`` of a WrenchStamped; None if it
+    cannot be read so.
+    """
+    end = frame_end(data)
+    if end is None:
+        return None
+    at = aligned(end, 8)
+    if at + 8 > len(data):
+        return None
+    sec, nanosec = _STAMP.unpack_from(data, 4)
+    return sec * _SECOND + nanosec, _F64.unpack_from(data, at)[0]
+
+
+class CdrWriter:
+    """A message written field by field (little-endian plain CDR), for the templates below."""
+
+    def __init__(self) -> None:
+        self.data = bytearray(LITTLE_ENDIAN + b'\x00\x00')
+        #: where the alignment padding is [bytes]: serializers may leave anything there
+        self.padding: list[int] = []
+
+    def _align(self, size: int) -> None:
+        end = aligned(len(self.data), size)
+        self.padding += range(len(self.data), end)
+        self.data += bytes(end - len(self.data))
+
+    def header(self, frame_id: str) -> None:
+        """``std_msgs/Header`` with stamp 0 (patched later) and ``frame_id``."""
+        self.data += bytes(8)
+        self.string(frame_id)
+
+    def string(self, text: str) -> None:
+        raw = text.encode() + b'\x00'
+        self.count(len(raw))
+        self.data += raw
+
+    def count(self, n: int) -> None:
+        """A uint32: a sequence's or a string's length."""
+        self._align(4)
+        self.data += _U32.pack(n)
+
+    def float64(self, value: float = 0.0) -> int:
+        """One float64; where it sits [bytes]."""
+        self._align(8)
+        at = len(self.data)
+        self.data += _F64.pack(value)
+        return at
+
+    def floats(self, n: int) -> tuple[int, int]:
+        """A float64 sequence of ``n`` zeros; where its count and its values start [bytes]."""
+        self.count(n)
+        count_at = len(self.data) - 4
+        if n:
+            self._align(8)
+        at = len(self.data)
+        self.data += bytes(8 * n)
+        return count_at, at
+
+
+class Template:
+    """A serialized message whose stamp and ``values`` (consecutive float64 fields, a view into its
+    bytes: write into it) change per use; every other field is fixed.
+    """
+
+    def __init__(self, writer: CdrWriter, at: int, count: int) -> None:
+        self._buffer = writer.data
+        self.values = np.frombuffer(self._buffer, np.float64, count, at)
+
+    def __call__(self, stamp: int) -> bytes:
+        """The message bytes stamped ``stamp`` [ns], with the current ``values``."""
+        _STAMP.pack_into(self._buffer, 4, *split(stamp))
+        return bytes(self._buffer)
+
+
+def wrench_stamped(frame_id: str) -> Template:
+    """``geometry_msgs/WrenchStamped``: ``values`` = [force.x]; the rest 0."""
+    writer = CdrWriter()
+    writer.header(frame_id)
+    at = writer.float64()
+    for _ in range(5):
+        writer.float64()
+    return Template(writer, at, 1)
+
+
+def fluid_pressure(frame_id: str) -> Template:
+    """``sensor_msgs/FluidPressure``: ``values`` = [fluid_pressure]; variance 0 (unknown)."""
+    writer = CdrWriter()
+    writer.header(frame_id)
+    at = writer.float64()
+    writer.float64()
+    return Template(writer, at, 1)
+
+
+def joint_state(names: Sequence[str], field: str, frame_id: str = '') -> Template:
+    """``sensor_msgs/JointState`` of ``names``: ``values`` = the ``field`` array (``position``,
+    ``velocity`` or ``effort``), one per name; the other two arrays empty.
+    """
+    writer = CdrWriter()
+    writer.header(frame_id)
+    writer.count(len(names))
+    for name in names:
+        writer.string(name)
+    at = 0
+    for which in ('position', 'velocity', 'effort'):
+        if which == field:
+            at = writer.floats(len(names))[1]
+        else:
+            writer.floats(0)
+    return Template(writer, at, len(names))

@@ -1,0 +1,234 @@
+"""The wire layer (pma_model_ros/wire) against rclpy's own serializer and deserializer: what it
+reads from message bytes is what rclpy deserializes, what it writes is what rclpy deserializes
+back; and it writes the bytes rosbags' serializer writes.
+"""
+
+import math
+
+from geometry_msgs.msg import WrenchStamped
+from hypothesis import given, settings
+from hypothesis import strategies as st
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import FluidPressure, JointState
+
+from pma_model_ros.bags.bag_io import JOINT_STATE, TYPESTORE
+from pma_model_ros.wire.cdr import (
+    fluid_pressure,
+    joint_state,
+    split,
+    stamped_float,
+    wrench_stamped,
+)
+from pma_model_ros.wire.joint_state import JointIndex, JointStateArrays, JointStateReader
+
+EXAMPLES = 300
+#: Names and frame_ids of every length mod 4 (padding 0..3 bytes), non-ASCII included.
+texts = st.text(st.characters(codec='utf-8', exclude_characters='\x00'), max_size=9)
+floats = st.floats(allow_nan=True, allow_infinity=True)
+arrays = st.lists(floats, max_size=5)
+stamps = st.tuples(st.integers(-(2**31), 2**31 - 1), st.integers(0, 10**9 - 1))
+
+
+@st.composite
+def joint_states(draw, names=None):
+    msg = JointState(
+        name=draw(st.lists(texts, max_size=5)) if names is None else names,
+        position=draw(arrays),
+        velocity=draw(arrays),
+        effort=draw(arrays),
+    )
+    msg.header.frame_id = draw(texts)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = draw(stamps)
+    return msg
+
+
+def same(got, msg) -> None:
+    """``got`` (JointStateArrays) holds what ``msg`` (a deserialized JointState) holds, NaN too."""
+    assert got.stamp == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    assert list(got.names) == list(msg.name)
+    for field in ('position', 'velocity', 'effort'):
+        np.testing.assert_array_equal(getattr(got, field), np.asarray(getattr(msg, field)))
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@given(
+    first=joint_states(),
+    stream=st.lists(st.tuples(st.booleans(), joint_states()), min_size=1, max_size=6),
+)
+def test_reader_equals_rclpy_deserialize(first, stream):
+    """A stream where each message repeats the previous one's names or brings new ones: every read
+    equals rclpy's deserialization; a repeated layout is read at the cached offsets.
+    """
+    reader = JointStateReader(lambda data: deserialize_message(data, JointState))
+    previous = first
+    for keep, msg in [(False, first), *stream]:
+        if keep:  # the layout of the previous message, new numbers and stamp
+            msg.name, msg.header.frame_id = previous.name, previous.header.frame_id
+            msg.position = [v * 2 for v in previous.position]
+            msg.velocity, msg.effort = list(previous.velocity), list(previous.effort)
+        data = serialize_message(msg)
+        fast = reader.fast
+        got = reader(data)
+        same(got, deserialize_message(data, JointState))
+        if keep:
+            assert reader.fast == fast + 1  # read without the deserializer
+        previous = msg
+
+
+@settings(max_examples=EXAMPLES // 3, deadline=None, derandomize=True, database=None)
+@given(msg=joint_states())
+def test_big_endian_messages_are_deserialized(msg):
+    """A big-endian message (another encapsulation): decoded by the deserializer every time."""
+    ours = TYPESTORE.types[JOINT_STATE](
+        TYPESTORE.types['std_msgs/msg/Header'](
+            TYPESTORE.types['builtin_interfaces/msg/Time'](
+                msg.header.stamp.sec, msg.header.stamp.nanosec
+            ),
+            msg.header.frame_id,
+        ),
+        list(msg.name),
+        np.array(msg.position, float),
+        np.array(msg.velocity, float),
+        np.array(msg.effort, float),
+    )
+    data = bytes(TYPESTORE.serialize_cdr(ours, JOINT_STATE, little_endian=False))
+    reader = JointStateReader(lambda data: deserialize_message(data, JointState))
+    for _ in range(2):
+        same(reader(data), deserialize_message(data, JointState))
+    assert reader.fast == 0 and reader.decoded == 2
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@given(
+    names=st.lists(texts, max_size=6),
+    field=st.sampled_from(['position', 'velocity', 'effort']),
+    frame=texts,
+    stamp=st.integers(-(2**31) * 10**9, 2**31 * 10**9 - 1),
+    data=st.data(),
+)
+def test_joint_state_template_equals_rclpy_and_rosbags(names, field, frame, stamp, data):
+    template = joint_state(names, field, frame)
+    values = data.draw(st.lists(floats, min_size=len(names), max_size=len(names)))
+    template.values[:] = values
+    out = template(stamp)
+    msg = deserialize_message(out, JointState)
+    expected = JointState(name=names, **{field: values})
+    expected.header.frame_id = frame
+    expected.header.stamp.sec, expected.header.stamp.nanosec = split(stamp)
+    same(arrays_of(msg), expected)
+    rosbags = TYPESTORE.deserialize_cdr(out, JOINT_STATE)
+    assert bytes(TYPESTORE.serialize_cdr(rosbags, JOINT_STATE)) == out  # byte for byte
+
+
+def arrays_of(msg) -> JointStateArrays:
+    return JointStateArrays(
+        msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
+        list(msg.name),
+        *(np.asarray(getattr(msg, f), float) for f in ('position', 'velocity', 'effort')),
+    )
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@given(frame=texts, value=floats, stamp=stamps)
+def test_stamped_float_reads_and_writes_like_rclpy(frame, value, stamp):
+    for kind, template, field in (
+        (FluidPressure, fluid_pressure, 'fluid_pressure'),
+        (WrenchStamped, wrench_stamped, 'wrench.force.x'),
+    ):
+        msg = kind()
+        msg.header.frame_id = frame
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+        if kind is FluidPressure:
+            msg.fluid_pressure = value
+        else:
+            msg.wrench.force.x = value
+        ns = stamp[0] * 10**9 + stamp[1]
+        got_stamp, got = stamped_float(serialize_message(msg))
+        assert got_stamp == ns and (got == value or math.isnan(got) and math.isnan(value))
+        ours = template(frame)
+        ours.values[0] = value
+        back = deserialize_message(ours(ns), kind)
+        assert (back.header.stamp.sec, back.header.stamp.nanosec, back.header.frame_id) == (
+            *stamp,
+            frame,
+        )
+        field_value = back.fluid_pressure if kind is FluidPressure else back.wrench.force.x
+        assert field_value == value or math.isnan(value) and math.isnan(field_value), field
+
+
+def test_stamped_float_refuses_what_it_cannot_read():
+    data = serialize_message(FluidPressure(fluid_pressure=3.0))
+    assert stamped_float(data[:20]) is None  # truncated
+    assert stamped_float(b'\x00\x00' + data[2:]) is None  # big-endian encapsulation
+
+
+def test_joint_index_per_layout():
+    reader = JointStateReader(lambda data: deserialize_message(data, JointState))
+    index = JointIndex(['b', 'c', 'x'])
+    msg = reader(serialize_message(JointState(name=['a', 'b', 'c'], position=[1.0, 2.0, 3.0])))
+    take, present, problems = index.of(msg)
+    assert take.tolist()[:2] == [1, 2] and present.tolist() == [True, True, False]
+    assert problems == ["joint 'x' not in ['a', 'b', 'c']"]
+    assert index.of(msg)[0] is take  # cached for the layout
+    bad = reader(serialize_message(JointState(name=['b', 'c', 'x'], position=[1.0])))
+    assert index.of(bad)[2] == ['mismatched arrays: 3 names, 1 positions, 0 velocities'] * 3
+
+
+@pytest.mark.parametrize('n', [1, 64])
+def test_reading_many_messages_of_one_layout_is_fast_after_the_first(n):
+    names = [f'm{i:02d}' for i in range(n)]
+    reader = JointStateReader(lambda data: deserialize_message(data, JointState))
+    for k in range(5):
+        msg = JointState(name=names, position=[k + 0.5] * n)
+        msg.header.stamp.sec = k
+        same(reader(serialize_message(msg)), msg)
+    assert (reader.decoded, reader.fast) == (1, 4)
+
+
+def ignored_bytes(data: bytes) -> list[int]:
+    """The bytes of a JointState rclpy's deserializer ignores, found by changing each one in turn
+    (the padding, whatever the wire layer thinks it is).
+    """
+    msg = deserialize_message(data, JointState)
+    ignored = []
+    for i in range(4, len(data)):
+        changed = bytearray(data)
+        changed[i] ^= 0xA5
+        try:
+            other = deserialize_message(bytes(changed), JointState)
+        except Exception:  # e.g. a string that is no UTF-8 any more
+            continue
+        if (
+            other.header == msg.header
+            and other.name == msg.name
+            and all(
+                np.array_equal(getattr(other, f), getattr(msg, f), equal_nan=True)
+                for f in ('position', 'velocity', 'effort')
+            )
+        ):
+            ignored.append(i)
+    return ignored
+
+
+@settings(max_examples=EXAMPLES // 3, deadline=None, derandomize=True, database=None)
+@given(msg=joint_states(), garbage=st.binary(min_size=64, max_size=64), data=st.data())
+def test_garbage_in_the_padding_keeps_the_cached_layout(msg, garbage, data):
+    """The serializer of rclpy leaves whatever was in memory in the padding (seen: 3 bytes after an
+    empty frame_id changing from message to message); such a message is still read at the cached
+    layout, and equals rclpy's deserialization.
+    """
+    reader = JointStateReader(lambda data: deserialize_message(data, JointState))
+    clean = serialize_message(msg)
+    reader(clean)
+    msg.position = data.draw(
+        st.lists(floats, min_size=len(msg.position), max_size=len(msg.position))
+    )
+    dirty = bytearray(serialize_message(msg))
+    ignored = ignored_bytes(bytes(dirty))
+    for i, at in enumerate(ignored):
+        dirty[at] = garbage[i % len(garbage)]
+    got = reader(bytes(dirty))
+    same(got, deserialize_message(bytes(dirty), JointState))
+    assert (reader.decoded, reader.fast) == (1, 1)
