@@ -246,7 +246,7 @@ class Health:
         return statuses
 
     def _input_values(self, i, k, now, name, arrivals, low, high) -> dict[str, str]:
-        """FrequencyStatus and TimeStampStatus of input ``i`` of entity ``k`` over its window."""
+        """The FrequencyStatus and TimeStampStatus of input ``i`` of entity ``k`` (its window)."""
         total = arrivals.item(i, k)
         events = total - self._window_arrivals.item(i, k)
         start = self._window_start.item(k)
