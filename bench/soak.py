@@ -80,15 +80,12 @@ class Stream:
         return self.last - self.first + 1 - len(self.stamps) if self.first else 0
 
 
-def model_status(diagnostics: list, namespace: str):
-    """The newest model_node status of ``namespace`` (None before any)."""
+def model_status(diagnostics: list) -> object:
+    """The newest model_node status (named ``model_node: <joint>``; None before any); this run's
+    domain holds only its own nodes.
+    """
     return next(
-        (
-            s
-            for d in reversed(diagnostics)
-            for s in d.status
-            if s.name.startswith(f'{namespace}/model_node')
-        ),
+        (s for d in reversed(diagnostics) for s in d.status if s.name.startswith('model_node: ')),
         None,
     )
 
@@ -145,13 +142,13 @@ def main() -> None:
         model = node_process.start(
             node_process.command('model_node', ns, CONFIG), logs['model_node']
         )
-        while model_status(diagnostics, ns) is None and model.poll() is None:
+        while model_status(diagnostics) is None and model.poll() is None:
             spin_for(0.1)
         sim = node_process.start(
             node_process.command('simulator_node', ns, params={'rate': args.rate}),
             logs['simulator_node'],
         )
-        while not (s := model_status(diagnostics, ns)) or s.level == b'\x02':  # first non-ERROR
+        while not (s := model_status(diagnostics)) or s.level == b'\x02':  # first non-ERROR
             spin_for(0.1)
             if model.poll() is not None or sim.poll() is not None:
                 raise SystemExit(
@@ -168,13 +165,13 @@ def main() -> None:
         window.append(node.get_clock().now().nanoseconds - 10**8)
         sim_exit = node_process.stop(sim)
         spin_for(2.5)  # two /diagnostics reports after the simulator's stop: final counters
-        final = {kv.key: kv.value for kv in model_status(diagnostics, ns).values}
+        final = {kv.key: kv.value for kv in model_status(diagnostics).values}
         model_exit = node_process.stop(model)
         errors = Counter(
             s.message.split(':')[0]
             for d in diagnostics[first_ok:soaked]
             for s in d.status
-            if s.name.startswith(f'{ns}/model_node') and s.level == b'\x02'
+            if s.name.startswith('model_node: ') and s.level == b'\x02'
         )
         for log in logs.values():
             log.close()

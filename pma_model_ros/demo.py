@@ -119,7 +119,7 @@ class Monitor(Node):
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
-            if status.name.startswith(f'{NAMESPACE}/model_node'):
+            if status.name.startswith('model_node: '):  # diagnostic_updater's naming
                 self.diagnostics = {kv.key: kv.value for kv in status.values}
                 self.diagnostics['level'] = ('OK', 'WARN', 'ERROR', 'STALE')[status.level[0]]
                 self.diagnostics['message'] = status.message

@@ -18,6 +18,7 @@ def test_a_short_demo_compares_and_stops_both_nodes():
     )
     assert run.returncode == 0, run.stdout + run.stderr
     assert 'compared ' in run.stdout
+    assert 'model_node (its last /diagnostics report) in: ' in run.stdout  # its statuses found
     assert 'nodes stopped: simulator_node exit 0, model_node exit 0' in run.stdout
 
 
