@@ -155,13 +155,13 @@ def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
     node = make_node()
     flexor, extensor = (record(p) for p in node._command_pubs[0])
     node._on_states(raw(joint_state(node, 0.2)))
-    node._on_level('stiffness_command', node.engine.stiffness, raw(command(elbow=4.5)))
+    node._on_level('stiffness_command', raw(command(elbow=4.5)))
     node._on_torque(raw(command(elbow=1.0)))
     got = ELBOW.forward(
         0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT
     )
     assert (float(got.torque), float(got.stiffness)) == pytest.approx((1.0, 4.5), rel=1e-9)
-    node._on_level('cocontraction_command', node.engine.cocontraction, raw(command(elbow=400e3)))
+    node._on_level('cocontraction_command', raw(command(elbow=400e3)))
     node._on_torque(raw(command(elbow=-1.0)))
     assert flexor[-1].fluid_pressure == pytest.approx(400e3 + AMBIENT, rel=1e-12)
 

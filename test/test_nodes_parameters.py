@@ -78,12 +78,13 @@ def test_every_node_passes_its_keywords_to_rclpy(make, cls):
 
 def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
     """One muscle: 15 parameters of the muscle (hardware_id among them), 4 of its model's block
-    (params, extrapolates, nominal_length, pressure_offset), 7 node-wide, 2 of rclpy's: 28 (29 with
-    ``executor``, which startup.run declares).  Four muscles: 19 each.
+    (params, extrapolates, nominal_length, pressure_offset), 8 node-wide (``autostart`` among
+    them), 2 of rclpy's: 29 (30 with ``executor``, which startup.run declares).  Four muscles: 19
+    each.
     """
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     names = listed(node)
-    assert len(names) == 28
+    assert len(names) == 29
     assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
     multi = make(ModelNode, MULTI)
     muscles = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']['muscles']
@@ -104,7 +105,7 @@ def test_read_only_where_the_node_never_changes_a_parameter(make):
     fixed = {
         n for n, d in zip(listed(node), node.describe_parameters(listed(node))) if d.read_only
     }
-    assert fixed - RCLPY == {'muscles', 'input_mode', 'pairing', 'pairing_slop'}
+    assert fixed - RCLPY == {'muscles', 'input_mode', 'pairing', 'pairing_slop', 'autostart'}
 
 
 @pytest.mark.parametrize(

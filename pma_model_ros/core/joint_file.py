@@ -231,7 +231,8 @@ def unknown_joint_parameters(parameters: dict) -> list[str]:
     """
     names = parameters.get('joints')
     names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
-    every_node = (SPECS['executor'].name, *ROS_PARAMETERS)  # nodes/startup.py declares executor
+    # nodes/startup.py declares executor, nodes/managed.py autostart
+    every_node = (SPECS['executor'].name, SPECS['autostart'].name, *ROS_PARAMETERS)
     problems = unknown_keys(parameters, (*_names(NODE_PARAMETERS), *every_node, *names))
     for name in names:
         block = parameters.get(name)
