@@ -7,7 +7,9 @@ the core inverse.
 
 import copy
 import math
+import re
 import subprocess
+import time
 
 import pytest
 import rclpy
@@ -27,6 +29,7 @@ from pma_model_ros.tools import node_process
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 ELBOW = load_joints(EXAMPLE)[0]
+RATE = 50.0  # [Hz] of the torque commands to the stand-in forward_command_controller
 
 
 @pytest.fixture
@@ -391,3 +394,144 @@ def test_identification_results_are_values_of_the_joint_status(make_node):
     err = read_parameters(REPO / 'config' / 'dmsp_10_250.yaml')['models']['hildebrandt']['err']
     for muscle in ('flexor', 'extensor'):
         assert values[f'{muscle} identification err [% of max force]'] == f'{err:.6g}'
+
+
+def test_forward_commands_are_the_pressure_commands_in_the_configured_order(make_node, tmp_path):
+    """One Float64MultiArray per torque command, in ``forward_command_order``, each value the
+    muscle's ``pressure_command`` (absolute Pa here, gauge with ``pressure_reference: gauge``);
+    nothing until every muscle had a command, then the others' last values.
+    """
+    order = ['j1_extensor', 'j0_flexor', 'j1_flexor', 'j0_extensor']
+    for reference in ('absolute', 'gauge'):
+        node = make_node(
+            arm_file(tmp_path, 2),
+            forward_command_topic='pressure_controller/commands',
+            forward_command_order=order,
+            pressure_reference=reference,
+        )
+        assert node._forward_pub.topic_name == '/pressure_controller/commands'
+        forward = record(node._forward_pub)
+        sent = {
+            muscle: record(node._command_pubs[k][i])
+            for k, joint in enumerate(node.engine.joints)
+            for i, muscle in enumerate(joint.muscle_names)
+        }
+        node._on_states(raw(JointState(name=['j0', 'j1'], position=[0.2, -0.3])))
+        node._on_torque(raw(command(j0=1.0)))
+        assert forward == []  # j1 never commanded
+        expected = []
+        for efforts in ({'j0': 0.5, 'j1': -1.0}, {'j1': -0.5}):  # the second: j0's values held
+            node._on_torque(raw(command(**efforts)))
+            expected.append([sent[m][-1].fluid_pressure for m in order])
+        assert [list(message.data) for message in forward] == expected
+        assert expected[0][1::2] == expected[1][1::2] and expected[0][::2] != expected[1][::2]
+        offset = AMBIENT if reference == 'absolute' else 0.0
+        assert all(offset <= v <= offset + 800e3 for v in expected[1]), expected[1]
+
+
+@pytest.mark.parametrize(
+    'order, words',
+    [
+        (['j0_flexor', 'j0_flexr'], "'j0_flexr' is no muscle of the joints (did you mean"),
+        (['j0_flexor', 'j0_flexor'], 'a muscle named twice'),
+    ],
+)
+def test_a_bad_forward_command_order_fails_configure(make_node, tmp_path, order, words):
+    with pytest.raises(StartupError, match=re.escape(words)):
+        make_node(
+            arm_file(tmp_path, 2), forward_command_topic='c/commands', forward_command_order=order
+        )
+
+
+@pytest.mark.ros
+def test_stand_in_forward_command_controller(ros, processes, namespace, tmp_path):
+    """joint_node (a process) and, in this process, a stand-in of ros2_control's
+    forward_command_controller subscribed to ``<controller>/commands``: one Float64MultiArray per
+    torque command (the rate of the commands), every value in the controller's order, each the
+    muscle's absolute pressure command [Pa] of the same torque command; nothing until every muscle
+    had a command; a command of one joint repeats the other's last values.
+    """
+    from std_msgs.msg import Float64MultiArray
+
+    from node_messages import RELIABLE_QOS
+
+    order = ['j1_extensor', 'j0_flexor', 'j1_flexor', 'j0_extensor']
+    proc = processes.node(
+        'joint_node',
+        namespace,
+        arm_file(tmp_path, 2),
+        forward_command_topic='pressure_controller/commands',
+        forward_command_order='[' + ', '.join(order) + ']',
+    )
+    why = lambda: processes.output(proc)  # noqa: E731
+    controller, arrivals = [], []  # the stand-in controller's messages, their arrival [s]
+    ros.node.create_subscription(
+        Float64MultiArray,
+        f'{namespace}/pressure_controller/commands',
+        lambda msg: (controller.append(msg), arrivals.append(time.monotonic())),
+        RELIABLE_QOS,
+    )
+    commands = {
+        m: ros.collect(FluidPressure, f'{namespace}/{m}/pressure_command', RELIABLE_QOS)
+        for m in order
+    }
+    states = ros.node.create_publisher(JointState, f'{namespace}/joint_states', 10)
+    torques = ros.node.create_publisher(JointState, f'{namespace}/torque_command', RELIABLE_QOS)
+    angles = {'j0': 0.2, 'j1': -0.3}
+    sent = []
+
+    def send(**efforts):
+        states.publish(JointState(name=list(angles), position=list(angles.values())))
+        torques.publish(command(**efforts))
+        sent.append(efforts)
+
+    # j0 alone: its muscles are commanded, the controller gets nothing (j1 unknown)
+    ros.spin_until(
+        lambda: commands['j0_flexor'],
+        20,
+        'j0 commands',
+        every=lambda: send(j0=1.0),
+        diagnose=why,
+    )
+    end = time.monotonic() + 0.5
+    ros.spin_until(lambda: time.monotonic() > end, 5, 'quiet')
+    assert controller == [], 'a forward command before every muscle had a command'
+    # both joints at RATE: one array per command, in the controller's order
+    start = {m: len(c) for m, c in commands.items()}
+    sent.clear()
+    began = time.monotonic()
+    end = began + 2.0
+    ros.spin_until(
+        lambda: time.monotonic() > end,
+        10,
+        'two seconds of torque commands',
+        every=lambda: send(j0=0.2 + 0.01 * len(sent), j1=-0.2 - 0.01 * len(sent)),
+        period=1 / RATE,
+    )
+    count, sending = len(sent), time.monotonic() - began
+    ros.spin_until(lambda: len(controller) >= count, 10, f'{count} forward commands', diagnose=why)
+    ros.spin_until(
+        lambda: all(len(c) >= start[m] + count for m, c in commands.items()),
+        10,
+        'every pressure command',
+    )
+    assert len(controller) == count, (len(controller), count)
+    receiving = (count - 1) / (arrivals[count - 1] - arrivals[0])  # [Hz]
+    assert receiving > 0.5 * count / sending, (receiving, count / sending)
+    for k, message in enumerate(controller):
+        expected = [commands[m][start[m] + k].fluid_pressure for m in order]
+        assert list(message.data) == expected, k
+        assert all(AMBIENT < v <= AMBIENT + 650e3 for v in message.data), message.data
+    # j1 alone: j0's last values held
+    last = list(controller[-1].data)
+    send(j1=0.4)
+    ros.spin_until(lambda: len(controller) > count, 10, 'the j1-only forward command')
+    held = list(controller[-1].data)
+    assert (held[1], held[3]) == (last[1], last[3]) and (held[0], held[2]) != (last[0], last[2])
+    print(
+        f'\nstand-in controller: {count} torque commands in {sending:.2f} s '
+        f'({count / sending:.1f} Hz) -> {count} arrays received at {receiving:.1f} Hz, each of '
+        f'{len(order)} values ({", ".join(order)}) equal to the pressure commands, e.g. '
+        f'{[round(v) for v in controller[0].data]} Pa absolute; none before both joints were '
+        'commanded; j1 alone: j0 held'
+    )

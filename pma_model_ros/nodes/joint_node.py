@@ -17,7 +17,12 @@ a namespace applies; pressures absolute, or gauge with ``pressure_reference: gau
   ``<muscle>/pressure_command`` (FluidPressure, absolute Pa), at the newest angle, with the joint's
   co-contraction level, or with its wanted stiffness once a ``stiffness_command`` (JointState:
   effort = K [N·m/rad]) arrived; a ``cocontraction_command`` (JointState: effort = level [Pa
-  gauge]) returns to co-contraction.  Every decision is the
+  gauge]) returns to co-contraction;
+* with ``forward_command_topic``: also every muscle's pressure command [Pa, as
+  ``pressure_command``] in one std_msgs/Float64MultiArray per torque command, in
+  ``forward_command_order``, for ros2_control's forward_command_controller
+  (:mod:`pma_model_ros.wire.forward_commands`: the others' last values; nothing until every muscle
+  had a command).  Every decision is the
   :class:`~pma_model_ros.core.joint_engine.JointEngine`'s.
 """
 
@@ -30,6 +35,7 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import Float64MultiArray
 
 from . import model_params, parameters
 from .diagnostics import diagnostic_array
@@ -39,6 +45,7 @@ from .startup import run
 from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import (
+    forward_order,
     identification,
     JOINT_PARAMETERS,
     joints,
@@ -47,6 +54,7 @@ from ..core.joint_file import (
 )
 from ..core.shipped_data import share_directory
 from ..wire.cdr import fluid_pressure, joint_state
+from ..wire.forward_commands import ForwardCommands
 from ..wire.joint_state import JointStateArrays, JointStateReader
 from ..wire.muscle_inputs import stamped_value
 
@@ -99,6 +107,10 @@ class JointNode(ManagedNode):
             report_interval=REPORT_INTERVAL_PER_STATUS * len(found),
             pressure_reference=str(flat['pressure_reference']),
         )
+        topic = str(flat['forward_command_topic'])
+        self._forward_order = (
+            forward_order(list(flat['forward_command_order'] or []), found) if topic else None
+        )
         self.reset()
         self._hardware = [str(nested[j.name].get('hardware_id') or j.name) for j in found]
         self._names = [j.name for j in found]
@@ -125,11 +137,18 @@ class JointNode(ManagedNode):
         )
 
     def reset(self) -> None:
-        """A fresh engine (no input known, co-contraction levels from the parameters)."""
+        """A fresh engine (no input known, co-contraction levels from the parameters), and no
+        forwarded command known.
+        """
         self.engine = self._new_engine()
+        self._forward = (
+            ForwardCommands(self._forward_order, [j.muscle_names for j in self.engine.joints])
+            if self._forward_order
+            else None
+        )
 
     def release(self) -> None:
-        self.engine = self._new_engine = None
+        self.engine = self._new_engine = self._forward = None
         self._command_pubs = []
 
     def create_interfaces(self) -> None:
@@ -137,6 +156,10 @@ class JointNode(ManagedNode):
         self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
         self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        if self._forward_order:
+            self._forward_pub = self.create_publisher(
+                Float64MultiArray, self.get_parameter('forward_command_topic').value, 10
+            )
         self._command_pubs = []
         for k, joint in enumerate(self.engine.joints):
             pubs = []
@@ -186,7 +209,7 @@ class JointNode(ManagedNode):
     def _on_torque(self, data: bytes) -> None:
         if not self.active:
             return
-        now = self.now()
+        now, forward = self.now(), self._forward
         for name, torque in self._entries(self._readers['torque_command'](data), now):
             k = self.engine.index[name]
             absolute = self.engine.command(k, torque, now)
@@ -196,6 +219,10 @@ class JointNode(ManagedNode):
                 ):
                     template.values[0] = value
                     pub.publish(template(now))
+                if forward is not None:
+                    forward.command(k, absolute)
+        if forward is not None and (message := forward.message()) is not None:
+            self._forward_pub.publish(message)
         self.report(now)
 
     def _on_level(self, topic: str, data: bytes) -> None:
