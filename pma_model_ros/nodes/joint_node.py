@@ -210,9 +210,10 @@ class JointNode(ManagedNode):
         if not self.active:
             return
         now, forward = self.now(), self._forward
-        for name, torque in self._entries(self._readers['torque_command'](data), now):
+        msg = self._readers['torque_command'](data)
+        for name, torque in self._entries(msg, now):
             k = self.engine.index[name]
-            absolute = self.engine.command(k, torque, now)
+            absolute = self.engine.command(k, torque, now, msg.stamp)
             if absolute is not None:
                 for pub, value, template in zip(
                     self._command_pubs[k], absolute, self._commands[k]
@@ -232,9 +233,12 @@ class JointNode(ManagedNode):
         if not self.active:
             return
         now = self.now()
-        apply = getattr(self.engine, topic.removesuffix('_command'))
-        for name, value in self._entries(self._readers[topic](data), now):
-            apply(self.engine.index[name], value, now)
+        apply, msg = (
+            getattr(self.engine, topic.removesuffix('_command')),
+            self._readers[topic](data),
+        )
+        for name, value in self._entries(msg, now):
+            apply(self.engine.index[name], value, now, msg.stamp)
         self.report(now)
 
     def _entries(self, msg: JointStateArrays, now: int) -> list[tuple[str, float]]:
