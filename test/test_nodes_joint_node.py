@@ -486,12 +486,23 @@ def test_stand_in_forward_command_controller(ros, processes, namespace, tmp_path
     from node_messages import RELIABLE_QOS
 
     order = ['j1_extensor', 'j0_flexor', 'j1_flexor', 'j0_extensor']
+    # queues deep enough for a node process stalled a while on a loaded machine (a depth of 10
+    # lost commands there): the QoS overrides of nodes/qos.py
+    deep = {
+        f'qos_overrides.{namespace}/{topic}.depth': 1000
+        for topic in (
+            'torque_command.subscription',
+            'pressure_controller/commands.publisher',
+            *(f'{m}/pressure_command.publisher' for m in order),
+        )
+    }
     proc = processes.node(
         'joint_node',
         namespace,
         arm_file(tmp_path, 2),
         forward_command_topic='pressure_controller/commands',
         forward_command_order='[' + ', '.join(order) + ']',
+        **deep,
     )
     why = lambda: processes.output(proc)  # noqa: E731
     controller, arrivals = [], []  # the stand-in controller's messages, their arrival [s]
@@ -551,7 +562,15 @@ def test_stand_in_forward_command_controller(ros, processes, namespace, tmp_path
         period=1 / RATE,
     )
     count, sending = len(sent), time.monotonic() - began
-    ros.spin_until(lambda: len(controller) >= count, 10, f'{count} forward commands', diagnose=why)
+    ros.spin_until(
+        lambda: len(controller) >= count,
+        10,
+        f'{count} forward commands',
+        diagnose=lambda: (
+            f'{len(controller)} arrays, pressure commands since '
+            f'{ {m: len(c) - start[m] for m, c in commands.items()} }\n{why()}'
+        ),
+    )
     ros.spin_until(
         lambda: all(len(c) >= start[m] + count for m, c in commands.items()),
         10,

@@ -40,7 +40,8 @@ from std_msgs.msg import Float64MultiArray
 from . import model_params, parameters
 from .diagnostics import diagnostic_array
 from .managed import DIAGNOSTIC_PERIOD, ManagedNode
-from .model_node import DESERIALIZE, INPUT_QOS
+from .model_node import DESERIALIZE
+from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.joint_engine import JointEngine, Settings
@@ -152,33 +153,30 @@ class JointNode(ManagedNode):
         self._command_pubs = []
 
     def create_interfaces(self) -> None:
-        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
-        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
-        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        """Every subscription and publisher of the node (raw subscriptions: bytes in), each QoS
+        overridable by parameters (:mod:`.qos`).
+        """
+        self._torque_pub = publisher(self, JointState, 'torque_estimate', RELIABLE)
+        self._stiffness_pub = publisher(self, JointState, 'stiffness_estimate', RELIABLE)
+        self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
         if self._forward_order:
-            self._forward_pub = self.create_publisher(
-                Float64MultiArray, self.get_parameter('forward_command_topic').value, 10
-            )
+            topic = self.get_parameter('forward_command_topic').value
+            self._forward_pub = publisher(self, Float64MultiArray, topic, RELIABLE)
         self._command_pubs = []
         for k, joint in enumerate(self.engine.joints):
             pubs = []
             for m, muscle in enumerate(joint.muscle_names):
-                self.create_subscription(
-                    FluidPressure,
-                    f'{muscle}/pressure',
-                    partial(self._on_pressure, k, m),
-                    INPUT_QOS,
-                    raw=True,
+                callback = partial(self._on_pressure, k, m)
+                subscription(
+                    self, FluidPressure, f'{muscle}/pressure', callback, SENSOR_INPUT, raw=True
                 )
-                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
+                pubs.append(publisher(self, FluidPressure, f'{muscle}/pressure_command', RELIABLE))
             self._command_pubs.append(pubs)
-        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS, raw=True)
-        self.create_subscription(JointState, 'torque_command', self._on_torque, 10, raw=True)
+        subscription(self, JointState, 'joint_states', self._on_states, SENSOR_INPUT, raw=True)
+        subscription(self, JointState, 'torque_command', self._on_torque, RELIABLE, raw=True)
         for topic in ('stiffness_command', 'cocontraction_command'):
-            self.create_subscription(
-                JointState, topic, partial(self._on_level, topic), 10, raw=True
-            )
+            callback = partial(self._on_level, topic)
+            subscription(self, JointState, topic, callback, RELIABLE, raw=True)
 
     # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
     def _on_pressure(self, k: int, m: int, data: bytes) -> None:

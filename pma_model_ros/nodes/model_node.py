@@ -28,7 +28,6 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
@@ -36,6 +35,7 @@ from . import model_params
 from .diagnostics import diagnostic_array
 from .managed import DIAGNOSTIC_PERIOD, ManagedNode
 from .parameters import warn_unknown
+from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.engine import Engine
 from ..core.health import REPORT_INTERVAL_PER_STATUS
@@ -43,15 +43,6 @@ from ..core.param_file import NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
 
-#: Inputs: sensor-data QoS (best effort, volatile) with a queue of 100 instead of 5 (0.1 s at 1
-#: kHz): a briefly stalled node catches up, and inputs older than max_input_age are counted stale
-#: (ERROR), instead of being dropped unseen.
-INPUT_QOS = QoSProfile(
-    depth=100,
-    reliability=qos_profile_sensor_data.reliability,
-    durability=qos_profile_sensor_data.durability,
-    history=qos_profile_sensor_data.history,
-)
 #: rclpy's deserializers of the input types: what the wire layer's fast readers do not read.
 DESERIALIZE = {
     kind.__name__: partial(lambda kind, data: deserialize_message(data, kind), kind)
@@ -110,32 +101,34 @@ class ModelNode(ManagedNode):
         self._estimate_pubs = self._command_pubs = []
 
     def create_interfaces(self) -> None:
-        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        """Every subscription and publisher of the node (raw subscriptions: bytes in), each QoS
+        overridable by parameters (:mod:`.qos`).
+        """
+        self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
         if self.mode == 'combined':
-            self._estimate_pubs = [self.create_publisher(JointState, 'force_estimates', 10)]
-            self._command_pubs = [self.create_publisher(JointState, 'pressure_commands', 10)]
+            self._estimate_pubs = [publisher(self, JointState, 'force_estimates', RELIABLE)]
+            self._command_pubs = [publisher(self, JointState, 'pressure_commands', RELIABLE)]
             for topic, callback, qos in (
-                ('muscle_pressures', self._on_pressures, INPUT_QOS),
-                ('muscle_states', self._on_states, INPUT_QOS),
-                ('force_commands', self._on_commands, 10),
+                ('muscle_pressures', self._on_pressures, SENSOR_INPUT),
+                ('muscle_states', self._on_states, SENSOR_INPUT),
+                ('force_commands', self._on_commands, RELIABLE),
             ):
-                self.create_subscription(JointState, topic, callback, qos, raw=True)
+                subscription(self, JointState, topic, callback, qos, raw=True)
             return
         prefixes = [f'{name}/' for name in self._names] or ['']
         self._estimate_pubs = [
-            self.create_publisher(WrenchStamped, f'{p}force_estimate', 10) for p in prefixes
+            publisher(self, WrenchStamped, f'{p}force_estimate', RELIABLE) for p in prefixes
         ]
         self._command_pubs = [
-            self.create_publisher(FluidPressure, f'{p}pressure_command', 10) for p in prefixes
+            publisher(self, FluidPressure, f'{p}pressure_command', RELIABLE) for p in prefixes
         ]
         for k, p in enumerate(prefixes):
             for kind, topic, callback, qos in (
-                (FluidPressure, 'pressure', self._on_pressure, INPUT_QOS),
-                (JointState, 'muscle_state', self._on_state, INPUT_QOS),
-                (WrenchStamped, 'force_command', self._on_command, 10),
+                (FluidPressure, 'pressure', self._on_pressure, SENSOR_INPUT),
+                (JointState, 'muscle_state', self._on_state, SENSOR_INPUT),
+                (WrenchStamped, 'force_command', self._on_command, RELIABLE),
             ):
-                self.create_subscription(kind, p + topic, partial(callback, k), qos, raw=True)
+                subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
 
     def use(self, settings: list[NodeSettings]) -> None:
         """Translate messages for the muscles of ``settings`` (their joint names and frames)."""
