@@ -172,6 +172,27 @@ def test_a_bad_file_fails_configure_and_leaves_the_node_unconfigured(
     assert node.trigger_shutdown() == SUCCESS and label(node) == 'finalized'
 
 
+def test_an_unexpected_error_in_configure_is_logged_and_released(make, errors, monkeypatch):
+    """A bug in configure (not a bad parameter): its traceback logged, the transition's error
+    processing releases what was built, and the node is unconfigured again.
+    """
+    node = make(ModelNode, CONFIG, autostart=False)
+    bare = entities(node)
+    built = ModelNode.configure
+
+    def broken(self):
+        built(self)
+        raise RuntimeError('a bug')
+
+    monkeypatch.setattr(ModelNode, 'configure', broken)
+    assert node.trigger_configure() == TransitionCallbackReturn.ERROR
+    assert label(node) == 'unconfigured' and node.engine is None and entities(node) == bare
+    assert len(errors) == 1 and 'RuntimeError: a bug' in errors[0] and 'Traceback' in errors[0]
+    assert node.refusal == 'configure raised RuntimeError: a bug (traceback logged)'
+    monkeypatch.undo()
+    assert node.trigger_configure() == SUCCESS
+
+
 def test_with_autostart_a_bad_file_raises_at_construction_without_logging(make, errors, tmp_path):
     """run() logs the one FATAL line (test_nodes_startup, test_bad_input_matrix)."""
     with pytest.raises(StartupError, match="unknown model 'foo'"):

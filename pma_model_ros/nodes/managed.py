@@ -30,6 +30,7 @@ code 1.  ``false``: the node waits unconfigured for a lifecycle manager.
 from __future__ import annotations
 
 from functools import partial
+import traceback
 
 from lifecycle_msgs.srv import ChangeState
 from rclpy._rclpy_pybind11 import RCLError
@@ -115,18 +116,24 @@ class ManagedNode(LifecycleNode):
     # --- transitions
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         before = {id(e) for e in self._entities()}
+        self.refusal = ''
         try:
             self.configure()
             self.create_timer(DIAGNOSTIC_PERIOD, self._on_timer)
         except (ParameterException, ValueError) as err:
             self.refusal = str(err)
+        except Exception as err:  # a bug: rclpy would swallow it (ERROR, then on_error)
+            self.refusal = f'configure raised {type(err).__name__}: {err} (traceback logged)'
+            self.get_logger().error(f'configure raised:\n{traceback.format_exc()}')
+            raise
+        finally:
             self._built = [e for e in self._entities() if id(e) not in before]
-            self._release()
-            if not self._starting:  # at start-up, run() logs it, as FATAL
-                self.get_logger().error(f'invalid parameters: {err}')
-            return FAILURE
-        self._built = [e for e in self._entities() if id(e) not in before]
-        return SUCCESS
+        if not self.refusal:
+            return SUCCESS
+        self._release()
+        if not self._starting:  # at start-up, run() logs it, as FATAL
+            self.get_logger().error(f'invalid parameters: {self.refusal}')
+        return FAILURE
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.active = True
@@ -142,6 +149,12 @@ class ManagedNode(LifecycleNode):
         return SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self._release()
+        return SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """After an exception in a transition (ERROR): release everything, back to unconfigured."""
         self.active = False
         self._release()
         return SUCCESS
