@@ -98,7 +98,7 @@ def node_reference(bag):
                 estimated = est.length(0, float(msg.position[0]), float(rate), stamp, now)
             else:
                 est.reject(0, 'muscle_state', f"joint '{JOINT}' not in {list(msg.name)}", now)
-        elif (pressure := est.command(0, msg.wrench.force.x, now)) is not None:
+        elif (pressure := est.command(0, msg.wrench.force.x, now, stamp)) is not None:
             commands.append((now, pressure))
         if estimated:
             estimates.append((now, est.stamp, est.forces.item(0)))

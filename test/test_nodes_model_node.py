@@ -60,6 +60,12 @@ def frozen_clock(node, back: float = 0.0):
     return Time(sec=t // 10**9, nanosec=t % 10**9)
 
 
+def shifted(stamp: Time, seconds: float) -> Time:
+    """``stamp`` moved by ``seconds``."""
+    t = stamp.sec * 10**9 + stamp.nanosec + round(seconds * 1e9)
+    return Time(sec=t // 10**9, nanosec=t % 10**9)
+
+
 def record(publisher) -> list:
     """What ``publisher`` publishes from now on, as messages (the node publishes some
     serialized).
@@ -190,6 +196,40 @@ def test_combined_mode_one_vector_call_per_message(make_node):
     assert node.engine.level(3, node.now())[1] == "invalid input: joint 'finger' not in " + str(
         order[1:]
     )
+
+
+def test_stale_force_commands_give_no_pressure_command(make_node):
+    """A force_command (one muscle) or force_commands (combined) stamped farther than
+    max_input_age from the node clock is refused as stale, counted and shown; unstamped (zero) and
+    fresh ones are answered.
+    """
+    node = make_node(CONFIGS['DMSP-10-250'])
+    commands = record(node._command_pubs[0])
+    now = frozen_clock(node)
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
+    for stamp in (shifted(now, -0.5), now, None):
+        command = force_command(100.0)
+        if stamp is not None:
+            command.header.stamp = stamp
+        node._on_command(0, raw(command))
+    assert len(commands) == 2 and node.engine.counts(0)['stale force_command'] == 1
+    assert node.engine.level(0, node.now())[1] == (
+        'stale force_command: stamp is 0.5 s old (max_input_age 0.1 s)'
+    )
+    combined = make_node(EXAMPLE, input_mode='combined')
+    pressures = record(combined._command_pubs[0])
+    now = frozen_clock(combined)
+    combined._on_states(raw(joint_states(now, INPUTS, [v[2] for v in INPUTS.values()])))
+    efforts = JointState(name=['biceps', 'finger'], effort=[100.0, 20.0])
+    efforts.header.stamp = shifted(now, 0.3)  # from the future
+    combined._on_commands(raw(efforts))
+    assert pressures == [] and combined.engine.counts(0)['stale force_command'] == 1
+    assert combined.engine.level(3, combined.now())[1].startswith(
+        'stale force_command: stamp is 0.3 s in the future'
+    )
+    efforts.header.stamp = now
+    combined._on_commands(raw(efforts))
+    assert list(pressures[-1].name) == ['biceps', 'finger']
 
 
 def test_approximate_time_pairing_answers_once_per_tick(make_node):

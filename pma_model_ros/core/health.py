@@ -3,8 +3,9 @@ rates and stamp ages, diagnostic levels with their texts, and when to report (no
 
 One implementation for model_node's and joint_node's engines, so both nodes report alike:
 
-* ERROR for ``hold`` after a rejected input (``invalid input: <reason>``), and while an input was
-  never received or is stale (``no <input> received yet``, ``stale <input>: ...``);
+* ERROR for ``hold`` after a rejected input (``invalid input: <reason>``) or a stale command
+  (``stale <command>: stamp is ...``), and while an input was never received or is stale
+  (``no <input> received yet``, ``stale <input>: newest stamp is ...``);
 * WARN for ``hold`` after a warning flag of an estimate or command (:data:`WARN_FLAGS`);
 * else OK, ``estimating``.
 
@@ -27,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .flags import Flag
-from .pairing import fresh, NEVER, SECOND
+from .pairing import fresh, NEVER, SECOND, UNSTAMPED
 
 Which = np.ndarray | int | None  #: every entity (None), a mask, or one entity
 
@@ -61,6 +62,15 @@ OK_TEXT = 'estimating'
 #: about 3 ms, so on-change reports stay a few percent of a core however many entities flap
 #: (N = 64: at most one every 0.1 s).
 REPORT_INTERVAL_PER_STATUS = 0.0015
+
+
+def stale_text(name: str, which: str, age: int, max_age: int) -> str:
+    """``stale <name>: <which> is <age> s old (max_input_age <max_age> s)`` (ages [ns]; a negative
+    age: ``in the future``).
+    """
+    seconds = age / SECOND
+    when = f'{seconds:.3g} s old' if seconds > 0 else f'{-seconds:.3g} s in the future'
+    return f'stale {name}: {which} is {when} (max_input_age {max_age / SECOND:g} s)'
 
 
 @dataclass(frozen=True)
@@ -105,7 +115,8 @@ class Health:
         self._delay_max = [[-np.inf] * count for _ in range(shape[0])]
         self._delay_all = [[np.inf, -np.inf] for _ in range(shape[0])]  # (min, max) [s]
         self._late, self._early, self._zero = (np.zeros(shape, np.int64) for _ in range(3))
-        self._rejected_at, self._reason = np.full(count, NEVER, np.int64), [''] * count
+        # when each entity last refused an input or command, and the text of it
+        self._rejected_at, self._latched = np.full(count, NEVER, np.int64), [''] * count
         self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
         self._reported = np.full(count, -1, np.int64)  # level of the last report (-1: none)
         self._window_start = np.full(count, NEVER, np.int64)
@@ -153,7 +164,23 @@ class Health:
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
-        self._rejected_at[k], self._reason[k], self._steady = now, reason, False
+        self._rejected_at[k], self._latched[k], self._steady = (
+            now,
+            f'invalid input: {reason}',
+            False,
+        )
+
+    def stale_command(self, k: int, name: str, stamp: int, now: int) -> bool:
+        """Whether a command ``name`` of entity ``k`` stamped ``stamp`` [ns] is stale: its stamp
+        differs from ``now`` by more than ``max_age``, as a stale input's (a zero stamp,
+        :data:`~.pairing.UNSTAMPED`, is taken as ``now``).  A stale command is refused: the caller
+        counts it; its text holds the level at ERROR for ``hold``, as a rejection.
+        """
+        if stamp == UNSTAMPED or abs(now - stamp) <= self.max_age:
+            return False
+        text = stale_text(name, 'stamp', now - stamp, self.max_age)
+        self._rejected_at[k], self._latched[k], self._steady = now, text, False
+        return True
 
     def warn(self, which: np.ndarray | None, flags: np.ndarray, now: int) -> None:
         """The entities ``which`` (a mask, None: all) gave results with ``flags`` (one word per
@@ -186,18 +213,12 @@ class Health:
     def level(self, k: int, now: int) -> tuple[Level, str]:
         """Entity ``k``'s level and its one-line reason."""
         if now - self._rejected_at.item(k) < self.hold:
-            return Level.ERROR, f'invalid input: {self._reason[k]}'
+            return Level.ERROR, self._latched[k]
         for name, stamp in zip(self.inputs[k], self.stamps[:, k].tolist()):
             if stamp == NEVER:
                 return Level.ERROR, f'no {name} received yet'
-            age = (now - stamp) / SECOND
             if abs(now - stamp) > self.max_age:
-                when = f'{age:.3g} s old' if age > 0 else f'{-age:.3g} s in the future'
-                return (
-                    Level.ERROR,
-                    f'stale {name}: newest stamp is {when} (max_input_age '
-                    f'{self.max_age / SECOND:g} s)',
-                )
+                return Level.ERROR, stale_text(name, 'newest stamp', now - stamp, self.max_age)
         warned = self._warned_at[k].tolist()
         if now - max(warned) < self.hold:
             return Level.WARN, '; '.join(

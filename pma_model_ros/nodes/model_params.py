@@ -4,7 +4,8 @@ the model blocks, and validation.
 One node serves one muscle (the per-muscle parameters at the top level, as in
 ``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per name with the
 per-muscle parameters under ``<name>.`` (``config/example_multi_muscle.yaml``); the others are
-node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`.
+node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`, ``autostart`` by
+:mod:`pma_model_ros.nodes.managed`.
 
 Of a muscle's ``models.<model>.*`` entries only the selected ``model``'s block
 (:data:`~pma_model_ros.core.node_parameters.MODEL_BLOCK`) is declared; the other models' blocks
@@ -54,7 +55,12 @@ def declare(node: Node) -> tuple[list[str], str]:
     mode = declare_spec(node, SPECS['input_mode']).value
     _check_names(names, mode)
     for spec in PARAMETERS:
-        if not spec.per_muscle and spec.name not in ('muscles', 'input_mode', 'executor'):
+        if not spec.per_muscle and spec.name not in (
+            'muscles',
+            'input_mode',
+            'executor',
+            'autostart',
+        ):
             declare_spec(node, spec)
     for prefix in prefixes(names):
         declare_muscle(node, prefix)
@@ -90,6 +96,8 @@ def declare_block(
     for entry, table_spec in BLOCK_SPECS.items():
         spec = replace(table_spec, read_only=read_only)
         name = f'{prefix}models.{model}.{entry}'
+        if node.has_parameter(name):  # configured again after a cleanup
+            continue
         text = None
         if entry == 'params':
             m = MODELS[model]
