@@ -80,12 +80,12 @@ def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
     """One muscle: 15 parameters of the muscle (hardware_id among them), 4 of its model's block
     (params, extrapolates, nominal_length, pressure_offset), 8 node-wide (``autostart`` among
     them), 2 of rclpy's: 29 (30 with ``executor``, which startup.run declares); and the QoS
-    overrides of its 6 topics, 3 each (nodes/qos.py).  Four muscles: 19 each under ``<name>.``.
+    overrides of its 6 topics, 2 each (nodes/qos.py).  Four muscles: 19 each under ``<name>.``.
     """
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     names = listed(node)
     qos = [n for n in names if n.startswith('qos_overrides.')]
-    assert len(names) - len(qos) == 29 and len(qos) == 6 * 3
+    assert len(names) - len(qos) == 29 and len(qos) == 6 * 2
     assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
     multi = make(ModelNode, MULTI)
     muscles = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']['muscles']

@@ -2,11 +2,13 @@
 
 Every publisher and subscription of the four nodes is created by :func:`publisher` or
 :func:`subscription`, which declare for it the read-only parameters
-``qos_overrides.<topic>.<publisher|subscription>.<history|depth|reliability>`` (``<topic>`` fully
-qualified, e.g. ``/left_biceps/pressure``; rclpy's
-:meth:`QoSOverridingOptions.with_default_policies`), set by a parameter file or ``-p`` and applied
-when the entity is created (model_node and joint_node: at ``configure``).  The defaults are the
-profiles below (copied per entity: an override changes only the entity it names).
+``qos_overrides.<topic>.<publisher|subscription>.<depth|reliability>`` (``<topic>`` fully
+qualified, e.g. ``/left_biceps/pressure``; rclpy's :class:`QoSOverridingOptions`), set by a
+parameter file or ``-p`` and applied when the entity is created (model_node and joint_node: at
+``configure``).  The defaults are the profiles below (copied per entity: an override changes only
+the entity it names).  Two policies, not rclpy's default three: ``history`` stays ``keep_last``
+(``keep_all`` with a best-effort sensor stream only grows a queue), and each policy is one more
+entry of ``ros2 param list`` per topic.
 """
 
 from __future__ import annotations
@@ -16,11 +18,11 @@ from typing import Callable
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rclpy.qos import qos_profile_sensor_data, QoSPolicyKind, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.subscription import Subscription
 
-OVERRIDABLE = QoSOverridingOptions.with_default_policies()
+OVERRIDABLE = QoSOverridingOptions([QoSPolicyKind.DEPTH, QoSPolicyKind.RELIABILITY])
 #: Inputs of sensors: sensor-data QoS (best effort, volatile) with a queue of 100 instead of 5 (0.1
 #: s at 1 kHz): a briefly stalled node catches up, and inputs older than max_input_age are counted
 #: stale (ERROR) instead of being dropped unseen.  Reliable publishers match it too.
