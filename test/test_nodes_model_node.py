@@ -118,6 +118,32 @@ def test_one_muscle_command_and_diagnostics_on_change(make_node):
     )
 
 
+def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
+    """The nested held-out error of the identified lengths around the newest length (the file's
+    ``models.martens.held_out``: 4.66 % at 0.234 m, 1.79 % at 0.219 m, of 542.5 N), in N and %.
+    """
+    node = make_node(CONFIGS['DMSP-10-250'])
+    diagnostics = record(node._diag_pub)
+    now = frozen_clock(node)
+
+    def expected() -> tuple[str, str]:
+        node.publish_status(node.now())
+        values = {v.key: v.value for v in diagnostics[-1].status[0].values}
+        return values['expected error [N]'], values['expected error [% of max force]']
+
+    assert expected() == ('unknown', 'unknown: no length yet')
+    held = read_parameters(CONFIGS['DMSP-10-250'])['models']['martens']['held_out']
+    worst = max(held['err'][1], held['err'][2])  # 0.234 m and 0.219 m, around 0.23 m
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
+    node._on_pressure(0, raw(pressure(now, AMBIENT + 300e3)))
+    assert expected() == (f'{worst * 542.5 / 100:.3g}', f'{worst:.3g}') == ('25.3', '4.66')
+    node._on_state(0, raw(state(now, 0.26, 0.0)))  # beyond L0 = 0.25 m, the longest held out
+    assert expected() == (
+        'unknown',
+        'unknown: 0.26 m is outside the held-out lengths 0.198..0.25 m',
+    )
+
+
 def test_gauge_sensor_readings_and_commands(make_node):
     """pressure_reference: gauge: a reading of 300 kPa is 300 kPa gauge, and commands are published
     in gauge.

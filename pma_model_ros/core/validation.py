@@ -212,6 +212,28 @@ class HeldOutBand:
             return float(errors[i]), True
         return float(max(errors[i - 1], errors[i])), True
 
+    def values_at(self, length: float) -> dict[str, str]:
+        """The expected error at ``length`` [m] as diagnostic key-values (model_node's status of a
+        muscle at its newest length): in N and in % of the map's max force (:meth:`at`), or
+        ``unknown`` and why (no length yet, or one outside the held-out lengths).
+        """
+        keys = ('expected error [N]', 'expected error [% of max force]')
+        if not np.isfinite(length):
+            return dict(zip(keys, ('unknown', 'unknown: no length yet')))
+        percent, inside = self.at(length)
+        if not inside:
+            return dict(
+                zip(
+                    keys,
+                    (
+                        'unknown',
+                        f'unknown: {length:.4g} m is outside the held-out lengths '
+                        f'{min(self.lengths):.4g}..{max(self.lengths):.4g} m',
+                    ),
+                )
+            )
+        return dict(zip(keys, (f'{percent * self.max_force / 100:.3g}', f'{percent:.3g}')))
+
 
 def fit_or_none(
     identify: Callable[[ForceMap], dict[str, Predictor]], train: ForceMap

@@ -35,7 +35,7 @@ from . import model_params
 from .diagnostics import diagnostic_array
 from .managed import DIAGNOSTIC_PERIOD, ManagedNode
 from .parameters import warn_unknown
-from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
+from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.engine import Engine
 from ..core.health import REPORT_INTERVAL_PER_STATUS
@@ -71,6 +71,7 @@ class ModelNode(ManagedNode):
         flat = self._blocks.would_be([])
         self.settings = model_params.all_settings(flat, self._names)
         self.identification = model_params.identifications(flat, self._names)
+        self.bands = model_params.held_out_bands(flat, self._names)
         self._pairing = model_params.pairing(flat)
         self.reset()
         self.create_interfaces()
@@ -142,16 +143,16 @@ class ModelNode(ManagedNode):
 
     def _validate(self, changes: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the whole would-be parameter set builds every muscle."""
-        if not self._blocks.swapping:
+        if not self._blocks.swapping and not only_overrides(changes):
             try:
                 model_params.all_settings(self._blocks.would_be(changes), self._names)
             except ValueError as err:
                 return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
 
-    def _apply(self, _changes: list[Parameter]) -> None:
+    def _apply(self, changes: list[Parameter]) -> None:
         """Swap a good change in atomically (unconfigured: the next configure reads it)."""
-        if self._blocks.swapping:
+        if self._blocks.swapping or only_overrides(changes):
             return
         flat = self._blocks.applied()
         if self.engine is None:
@@ -160,6 +161,7 @@ class ModelNode(ManagedNode):
         self.engine.configure([s.config for s in settings])
         self.settings = settings
         self.identification = model_params.identifications(flat, self._names)
+        self.bands = model_params.held_out_bands(flat, self._names)
         self.use(settings)
 
     # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
@@ -217,11 +219,21 @@ class ModelNode(ManagedNode):
             self.publish_status(now)
 
     def publish_status(self, now: int) -> None:
-        """One DiagnosticStatus per muscle in one DiagnosticArray."""
+        """One DiagnosticStatus per muscle in one DiagnosticArray: the engine's status, the
+        identification results and the expected error at the muscle's newest length.
+        """
         entries = [
-            (s.joint_name, s.hardware_id, status.level, status.message, status.values | ident)
-            for s, status, ident in zip(
-                self.settings, self.engine.statuses(now), self.identification
+            (
+                s.joint_name,
+                s.hardware_id,
+                status.level,
+                status.message,
+                status.values
+                | ident
+                | (band.values_at(self.engine.inputs(k)[1]) if band is not None else {}),
+            )
+            for k, (s, status, ident, band) in enumerate(
+                zip(self.settings, self.engine.statuses(now), self.identification, self.bands)
             )
         ]
         self._diag_pub.publish(diagnostic_array(self, entries))

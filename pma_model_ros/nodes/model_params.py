@@ -26,7 +26,8 @@ from .parameters import declare as declare_spec
 from .parameters import descriptor, nest, overrides, plain, TYPES, values
 from ..core.models import get_model, MODELS
 from ..core.node_parameters import IDENTIFICATION, MODEL_BLOCK, PARAMETERS, SPECS
-from ..core.param_file import all_node_settings, identification, NodeSettings
+from ..core.param_file import all_node_settings, held_out_band, identification, NodeSettings
+from ..core.validation import HeldOutBand
 
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
 REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith('models.')]
@@ -222,3 +223,11 @@ def identifications(flat: dict[str, object], names: list[str]) -> list[dict[str,
     """Each muscle's identification results (diagnostic key-values) of its selected model."""
     nested = nest(flat)
     return [identification(nested[name] if name else nested) for name in names or ['']]
+
+
+def held_out_bands(flat: dict[str, object], names: list[str]) -> list[HeldOutBand | None]:
+    """Each muscle's nested held-out error per identified length of its selected model (None:
+    the file has none).
+    """
+    nested = nest(flat)
+    return [held_out_band(nested[name] if name else nested) for name in names or ['']]

@@ -17,6 +17,7 @@ import copy
 from typing import Callable
 
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import qos_profile_sensor_data, QoSPolicyKind, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
@@ -52,3 +53,11 @@ def subscription(
     return node.create_subscription(
         msg_type, topic, callback, copy.copy(qos), raw=raw, qos_overriding_options=OVERRIDABLE
     )
+
+
+def only_overrides(changes: list[Parameter]) -> bool:
+    """Whether a parameter change sets QoS overrides only (declared as their entity is created),
+    which the muscles' settings do not read: a node need not rebuild them (model_node at 64
+    muscles spent 0.2 s of start-up rebuilding them once per override).
+    """
+    return all(p.name.startswith('qos_overrides.') for p in changes)
