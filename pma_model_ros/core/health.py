@@ -138,6 +138,9 @@ class Health:
         delay = (now - stamp) / SECOND
         if abs(now - stamp) > self.max_age:  # a stale input: the levels may have changed
             self._steady = False
+        elif self._steady:  # a fresh one stays fresh while now lies within max_age of it
+            self._checked_at = max(self._checked_at, stamp - self.max_age)
+            self._fresh_until = min(self._fresh_until, stamp + self.max_age)
         if which is None:
             self._arrivals_all[i] += 1
             low_high = self._delay_all[i]
