@@ -63,6 +63,23 @@ OK_TEXT = 'estimating'
 REPORT_INTERVAL_PER_STATUS = 0.0015
 
 
+def levels_of(
+    now: np.ndarray | int,
+    rejected_at: np.ndarray,
+    stamps: np.ndarray,
+    warned_at: np.ndarray,
+    hold: int,
+    max_age: int,
+) -> np.ndarray:
+    """Levels (int8) at ``now`` [ns] of entities whose latest rejection was at ``rejected_at``,
+    whose inputs' newest stamps are ``stamps`` (one row per input) and whose latest warning was at
+    ``warned_at`` [ns; NEVER: none] (arrays that broadcast: entities, or one entity at many times).
+    """
+    error = (now - rejected_at < hold) | ~fresh(stamps, now, max_age).all(axis=0)
+    warn = now - warned_at < hold
+    return np.where(error, np.int8(Level.ERROR), warn.view(np.int8))
+
+
 @dataclass(frozen=True)
 class Status:
     level: Level
@@ -180,11 +197,14 @@ class Health:
     # --- levels and reports
     def levels(self, now: int) -> np.ndarray:
         """Every entity's level."""
-        error = (now - self._rejected_at < self.hold) | ~fresh(self.stamps, now, self.max_age).all(
-            axis=0
+        return levels_of(
+            now,
+            self._rejected_at,
+            self.stamps,
+            self._warned_at.max(axis=1),
+            self.hold,
+            self.max_age,
         )
-        warn = now - self._warned_at.max(axis=1) < self.hold
-        return np.where(error, int(Level.ERROR), warn.view(np.int8))
 
     def level(self, k: int, now: int) -> tuple[Level, str]:
         """Entity ``k``'s level and its one-line reason."""
@@ -207,6 +227,29 @@ class Health:
                 sorted({text for text, at in zip(_WARN_TEXTS, warned) if now - at < self.hold})
             )
         return Level.OK, OK_TEXT
+
+    def restore(
+        self,
+        k: int,
+        counts: Sequence[int],
+        arrivals: Sequence[int],
+        delays: Sequence[tuple[float, float]],
+        rejected: tuple[int, str],
+        warned_at: Sequence[int],
+    ) -> None:
+        """Set entity ``k``'s events as counted elsewhere (``bag estimate``'s pass over a whole
+        recording), before :meth:`report`: its ``counts`` (in the order of the labels), valid
+        ``arrivals`` of each input since start-up, the (earliest, latest) delay [s] of each input
+        since the last report ((inf, -inf): none), its latest rejection (time [ns], reason) and the
+        latest time [ns] each warning flag was raised (NEVER: never).  :attr:`stamps` is its
+        owner's.
+        """
+        self._counts[k][:] = counts
+        for i, (n, (low, high)) in enumerate(zip(arrivals, delays)):
+            self._arrivals[i][k], self._delay_min[i][k], self._delay_max[i][k] = n, low, high
+        self._rejected_at[k], self._reason[k] = rejected
+        self._warned_at[k] = warned_at
+        self._steady = False
 
     def due(self, now: int) -> bool:
         """Whether a level differs from the last report, and ``report_interval`` has passed since
