@@ -586,6 +586,7 @@ def estimate_bag(
     outputs_only: bool = False,
     pairing: str = SPECS['pairing'].default,
     slop: float = SPECS['pairing_slop'].default,
+    chunk: int = CHUNK,
 ) -> Summary:
     """Write ``out``: the recording ``bag`` plus what the model node with ``settings`` would
     publish.
@@ -595,8 +596,8 @@ def estimate_bag(
     ``namespace``: of the muscles' topics (default: the only one in the bag); ``csv``: also write
     the estimates there (:data:`CSV_COLUMNS`; gauge pressure, flags by name); ``outputs_only``:
     write only what the node publishes (and a recorded /diagnostics), not the inputs;
-    ``pairing``, ``slop`` [s]: the node's ``pairing`` and ``pairing_slop``.  Raises BagError
-    (nothing written) on bad input.
+    ``pairing``, ``slop`` [s]: the node's ``pairing`` and ``pairing_slop``; ``chunk``: messages
+    decided at once (the state carries over).  Raises BagError (nothing written) on bad input.
     """
     settings = [settings] if isinstance(settings, NodeSettings) else list(settings)
     names = list(names or [])
@@ -616,8 +617,8 @@ def estimate_bag(
                 settings, names, combined, ns, reader, writer, rows, outputs_only, pairing, slop
             )
             bar = _Progress(reader.message_count) if progress else None
-            for chunk in _chunks(messages(reader, reader.connections), CHUNK):
-                node.process(chunk)
+            for stretch in _chunks(messages(reader, reader.connections), chunk):
+                node.process(stretch)
                 if bar:
                     bar.update(node.summary.messages)
             if bar:

@@ -14,10 +14,8 @@ being the node's clock:
   :meth:`~.pairing.Pairing.pair_one` along it (``approximate_time``);
 * the forces of every pair in one call (:func:`~.muscle_model.force_at`), the commands in one
   (:meth:`~.muscle_model.Evaluator.pressure`);
-* health: counters, arrivals, rejections and warnings as arrays of events; the levels after every
-  input (:func:`~.health.levels_of`); a report on change wherever :meth:`~.health.Health.due`
-  would make one, and at 1 Hz, each built by :meth:`~.health.Health.report` from the state
-  restored at that point.
+* health: counters, arrivals, rejections and warnings as arrays of events, whose reports
+  :mod:`.timeline` makes where the node makes them.
 
 A recording is taken in stretches; each muscle's state (newest inputs, branch, coefficients,
 counters, latest rejection and warnings, the window of the next report) carries over.
@@ -35,14 +33,13 @@ import numpy as np
 from .engine import Counter, Engine
 from .estimation import ABSURD_PRESSURE, length_problem, pressure_problem
 from .flags import describe, Flag
-from .health import levels_of, Status, WARN_FLAGS
 from .hysteresis import play
 from .muscle_model import force_at, Operating
-from .pairing import fresh, NEVER, pair_every_input, Pairing, SECOND
+from .pairing import fresh, NEVER, pair_every_input, Pairing
+from .timeline import Events, Report, Timeline, WARN_BITS
 
 PRESSURE_IN, LENGTH_IN, COMMAND_IN = 0, 1, 2  #: kinds of input
-_WARN_BITS = tuple(int(flag) for flag in WARN_FLAGS)  # health's order
-_WARN_MASK = sum(_WARN_BITS)
+_WARN_MASK = sum(WARN_BITS)
 _INVALID = int(Flag.INVALID_INPUT)
 
 
@@ -80,15 +77,6 @@ class Commands(NamedTuple):
     flags: np.ndarray  #: uint16
 
 
-class Report(NamedTuple):
-    """A /diagnostics report: at 1 Hz before the message at ``at``, or on change after it."""
-
-    at: int
-    after: bool
-    now: int  #: [ns]
-    statuses: list[Status]
-
-
 @dataclass
 class Stretch:
     """What the node publishes for a stretch of recording."""
@@ -100,7 +88,7 @@ class Stretch:
 
 @dataclass
 class _Carry:
-    """One muscle's state between stretches."""
+    """One muscle's inputs' state between stretches."""
 
     pairing: Pairing  #: the newest valid stamps (and, approximate_time, which are new)
     pressure: float = math.nan  #: newest valid absolute pressure [Pa]
@@ -109,12 +97,6 @@ class _Carry:
     coefficients: tuple = (_INVALID, math.nan, math.nan, math.nan)  #: (flags, q2, q1, q0)
     branch: float = 0.0
     anchor: float = math.nan
-    counts: np.ndarray = field(default_factory=lambda: np.zeros(len(Counter), np.int64))
-    arrivals: list[int] = field(default_factory=lambda: [0, 0])
-    #: per input, (min, max) of now - stamp [ns] since the last report (None: no arrival)
-    window: list = field(default_factory=lambda: [None, None])
-    rejected: tuple[int, str] = (NEVER, '')
-    warned_at: np.ndarray = field(default_factory=lambda: np.full(len(_WARN_BITS), NEVER))
 
 
 class _Prepared(NamedTuple):
@@ -128,21 +110,6 @@ class _Prepared(NamedTuple):
     end: tuple[float, float]  #: (branch, anchor) after the stretch
 
 
-class _Events(NamedTuple):
-    """One muscle's decisions over a stretch, as events at message positions."""
-
-    at: np.ndarray  #: positions of its inputs
-    counters: list[np.ndarray]  #: per Counter, the positions where it counts one
-    arrivals: list[tuple[np.ndarray, np.ndarray]]  #: per input: (positions, now - stamp [ns])
-    rejections: tuple[np.ndarray, np.ndarray, list[str]]  #: positions, times [ns], reasons
-    warnings: list[tuple[np.ndarray, np.ndarray]]  #: per warning flag: (positions, times)
-    #: before the stretch (column 0) and after each input: the newest stamps (2 x E+1), the
-    #: latest rejection and warning times (E+1)
-    stamps: np.ndarray
-    rejected_at: np.ndarray
-    warned_at: np.ndarray
-
-
 class Recording:
     """The decisions of ``engine`` (built as the node builds it: configs, hold, pairing, report
     interval) over a recording; ``arrays``: the inputs are JointStates of every muscle (the node
@@ -151,24 +118,17 @@ class Recording:
 
     def __init__(self, engine: Engine, arrays: bool = False) -> None:
         self.engine, self.arrays = engine, arrays
-        pairing, health = engine.pairing, engine.health
+        pairing = engine.pairing
         self.approximate, self.max_age = pairing.approximate, pairing.max_age
-        self.hold, self.interval = health.hold, health.report_interval
         self._carry = [
             _Carry(Pairing(1, 'approximate_time', pairing.slop, pairing.max_age))
             for _ in range(len(engine))
         ]
-        self._next_status: int | None = None
-        self._last_report = NEVER
-        self._reported = bytes([255]) * len(engine)  # levels of the last report (255: none)
+        self.timeline = Timeline(engine)
 
     def counts(self, k: int) -> dict[str, int]:
         """Muscle ``k``'s counters so far (non-zero, by label), as :meth:`Engine.counts`."""
-        return {
-            label: int(n)
-            for label, n in zip(self.engine.health.labels, self._carry[k].counts.tolist())
-            if n
-        }
+        return self.timeline.counts(k)
 
     # --- one stretch
     def step(
@@ -178,18 +138,13 @@ class Recording:
         the log times [ns] of all of them, in order; ``input_at``: the positions of the node's
         input messages among them).
         """
-        if self._next_status is None and len(times):
-            self._next_status = int(times[0]) + SECOND  # the node's 1 Hz status timer
         prepared = [self._prepare(k, ev) for k, ev in enumerate(inputs)]
         coefficients = self._coefficients(prepared)
         decided = [
             self._decide(k, ev, prep, coeff)
             for k, (ev, prep, coeff) in enumerate(zip(inputs, prepared, coefficients))
         ]
-        events = [h for _, _, h in decided]
-        reports = self._reports(events, first, times, input_at)
-        for k, h in enumerate(events):
-            self._carry_health(k, h)
+        reports = self.timeline.reports([h for _, _, h in decided], first, times, input_at)
         return Stretch([e for e, _, _ in decided], [c for _, c, _ in decided], reports)
 
     def _prepare(self, k: int, ev: Inputs) -> _Prepared:
@@ -269,7 +224,7 @@ class Recording:
 
     def _decide(
         self, k: int, ev: Inputs, prep: _Prepared, coefficients: tuple[np.ndarray, ...]
-    ) -> tuple[Estimates, Commands, _Events]:
+    ) -> tuple[Estimates, Commands, Events]:
         """Muscle ``k``'s pairs, forces, commands and health events over the stretch."""
         config, carry = self.engine.configs[k], self._carry[k]
         model, ambient = config.model, config.ambient_pressure
@@ -396,13 +351,14 @@ class Recording:
         flagged_at, flagged = flagged_at[order], flagged[order]
         times = now[np.searchsorted(at, flagged_at)]
         warnings = [
-            (flagged_at[flagged & bit != 0], times[flagged & bit != 0]) for bit in _WARN_BITS
+            (flagged_at[flagged & bit != 0], times[flagged & bit != 0]) for bit in WARN_BITS
         ]
         warned = np.full(len(at), NEVER)
         warned[np.searchsorted(at, flagged_at[flagged & _WARN_MASK != 0])] = times[
             flagged & _WARN_MASK != 0
         ]
-        events = _Events(
+        rejected_before, warned_before = self.timeline.latest(k)
+        events = Events(
             at,
             counters,
             [(at[ok], (now - stamp)[ok]) for ok in (ok_p, ok_l)],
@@ -412,130 +368,10 @@ class Recording:
                 [np.concatenate([[before[0]], p_stamp]), np.concatenate([[before[1]], l_stamp])]
             ),
             np.maximum.accumulate(
-                np.concatenate([[carry.rejected[0]], np.where(rejected, now, NEVER)])
+                np.concatenate([[rejected_before], np.where(rejected, now, NEVER)])
             ),
-            np.maximum.accumulate(np.concatenate([[carry.warned_at.max()], warned])),
+            np.maximum.accumulate(np.concatenate([[warned_before], warned])),
         )
         return estimates, commands, events
 
     # --- reports
-    def _reports(
-        self, events: list[_Events], first: int, times: np.ndarray, input_at: np.ndarray
-    ) -> list[Report]:
-        """The node's /diagnostics reports over the stretch: at 1 Hz (before the first message
-        at or after each second) and on change (after an input whose levels differ from the last
-        report's, once ``report_interval`` has passed since it).
-        """
-        inputs_now = times[input_at - first]
-        count = len(input_at)
-        levels = np.empty((count, len(events)), np.int8)
-        for k, h in enumerate(events):
-            j = (
-                np.arange(1, count + 1)
-                if len(h.at) == count
-                else np.searchsorted(h.at, input_at, 'right')
-            )
-            levels[:, k] = levels_of(
-                inputs_now,
-                h.rejected_at[j],
-                h.stamps[:, j],
-                h.warned_at[j],
-                self.hold,
-                self.max_age,
-            )
-        changes = np.flatnonzero((levels[1:] != levels[:-1]).any(axis=1)) + 1
-        timers = []
-        while len(times) and self._next_status <= times[-1]:
-            timers.append(self._next_status)
-            self._next_status += SECOND
-        timer_at = first + np.searchsorted(times, timers, 'left')
-        windows = [[0, 0] for _ in events]  # per muscle and input: first arrival in the window
-        reports: list[Report] = []
-
-        def report(at: int, after: bool, now: int) -> None:
-            self._restore(events, windows, at, 'right' if after else 'left')
-            statuses = self.engine.statuses(now)
-            reports.append(Report(at, after, now, statuses))
-            self._reported = bytes(int(s.level) for s in statuses)
-            self._last_report = now
-
-        def passed(start: int) -> int:
-            """The first input from ``start`` on that the report interval lets through."""
-            gate = np.searchsorted(inputs_now, self._last_report + self.interval, 'left')
-            return max(start, int(gate))
-
-        i, t = passed(0), 0
-        while True:
-            if t < len(timers) and (i >= count or timer_at[t] <= input_at[i]):
-                report(int(timer_at[t]), False, timers[t])
-                i = passed(int(np.searchsorted(input_at, timer_at[t], 'left')))
-                t += 1
-            elif i >= count:
-                break
-            elif levels[i].tobytes() != self._reported:
-                report(int(input_at[i]), True, int(inputs_now[i]))
-                i = passed(i + 1)
-            else:
-                later = np.searchsorted(changes, i, 'right')
-                i = int(changes[later]) if later < len(changes) else count
-        self._windows = windows
-        return reports
-
-    def _restore(self, events: list[_Events], windows: list, at: int, side: str) -> None:
-        """Set the engine's health to each muscle's state at position ``at`` (``side`` 'right':
-        after the message there, 'left': before it), for a report; the report starts a new window
-        of arrivals.
-        """
-        health = self.engine.health
-        for k, h in enumerate(events):
-            carry = self._carry[k]
-            counts = [
-                n + np.searchsorted(c, at, side) for n, c in zip(carry.counts.tolist(), h.counters)
-            ]
-            arrivals, delays = [], []
-            for s, (positions, delay) in enumerate(h.arrivals):
-                end = int(np.searchsorted(positions, at, side))
-                arrivals.append(carry.arrivals[s] + end)
-                window, start = carry.window[s], windows[k][s]
-                if end > start:
-                    low, high = int(delay[start:end].min()), int(delay[start:end].max())
-                    window = (
-                        (low, high)
-                        if window is None
-                        else (min(window[0], low), max(window[1], high))
-                    )
-                delays.append(
-                    (math.inf, -math.inf)
-                    if window is None
-                    else (window[0] / SECOND, window[1] / SECOND)
-                )
-                carry.window[s], windows[k][s] = None, end
-            positions, when, reasons = h.rejections
-            r = int(np.searchsorted(positions, at, side)) - 1
-            rejected = (int(when[r]), reasons[r]) if r >= 0 else carry.rejected
-            warned = []
-            for held, (positions, when) in zip(carry.warned_at.tolist(), h.warnings):
-                w = int(np.searchsorted(positions, at, side)) - 1
-                warned.append(int(when[w]) if w >= 0 else held)
-            health.restore(k, counts, arrivals, delays, rejected, warned)
-            health.stamps[:, k] = h.stamps[:, np.searchsorted(h.at, at, side)]
-
-    def _carry_health(self, k: int, h: _Events) -> None:
-        """Muscle ``k``'s health state after the stretch."""
-        carry = self._carry[k]
-        carry.counts += [len(c) for c in h.counters]
-        for s, (positions, delay) in enumerate(h.arrivals):
-            carry.arrivals[s] += len(positions)
-            start = self._windows[k][s]
-            if start < len(delay):
-                low, high = int(delay[start:].min()), int(delay[start:].max())
-                window = carry.window[s]
-                carry.window[s] = (
-                    (low, high) if window is None else (min(window[0], low), max(window[1], high))
-                )
-        positions, when, reasons = h.rejections
-        if len(positions):
-            carry.rejected = (int(when[-1]), reasons[-1])
-        for j, (positions, when) in enumerate(h.warnings):
-            if len(positions):
-                carry.warned_at[j] = when[-1]
