@@ -19,10 +19,10 @@ except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install wi
         'needs rosbags, a pip-only library: pip install -r requirements-dev.txt',
         allow_module_level=True,
     )
-from bag_reference import csv_rows, per_message, raw_messages, same
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+from bag_reference import csv_rows, per_message, raw_messages, same
 from conftest import CONFIGS
 from pma_model_ros.bags.bag_io import (
     BagWriter,
