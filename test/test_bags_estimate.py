@@ -26,6 +26,7 @@ from bag_reference import csv_rows, per_message, raw_messages, same
 from conftest import CONFIGS
 from pma_model_ros.bags.bag_io import (
     BagWriter,
+    DIAGNOSTIC_ARRAY,
     FLUID_PRESSURE,
     JOINT_STATE,
     read,
@@ -395,12 +396,13 @@ def variant_settings(name: str):
 
 VARIANTS = ('martens', 'hildebrandt gauge', 'hysteresis by length', 'hysteresis by pressure')
 
-#: One recorded message: topic, log-time step [ms] (0: same time), stamp - log time [ms] (some
-#: stale, some from the future), value (a unit draw mapped into the muscle's ranges, or NaN and
-#: out of range values), and its form: usual, another joint's JointState, a JointState of two
+#: One recorded message: topic (the node's inputs; a load cell's force and another node's
+#: /diagnostics, which are no inputs), log-time step [ms] (0: same time), stamp - log time [ms]
+#: (some stale, some from the future), value (a unit draw mapped into the muscle's ranges, or NaN
+#: and out of range values), and its form: usual, another joint's JointState, a JointState of two
 #: joints, another frame_id (a new layout), big-endian CDR (the deserializer), an infinite rate.
 step_strategy = st.tuples(
-    st.sampled_from(['pressure', 'muscle_state'] * 2 + ['force_command']),
+    st.sampled_from(['pressure', 'muscle_state'] * 4 + ['force_command'] * 2 + ['force', 'other']),
     st.sampled_from([0, 1, 1, 1, 2, 5, 150, 1300]),
     st.sampled_from([0] * 6 + [-1, -2, -120, 80]),
     st.one_of(*[st.floats(0.0, 1.0)] * 7, st.sampled_from([math.nan, -2.0, 30.0])),
@@ -430,11 +432,14 @@ def random_bag(path, storage, steps, settings=SETTINGS):
     low, high = model.domain.length_min, model.domain.length_max
     gauge = settings.config.pressure_reference == 'gauge'
     with BagWriter(path, storage) as bag:
-        conns = {
-            'pressure': bag.topic(f'{NS}/pressure', FLUID_PRESSURE, [SENSOR_DATA]),
-            'muscle_state': bag.topic(f'{NS}/muscle_state', JOINT_STATE, [SENSOR_DATA]),
-            'force_command': bag.topic(f'{NS}/force_command', WRENCH_STAMPED),
+        types = {
+            'pressure': (f'{NS}/pressure', FLUID_PRESSURE),
+            'muscle_state': (f'{NS}/muscle_state', JOINT_STATE),
+            'force_command': (f'{NS}/force_command', WRENCH_STAMPED),
+            'force': (f'{NS}/force', WRENCH_STAMPED),
+            'other': ('/diagnostics', DIAGNOSTIC_ARRAY),
         }
+        conns = {key: bag.topic(name, kind, [SENSOR_DATA]) for key, (name, kind) in types.items()}
         t = START_NS
         for topic, step, offset, unit, form in steps:
             t += step * 10**6
@@ -457,12 +462,15 @@ def random_bag(path, storage, steps, settings=SETTINGS):
                     np.array(rate * len(names) if unit == unit else []),
                     np.array([]),
                 )
+            elif topic == 'other':  # another node's status
+                status = T['diagnostic_msgs/msg/DiagnosticStatus'](1, 'other: x', 'hm', 'x', [])
+                msg = T[DIAGNOSTIC_ARRAY](stamp, [status])
             else:
                 force = 300 * unit if unit == unit else math.nan
                 msg = T[WRENCH_STAMPED](
                     stamp, Wrench(Vector3(force, 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
                 )
-            kind = bag._writer.connections[list(conns).index(topic)].msgtype
+            kind = types[topic][1]
             data = TYPESTORE.serialize_cdr(msg, kind, little_endian=form != 'big-endian')
             bag.write_raw(conns[topic], t, data)
     return path
@@ -621,7 +629,9 @@ def random_multi_bag(path, storage, steps, settings, names, combined):
                 msg = T[WRENCH_STAMPED](
                     stamp, Wrench(Vector3(values[k], 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
                 )
-            kind = conns[topic, k].msgtype
+            kind = {'pressure': FLUID_PRESSURE, 'muscle_state': JOINT_STATE}.get(
+                topic, WRENCH_STAMPED
+            )
             data = TYPESTORE.serialize_cdr(msg, kind, little_endian=form != 'mismatched')
             bag.write_raw(conns[topic, k], t, data)
 
