@@ -245,7 +245,7 @@ rate_values = st.one_of(floats, st.sampled_from([math.inf, -math.inf, math.nan])
 
 @st.composite
 def usual_joint_states(draw):
-    """JointStates whose arrays mostly match the names (velocity sometimes empty)."""
+    """Messages (JointState) whose arrays mostly match the names (velocity sometimes empty)."""
     names = draw(st.lists(texts, max_size=5, unique=True))
     n = len(names)
     sizes = st.sampled_from([n, n, n, 0, n + 1])
@@ -299,9 +299,10 @@ def big_endian(msg) -> bytes:
     data=st.data(),
 )
 def test_joint_columns_equal_reading_each_message(first, stream, extra, field, data):
-    """JointStates of repeated layouts (new numbers and stamps), new layouts and big-endian ones,
-    read at once for some joints (named in the messages or not): the same stamps, values, rates,
-    which joints each gives and why not, as the per-message reader and index give each.
+    """Messages (JointState) of repeated layouts (new numbers and stamps), new layouts and
+    big-endian ones, read at once for some joints (named in the messages or not): the same stamps,
+    values, rates, which joints each gives and why not, as the per-message reader and index give
+    each.
     """
     messages, previous = [], first
     for form, msg in [('new', first), *stream]:
@@ -355,7 +356,7 @@ def test_joint_columns_equal_reading_each_message(first, stream, extra, field, d
     kind=st.sampled_from(['FluidPressure', 'WrenchStamped']),
 )
 def test_stamped_floats_equal_reading_each_message(stream, kind):
-    """FluidPressure or WrenchStamped messages of any frame_ids (padding), stamps and values,
+    """Messages (FluidPressure or WrenchStamped) of any frame_ids (padding), stamps and values,
     some big-endian: read at once, the stamps and values that reading each gives.
     """
     cls, field = {
