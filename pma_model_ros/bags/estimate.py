@@ -30,6 +30,7 @@ from __future__ import annotations
 from contextlib import contextmanager
 import csv as csv_module
 from dataclasses import dataclass, field
+from itertools import islice
 import math
 import os
 from pathlib import Path
@@ -175,12 +176,10 @@ class _Outputs:
         """Everything, in the order the node publishes it."""
         if not self.data:
             return
-        keys = np.concatenate(self.keys)
-        order = np.argsort(keys, kind='stable').tolist()
-        which, times = np.concatenate(self.which).tolist(), np.concatenate(self.times).tolist()
-        connections, data, write = self.connections, self.data, writer.write_raw
-        for i in order:
-            write(connections[which[i]], times[i], data[i])
+        order = np.argsort(np.concatenate(self.keys), kind='stable')
+        which, times = np.concatenate(self.which)[order], np.concatenate(self.times)[order]
+        connections = [self.connections[i] for i in which.tolist()]
+        writer.write_many(connections, times.tolist(), [self.data[i] for i in order.tolist()])
 
 
 class _OfflineNode:
@@ -493,19 +492,16 @@ def _merge(parts: list[tuple], times: np.ndarray, first: int) -> Inputs:
     columns, refused, offset = [], {}, 0
     for rows, kind, stamps, values, rates, no, which in parts:
         keep = slice(None) if which is None else which
-        kept = np.flatnonzero(which) if which is not None else np.arange(len(rows))
-        renumber = {int(i): j for j, i in enumerate(kept.tolist())}
+        kept = len(rows) if which is None else int(np.count_nonzero(which))
         columns.append(
-            (
-                rows[keep],
-                np.full(len(kept), kind, np.int8),
-                stamps[keep],
-                values[keep],
-                rates[keep],
-            )
+            (rows[keep], np.full(kept, kind, np.int8), stamps[keep], values[keep], rates[keep])
         )
-        refused.update({offset + renumber[i]: why for i, why in no.items()})
-        offset += len(kept)
+        if no:  # (refused messages are among those kept: their index among them)
+            before = np.cumsum(which) - 1 if which is not None else None
+            refused.update(
+                {offset + (i if before is None else int(before[i])): why for i, why in no.items()}
+            )
+        offset += kept
     rows, kind, stamps, values, rates = (np.concatenate(c) for c in zip(*columns))
     order = np.argsort(rows, kind='stable')
     back = np.empty(len(order), np.intp)
@@ -528,17 +524,18 @@ def _stretches(
     lists, not as the reader's tuples: a hundred thousand tuples held make Python's cyclic garbage
     collector sweep them again and again (it cost a third of the run).
     """
-    ids: list[int] = []
-    times: list[int] = []
-    data: list[bytes] = []
-    for connection, time_ns, raw in items:
-        ids.append(connection.id)
-        times.append(time_ns)
-        data.append(raw)
-        if len(data) == size:
-            yield ids, times, data
-            ids, times, data = [], [], []
-    if data:
+    items = iter(items)
+    while True:
+        ids: list[int] = []
+        times: list[int] = []
+        data: list[bytes] = []
+        add_id, add_time, add_data = ids.append, times.append, data.append
+        for connection, time_ns, raw in islice(items, size):
+            add_id(connection.id)
+            add_time(time_ns)
+            add_data(raw)
+        if not data:
+            return
         yield ids, times, data
 
 

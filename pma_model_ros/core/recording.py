@@ -204,11 +204,9 @@ class Recording:
             for config, prep in zip(configs, prepared):
                 _, lengths, branches = prep.epochs
                 one = config.model.operating_one
-                rows = [one(L, b) for L, b in zip(lengths.tolist(), branches.tolist())]
-                flags, q2, q1, q0 = zip(*rows) if rows else ((), (), (), ())
-                out.append(
-                    (np.array(flags, np.uint16), *(np.array(q, float) for q in (q2, q1, q0)))
-                )
+                rows = np.array(list(map(one, lengths.tolist(), branches.tolist())), float)
+                rows = rows.reshape(-1, 4)  # (flags, q2, q1, q0) per length
+                out.append((rows[:, 0].astype(np.uint16), rows[:, 1], rows[:, 2], rows[:, 3]))
             return out
         counts = [len(prep.epochs[0]) for prep in prepared]
         rows = max(counts, default=0)
