@@ -1,10 +1,15 @@
 """Offline force estimation: what ``model_node`` would publish for a recording, written to a new
 bag.
 
-The recording's input topics drive one :class:`~pma_model_ros.core.engine.Engine` in log-time
-order, through the same calls as the node's callbacks, with "now" = the message's log time (what
-the node's clock reads when the bag is played with ``--clock`` into a node with ``use_sim_time``).
-The topics are those of the parameter file's muscles, under the recording's namespace:
+The model node's decisions over the recording in one pass, with "now" = each message's log time
+(what the node's clock reads when the bag is played with ``--clock`` into a node with
+``use_sim_time``): the recording is read in stretches; each input topic's messages are decoded
+into arrays at once (:mod:`~pma_model_ros.wire.columns`), the engine's rules run over each
+muscle's arrays (:class:`~pma_model_ros.core.recording.Recording`), and the answers are written
+from templates, in the order the node publishes them.  ``test/test_bags_estimate.py`` pins the
+output to the node's callbacks driven message by message (the wire layer and
+:class:`~pma_model_ros.core.engine.Engine`), byte for byte.  The topics are those of the
+parameter file's muscles, under the recording's namespace:
 
 * one muscle: ``<ns>/pressure`` (FluidPressure), ``<ns>/muscle_state`` (JointState) and, if
   recorded, ``<ns>/force_command`` (WrenchStamped); with ``muscles:`` and ``input_mode:
@@ -226,16 +231,8 @@ class _OfflineNode:
                 for name in OUTPUTS
             }
         )
-        self.copies: dict[int, Connection] = {}
-        self._diagnostics = None
-        for c in reader.connections:
-            if c.topic in replaced or outputs_only and c.topic != DIAGNOSTICS:
-                continue
-            self.copies[c.id] = writer.copy_topic(c)
-            if c.topic == DIAGNOSTICS and c.msgtype == DIAGNOSTIC_ARRAY:
-                self._diagnostics = self.copies[c.id]
-        if self._diagnostics is None:
-            self._diagnostics = writer.topic(DIAGNOSTICS, DIAGNOSTIC_ARRAY, [RELIABLE])
+        # the answers' topics first: rosbags' writer looks each message's connection up in its
+        # list, comparing every connection before it
         has_commands = any(role == _COMMAND for role, _ in self.roles.values())
         if combined:
             self._estimates = [
@@ -260,6 +257,16 @@ class _OfflineNode:
                 if has_commands
                 else []
             )
+        self.copies: dict[int, Connection] = {}
+        self._diagnostics = None
+        for c in sorted(reader.connections, key=lambda c: -c.msgcount):  # (the busiest first)
+            if c.topic in replaced or outputs_only and c.topic != DIAGNOSTICS:
+                continue
+            self.copies[c.id] = writer.copy_topic(c)
+            if c.topic == DIAGNOSTICS and c.msgtype == DIAGNOSTIC_ARRAY:
+                self._diagnostics = self.copies[c.id]
+        if self._diagnostics is None:
+            self._diagnostics = writer.topic(DIAGNOSTICS, DIAGNOSTIC_ARRAY, [RELIABLE])
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
         self.engine = Engine(
             [s.config for s in settings],
@@ -402,8 +409,9 @@ class _OfflineNode:
             mask = np.zeros((len(where), len(self.joints)), bool)
             values = np.zeros(mask.shape)
             stamps = np.full(len(where), np.iinfo(np.int64).min)
-            for k, r in enumerate(results):
-                i = row[sum(len(q.at) for q in results[:k]) :][: len(r.at)]
+            ends = np.cumsum([len(r.at) for r in results]).tolist()
+            for k, (r, end) in enumerate(zip(results, ends)):
+                i = row[end - len(r.at) : end]  # the messages of muscle k's answers
                 mask[i, k] = True
                 values[i, k] = getattr(r, value)
                 if kind == 'effort':
