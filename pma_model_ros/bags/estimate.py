@@ -231,8 +231,16 @@ class _OfflineNode:
                 for name in OUTPUTS
             }
         )
-        # the answers' topics first: rosbags' writer looks each message's connection up in its
-        # list, comparing every connection before it
+        self.copies: dict[int, Connection] = {}
+        self._diagnostics = None
+        for c in reader.connections:
+            if c.topic in replaced or outputs_only and c.topic != DIAGNOSTICS:
+                continue
+            self.copies[c.id] = writer.copy_topic(c)
+            if c.topic == DIAGNOSTICS and c.msgtype == DIAGNOSTIC_ARRAY:
+                self._diagnostics = self.copies[c.id]
+        if self._diagnostics is None:
+            self._diagnostics = writer.topic(DIAGNOSTICS, DIAGNOSTIC_ARRAY, [RELIABLE])
         has_commands = any(role == _COMMAND for role, _ in self.roles.values())
         if combined:
             self._estimates = [
@@ -257,16 +265,6 @@ class _OfflineNode:
                 if has_commands
                 else []
             )
-        self.copies: dict[int, Connection] = {}
-        self._diagnostics = None
-        for c in sorted(reader.connections, key=lambda c: -c.msgcount):  # (the busiest first)
-            if c.topic in replaced or outputs_only and c.topic != DIAGNOSTICS:
-                continue
-            self.copies[c.id] = writer.copy_topic(c)
-            if c.topic == DIAGNOSTICS and c.msgtype == DIAGNOSTIC_ARRAY:
-                self._diagnostics = self.copies[c.id]
-        if self._diagnostics is None:
-            self._diagnostics = writer.topic(DIAGNOSTICS, DIAGNOSTIC_ARRAY, [RELIABLE])
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
         self.engine = Engine(
             [s.config for s in settings],
