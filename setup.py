@@ -36,6 +36,7 @@ setup(
             'simulator_node = pma_model_ros.nodes.simulator_node:main',
             'joint_node = pma_model_ros.nodes.joint_node:main',
             'joint_simulator_node = pma_model_ros.nodes.joint_simulator_node:main',
+            'pma_composed = pma_model_ros.nodes.composed:main',
         ],
     },
 )

@@ -59,7 +59,8 @@ from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.core.param_file import read_parameters  # noqa: E402
 from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
-from pma_model_ros.nodes.model_node import INPUT_QOS, ModelNode  # noqa: E402
+from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
+from pma_model_ros.nodes.qos import SENSOR_INPUT  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
 from pma_model_ros.tools import node_process  # noqa: E402
 from pma_model_ros.wire.cdr import fluid_pressure, joint_state  # noqa: E402
@@ -105,9 +106,9 @@ class Relay(Node):
                     FluidPressure,
                     f'{muscle}/pressure',
                     lambda m, muscle=muscle: self.pressures.__setitem__(muscle, m.fluid_pressure),
-                    INPUT_QOS,
+                    SENSOR_INPUT,
                 )
-            self.create_subscription(JointState, 'joint_states', estimates, INPUT_QOS)
+            self.create_subscription(JointState, 'joint_states', estimates, SENSOR_INPUT)
         elif muscles == 1:
             pub = self.create_publisher(WrenchStamped, 'force_estimate', 10)
 

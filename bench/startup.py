@@ -45,7 +45,7 @@ def child(module: str, cls: str, params_file: Path | None, *ros_args: str) -> st
         f'rclpy.init(args={args!r})\n'
         f'node = {cls}()\n'
         'from pma_model_ros.nodes.startup import executor\n'
-        'executor(node)\n' + READY
+        'executor([node])\n' + READY
     )
 
 

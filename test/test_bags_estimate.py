@@ -100,7 +100,7 @@ def node_reference(bag):
                 estimated = est.length(0, float(msg.position[0]), float(rate), stamp, now)
             else:
                 est.reject(0, 'muscle_state', f"joint '{JOINT}' not in {list(msg.name)}", now)
-        elif (pressure := est.command(0, msg.wrench.force.x, now)) is not None:
+        elif (pressure := est.command(0, msg.wrench.force.x, now, stamp)) is not None:
             commands.append((now, pressure))
         if estimated:
             estimates.append((now, est.stamp, est.forces.item(0)))
@@ -400,13 +400,16 @@ VARIANTS = ('martens', 'hildebrandt gauge', 'hysteresis by length', 'hysteresis 
 #: /diagnostics, which are no inputs), log-time step [ms] (0: same time), stamp - log time [ms]
 #: (some stale, some from the future), value (a unit draw mapped into the muscle's ranges, or NaN
 #: and out of range values), and its form: usual, another joint's JointState, a JointState of two
-#: joints, another frame_id (a new layout), big-endian CDR (the deserializer), an infinite rate.
+#: joints, another frame_id (a new layout), big-endian CDR (the deserializer), an infinite rate,
+#: a zero stamp (a command taken as sent now; an input stale).
 step_strategy = st.tuples(
     st.sampled_from(['pressure', 'muscle_state'] * 4 + ['force_command'] * 2 + ['force', 'other']),
     st.sampled_from([0, 1, 1, 1, 2, 5, 150, 1300]),
     st.sampled_from([0] * 6 + [-1, -2, -120, 80]),
     st.one_of(*[st.floats(0.0, 1.0)] * 7, st.sampled_from([math.nan, -2.0, 30.0])),
-    st.sampled_from(['usual'] * 12 + ['other', 'two', 'frame', 'big-endian', 'inf rate']),
+    st.sampled_from(
+        ['usual'] * 12 + ['other', 'two', 'frame', 'big-endian', 'inf rate', 'unstamped']
+    ),
 )
 
 
@@ -443,7 +446,7 @@ def random_bag(path, storage, steps, settings=SETTINGS):
         t = START_NS
         for topic, step, offset, unit, form in steps:
             t += step * 10**6
-            stamp = header(t + offset * 10**6)
+            stamp = header(0 if form == 'unstamped' else t + offset * 10**6)
             if form == 'frame':
                 stamp.frame_id = 'another_frame'
             usual = 0 <= unit <= 1

@@ -20,7 +20,14 @@ from conftest import COLCON, explain
 
 PKG = 'pma_model_ros'
 REPO = Path(__file__).resolve().parents[1]
-EXECUTABLES = ['pma-model', 'model_node', 'simulator_node', 'joint_node', 'joint_simulator_node']
+EXECUTABLES = [
+    'pma-model',
+    'model_node',
+    'simulator_node',
+    'joint_node',
+    'joint_simulator_node',
+    'pma_composed',
+]
 CONFIGS = ['dmsp_10_250.yaml', 'dmsp_20_300.yaml', 'dmsp_10_100.yaml']
 # Directories a build must never write into the source tree (the editable install's
 # *.egg-info from scripts/setup is expected and not a colcon artifact).

@@ -204,6 +204,31 @@ def test_command_inverts_the_model(est, martens_10_250):
     assert est.command(0, 100.0, ns(1.2)) is None  # length now stale
 
 
+def test_a_command_stamped_outside_max_input_age_is_refused_as_stale(est):
+    """A stale (or future) force_command gives no pressure command, is counted and shown as a stale
+    input is; a zero stamp (unstamped) is taken as received now.
+    """
+    feed_length(est, L, 0.0, stamp=10.0, now=10.0)
+    assert est.command(0, 100.0, ns(10.0), stamp=ns(9.5)) is None
+    assert est.counts(0) == {
+        'received muscle_state': 1,
+        'received force_command': 1,
+        'stale force_command': 1,
+    }
+    assert est.level(0, ns(10.0)) == (
+        Level.ERROR,
+        'stale force_command: stamp is 0.5 s old (max_input_age 0.1 s)',
+    )
+    assert est.command(0, 100.0, ns(10.0), stamp=ns(10.2)) is None
+    assert est.level(0, ns(10.0))[1] == (
+        'stale force_command: stamp is 0.2 s in the future (max_input_age 0.1 s)'
+    )
+    for stamp in (ns(9.95), 0):  # fresh; unstamped
+        assert est.command(0, 100.0, ns(10.0), stamp=stamp) is not None
+    assert est.counts(0)['stale force_command'] == 2 and est.counts(0)['pressure commands'] == 2
+    assert est.level(0, ns(11.1))[1] == 'no pressure received yet'  # the hold is over
+
+
 def test_config_swap_and_status(est, martens_10_250):
     feed_pressure(est, AMBIENT + P, stamp=1.0, now=1.0)
     first = feed_length(est, L, 0.0, stamp=1.0, now=1.0)

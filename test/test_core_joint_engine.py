@@ -520,3 +520,29 @@ def test_a_command_before_any_angle_is_rejected():
     e = engine()
     assert e.command(0, 1.0, 0.0) is None
     assert e.status(0, 0.0)[1] == 'invalid input: torque command before any angle (joint_states)'
+
+
+def test_stale_commands_are_refused_counted_and_shown():
+    """torque_command, stiffness_command and cocontraction_command stamps farther than max_age
+    from the clock: refused (no pressures, the settings unchanged), counted, ERROR with the
+    stale input's wording; a zero stamp (unstamped) is taken as received now.
+    """
+    e = engine()
+    feed(e, 0, 300e3, 300e3, t=10.0)
+    e.angle(0, 0.2, 10.0, 10.0)
+    raw = e.engine
+    assert raw.command(0, 1.0, ns(10.0), stamp=ns(9.8)) is None
+    assert raw.status_due(ns(10.0))
+    assert e.status(0, 10.0)[:2] == (
+        Level.ERROR,
+        'stale torque_command: stamp is 0.2 s old (max_input_age 0.125 s)',
+    )
+    raw.stiffness(0, 4.0, ns(10.0), stamp=ns(10.5))
+    raw.cocontraction(0, 0.0, ns(10.0), stamp=ns(1.0))
+    assert e.state[0].stiffness is None and e.state[0].level == 300e3  # unchanged
+    assert raw.counts(0)['stale command'] == 3 and raw.counts(0)['received command'] == 3
+    assert e.status(0, 10.0)[1].startswith('stale cocontraction_command: stamp is 9 s old')
+    assert raw.command(0, 1.0, ns(10.0), stamp=ns(10.1)) is not None  # fresh
+    assert raw.command(0, 1.0, ns(10.0), stamp=0) is not None  # unstamped
+    raw.stiffness(0, 4.0, ns(10.0), stamp=0)
+    assert e.state[0].stiffness == 4.0

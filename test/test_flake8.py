@@ -39,6 +39,10 @@ def flake8_config(tmp_path: Path) -> Path:
     section['extend-ignore'] = ','.join(dict.fromkeys(ignored))
     section['application-import-names'] = ','.join(ruff['lint']['isort']['known-first-party'])
     section['max-line-length'] = str(ruff['line-length'])
+    # one process: flake8's pool forks this pytest process, whose earlier tests left DDS and
+    # executor threads; a forked worker then waited forever for its tasks (seen: test_flake8 hung
+    # after test_nodes_qos.py and test_nodes_managed.py in one session)
+    section['jobs'] = '1'
     path = tmp_path / 'flake8.ini'
     with open(path, 'w') as out:
         config.write(out)

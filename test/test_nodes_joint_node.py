@@ -7,7 +7,9 @@ the core inverse.
 
 import copy
 import math
+import re
 import subprocess
+import time
 
 import pytest
 import rclpy
@@ -27,6 +29,7 @@ from pma_model_ros.tools import node_process
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 ELBOW = load_joints(EXAMPLE)[0]
+RATE = 50.0  # [Hz] of the torque commands to the stand-in forward_command_controller
 
 
 @pytest.fixture
@@ -57,6 +60,18 @@ def record(publisher) -> list:
         else copy.deepcopy(msg)
     )
     return sent
+
+
+def joint_states_at(stamp, angles: dict[str, float]) -> JointState:
+    msg = JointState(name=list(angles), position=list(angles.values()))
+    msg.header.stamp = stamp
+    return msg
+
+
+def pressure_at(stamp, absolute: float) -> FluidPressure:
+    msg = FluidPressure(fluid_pressure=absolute)
+    msg.header.stamp = stamp
+    return msg
 
 
 def joint_state(node, theta, name='elbow', velocity=0.0):
@@ -155,13 +170,13 @@ def test_stiffness_then_cocontraction_commands_switch_the_inverse(make_node):
     node = make_node()
     flexor, extensor = (record(p) for p in node._command_pubs[0])
     node._on_states(raw(joint_state(node, 0.2)))
-    node._on_level('stiffness_command', node.engine.stiffness, raw(command(elbow=4.5)))
+    node._on_level('stiffness_command', raw(command(elbow=4.5)))
     node._on_torque(raw(command(elbow=1.0)))
     got = ELBOW.forward(
         0.2, flexor[-1].fluid_pressure - AMBIENT, extensor[-1].fluid_pressure - AMBIENT
     )
     assert (float(got.torque), float(got.stiffness)) == pytest.approx((1.0, 4.5), rel=1e-9)
-    node._on_level('cocontraction_command', node.engine.cocontraction, raw(command(elbow=400e3)))
+    node._on_level('cocontraction_command', raw(command(elbow=400e3)))
     node._on_torque(raw(command(elbow=-1.0)))
     assert flexor[-1].fluid_pressure == pytest.approx(400e3 + AMBIENT, rel=1e-12)
 
@@ -208,6 +223,24 @@ def test_command_before_any_angle_and_bad_pressure_are_errors(make_node):
     node._on_pressure(0, 1, raw(pressure(node, -3.0)))
     node.publish_status(node.now())
     assert "muscle 'extensor': negative absolute pressure" in diagnostics[-1].status[0].message
+
+
+def test_stale_torque_command_gives_no_pressure_command(make_node):
+    """A torque_command stamped farther than max_input_age from the node clock is refused as
+    stale, counted and shown; an unstamped one (zero stamp) is answered.
+    """
+    node = make_node()
+    flexor, diagnostics = record(node._command_pubs[0][0]), record(node._diag_pub)
+    node._on_states(raw(joint_state(node, 0.5)))
+    old = command(elbow=1.0)
+    old.header.stamp = node.get_clock().now().to_msg()
+    old.header.stamp.sec -= 2
+    node._on_torque(raw(old))
+    assert flexor == [] and node.engine.counts(0)['stale command'] == 1
+    node.publish_status(node.now())
+    assert diagnostics[-1].status[0].message.startswith('stale torque_command: stamp is 2 s old')
+    node._on_torque(raw(command(elbow=1.0)))
+    assert len(flexor) == 1
 
 
 def test_bad_parameters_fail_at_startup(make_node):
@@ -391,3 +424,177 @@ def test_identification_results_are_values_of_the_joint_status(make_node):
     err = read_parameters(REPO / 'config' / 'dmsp_10_250.yaml')['models']['hildebrandt']['err']
     for muscle in ('flexor', 'extensor'):
         assert values[f'{muscle} identification err [% of max force]'] == f'{err:.6g}'
+
+
+def test_forward_commands_are_the_pressure_commands_in_the_configured_order(make_node, tmp_path):
+    """One Float64MultiArray per torque command, in ``forward_command_order``, each value the
+    muscle's ``pressure_command`` (absolute Pa here, gauge with ``pressure_reference: gauge``);
+    nothing until every muscle had a command, then the others' last values.
+    """
+    order = ['j1_extensor', 'j0_flexor', 'j1_flexor', 'j0_extensor']
+    for reference in ('absolute', 'gauge'):
+        node = make_node(
+            arm_file(tmp_path, 2),
+            forward_command_topic='pressure_controller/commands',
+            forward_command_order=order,
+            pressure_reference=reference,
+        )
+        assert node._forward_pub.topic_name == '/pressure_controller/commands'
+        forward = record(node._forward_pub)
+        sent = {
+            muscle: record(node._command_pubs[k][i])
+            for k, joint in enumerate(node.engine.joints)
+            for i, muscle in enumerate(joint.muscle_names)
+        }
+        node._on_states(raw(JointState(name=['j0', 'j1'], position=[0.2, -0.3])))
+        node._on_torque(raw(command(j0=1.0)))
+        assert forward == []  # j1 never commanded
+        expected = []
+        for efforts in ({'j0': 0.5, 'j1': -1.0}, {'j1': -0.5}):  # the second: j0's values held
+            node._on_torque(raw(command(**efforts)))
+            expected.append([sent[m][-1].fluid_pressure for m in order])
+        assert [list(message.data) for message in forward] == expected
+        assert expected[0][1::2] == expected[1][1::2] and expected[0][::2] != expected[1][::2]
+        offset = AMBIENT if reference == 'absolute' else 0.0
+        assert all(offset <= v <= offset + 800e3 for v in expected[1]), expected[1]
+
+
+@pytest.mark.parametrize(
+    'order, words',
+    [
+        (['j0_flexor', 'j0_flexr'], "'j0_flexr' is no muscle of the joints (did you mean"),
+        (['j0_flexor', 'j0_flexor'], 'a muscle named twice'),
+    ],
+)
+def test_a_bad_forward_command_order_fails_configure(make_node, tmp_path, order, words):
+    with pytest.raises(StartupError, match=re.escape(words)):
+        make_node(
+            arm_file(tmp_path, 2), forward_command_topic='c/commands', forward_command_order=order
+        )
+
+
+@pytest.mark.ros
+def test_stand_in_forward_command_controller(ros, processes, namespace, tmp_path):
+    """joint_node (a process) and, in this process, a stand-in of ros2_control's
+    forward_command_controller subscribed to ``<controller>/commands``: one Float64MultiArray per
+    torque command (the rate of the commands), every value in the controller's order, each the
+    muscle's absolute pressure command [Pa] of the same torque command; nothing until every muscle
+    had a command; a command of one joint repeats the other's last values.
+    """
+    from std_msgs.msg import Float64MultiArray
+
+    from node_messages import RELIABLE_QOS
+
+    order = ['j1_extensor', 'j0_flexor', 'j1_flexor', 'j0_extensor']
+    # queues deep enough for a node process stalled a while on a loaded machine (a depth of 10
+    # lost commands there): the QoS overrides of nodes/qos.py
+    deep = {
+        f'qos_overrides.{namespace}/{topic}.depth': 1000
+        for topic in (
+            'torque_command.subscription',
+            'pressure_controller/commands.publisher',
+            *(f'{m}/pressure_command.publisher' for m in order),
+        )
+    }
+    proc = processes.node(
+        'joint_node',
+        namespace,
+        arm_file(tmp_path, 2),
+        forward_command_topic='pressure_controller/commands',
+        forward_command_order='[' + ', '.join(order) + ']',
+        **deep,
+    )
+    why = lambda: processes.output(proc)  # noqa: E731
+    controller, arrivals = [], []  # the stand-in controller's messages, their arrival [s]
+    ros.node.create_subscription(
+        Float64MultiArray,
+        f'{namespace}/pressure_controller/commands',
+        lambda msg: (controller.append(msg), arrivals.append(time.monotonic())),
+        RELIABLE_QOS,
+    )
+    commands = {
+        m: ros.collect(FluidPressure, f'{namespace}/{m}/pressure_command', RELIABLE_QOS)
+        for m in order
+    }
+    estimates = ros.collect(JointState, f'{namespace}/torque_estimate', RELIABLE_QOS)
+    states = ros.node.create_publisher(JointState, f'{namespace}/joint_states', RELIABLE_QOS)
+    pressures = {
+        m: ros.node.create_publisher(FluidPressure, f'{namespace}/{m}/pressure', RELIABLE_QOS)
+        for m in order
+    }
+    torques = ros.node.create_publisher(JointState, f'{namespace}/torque_command', RELIABLE_QOS)
+    sent = []
+
+    def angles():
+        """Both joints' angles, with their four muscles' pressures (fresh: estimates follow)."""
+        stamp = ros.now().to_msg()
+        for pub in pressures.values():
+            pub.publish(pressure_at(stamp, AMBIENT + 300e3))
+        states.publish(joint_states_at(stamp, {'j0': 0.2, 'j1': -0.3}))
+
+    def send(**efforts):
+        torques.publish(command(**efforts))
+        sent.append(efforts)
+
+    ros.spin_until(
+        lambda: any(list(e.name) == ['j0', 'j1'] for e in estimates),
+        20,
+        'both angles known (an estimate of both joints)',
+        every=angles,
+        diagnose=why,
+    )
+    # one command of j0 alone: its muscles are commanded, the controller gets nothing (j1 unknown)
+    send(j0=1.0)
+    ros.spin_until(lambda: commands['j0_flexor'], 10, 'the j0 command', diagnose=why)
+    end = time.monotonic() + 0.5
+    ros.spin_until(lambda: time.monotonic() > end, 5, 'quiet')
+    assert controller == [], 'a forward command before every muscle had a command'
+    # both joints at RATE: one array per command, in the controller's order
+    start = {m: len(c) for m, c in commands.items()}
+    sent.clear()
+    began = time.monotonic()
+    end = began + 2.0
+    ros.spin_until(
+        lambda: time.monotonic() > end,
+        10,
+        'two seconds of torque commands',
+        every=lambda: send(j0=0.2 + 0.01 * len(sent), j1=-0.2 - 0.01 * len(sent)),
+        period=1 / RATE,
+    )
+    count, sending = len(sent), time.monotonic() - began
+    ros.spin_until(
+        lambda: len(controller) >= count,
+        10,
+        f'{count} forward commands',
+        diagnose=lambda: (
+            f'{len(controller)} arrays, pressure commands since '
+            f'{ {m: len(c) - start[m] for m, c in commands.items()} }\n{why()}'
+        ),
+    )
+    ros.spin_until(
+        lambda: all(len(c) >= start[m] + count for m, c in commands.items()),
+        10,
+        'every pressure command',
+        diagnose=why,
+    )
+    assert len(controller) == count, (len(controller), count)
+    receiving = (count - 1) / (arrivals[count - 1] - arrivals[0])  # [Hz], shown
+    for k, message in enumerate(controller):
+        expected = [commands[m][start[m] + k].fluid_pressure for m in order]
+        assert list(message.data) == expected, k
+        assert all(AMBIENT < v <= AMBIENT + 650e3 for v in message.data), message.data
+    # j1 alone: j0's last values held
+    last = list(controller[-1].data)
+    send(j1=0.4)
+    ros.spin_until(
+        lambda: len(controller) > count, 10, 'the j1-only forward command', diagnose=why
+    )
+    held = list(controller[-1].data)
+    assert (held[1], held[3]) == (last[1], last[3]) and (held[0], held[2]) != (last[0], last[2])
+    print(
+        f'\nstand-in controller: {count} torque commands in {sending:.2f} s '
+        f'({count / sending:.1f} Hz) -> {count} arrays received at {receiving:.1f} Hz, each of '
+        f'{len(order)} values ({", ".join(order)}) equal to the pressure commands, e.g. '
+        f'{[round(v) for v in controller[0].data]} Pa absolute; none before both joints were '
+        'commanded; j1 alone: j0 held'
+    )

@@ -60,6 +60,12 @@ def frozen_clock(node, back: float = 0.0):
     return Time(sec=t // 10**9, nanosec=t % 10**9)
 
 
+def shifted(stamp: Time, seconds: float) -> Time:
+    """``stamp`` moved by ``seconds``."""
+    t = stamp.sec * 10**9 + stamp.nanosec + round(seconds * 1e9)
+    return Time(sec=t // 10**9, nanosec=t % 10**9)
+
+
 def record(publisher) -> list:
     """What ``publisher`` publishes from now on, as messages (the node publishes some
     serialized).
@@ -109,6 +115,32 @@ def test_one_muscle_command_and_diagnostics_on_change(make_node):
     )  # not this muscle's joint: rejected, ERROR at once
     assert (
         diagnostics[-1].status[0].message == "invalid input: joint 'DMSP-10-250' not in ['elbow']"
+    )
+
+
+def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
+    """The nested held-out error of the identified lengths around the newest length (the file's
+    ``models.martens.held_out``: 4.66 % at 0.234 m, 1.79 % at 0.219 m, of 542.5 N), in N and %.
+    """
+    node = make_node(CONFIGS['DMSP-10-250'])
+    diagnostics = record(node._diag_pub)
+    now = frozen_clock(node)
+
+    def expected() -> tuple[str, str]:
+        node.publish_status(node.now())
+        values = {v.key: v.value for v in diagnostics[-1].status[0].values}
+        return values['expected error [N]'], values['expected error [% of max force]']
+
+    assert expected() == ('unknown', 'unknown: no length yet')
+    held = read_parameters(CONFIGS['DMSP-10-250'])['models']['martens']['held_out']
+    worst = max(held['err'][1], held['err'][2])  # 0.234 m and 0.219 m, around 0.23 m
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
+    node._on_pressure(0, raw(pressure(now, AMBIENT + 300e3)))
+    assert expected() == (f'{worst * 542.5 / 100:.3g}', f'{worst:.3g}') == ('25.3', '4.66')
+    node._on_state(0, raw(state(now, 0.26, 0.0)))  # beyond L0 = 0.25 m, the longest held out
+    assert expected() == (
+        'unknown',
+        'unknown: 0.26 m is outside the held-out lengths 0.198..0.25 m',
     )
 
 
@@ -190,6 +222,40 @@ def test_combined_mode_one_vector_call_per_message(make_node):
     assert node.engine.level(3, node.now())[1] == "invalid input: joint 'finger' not in " + str(
         order[1:]
     )
+
+
+def test_stale_force_commands_give_no_pressure_command(make_node):
+    """A force_command (one muscle) or force_commands (combined) stamped farther than
+    max_input_age from the node clock is refused as stale, counted and shown; unstamped (zero) and
+    fresh ones are answered.
+    """
+    node = make_node(CONFIGS['DMSP-10-250'])
+    commands = record(node._command_pubs[0])
+    now = frozen_clock(node)
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
+    for stamp in (shifted(now, -0.5), now, None):
+        command = force_command(100.0)
+        if stamp is not None:
+            command.header.stamp = stamp
+        node._on_command(0, raw(command))
+    assert len(commands) == 2 and node.engine.counts(0)['stale force_command'] == 1
+    assert node.engine.level(0, node.now())[1] == (
+        'stale force_command: stamp is 0.5 s old (max_input_age 0.1 s)'
+    )
+    combined = make_node(EXAMPLE, input_mode='combined')
+    pressures = record(combined._command_pubs[0])
+    now = frozen_clock(combined)
+    combined._on_states(raw(joint_states(now, INPUTS, [v[2] for v in INPUTS.values()])))
+    efforts = JointState(name=['biceps', 'finger'], effort=[100.0, 20.0])
+    efforts.header.stamp = shifted(now, 0.3)  # from the future
+    combined._on_commands(raw(efforts))
+    assert pressures == [] and combined.engine.counts(0)['stale force_command'] == 1
+    assert combined.engine.level(3, combined.now())[1].startswith(
+        'stale force_command: stamp is 0.3 s in the future'
+    )
+    efforts.header.stamp = now
+    combined._on_commands(raw(efforts))
+    assert list(pressures[-1].name) == ['biceps', 'finger']
 
 
 def test_approximate_time_pairing_answers_once_per_tick(make_node):

@@ -78,12 +78,14 @@ def test_every_node_passes_its_keywords_to_rclpy(make, cls):
 
 def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
     """One muscle: 15 parameters of the muscle (hardware_id among them), 4 of its model's block
-    (params, extrapolates, nominal_length, pressure_offset), 7 node-wide, 2 of rclpy's: 28 (29 with
-    ``executor``, which startup.run declares).  Four muscles: 19 each.
+    (params, extrapolates, nominal_length, pressure_offset), 8 node-wide (``autostart`` among
+    them), 2 of rclpy's: 29 (30 with ``executor``, which startup.run declares); and the QoS
+    overrides of its 6 topics, 2 each (nodes/qos.py).  Four muscles: 19 each under ``<name>.``.
     """
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     names = listed(node)
-    assert len(names) == 28
+    qos = [n for n in names if n.startswith('qos_overrides.')]
+    assert len(names) - len(qos) == 29 and len(qos) == 6 * 2
     assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
     multi = make(ModelNode, MULTI)
     muscles = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']['muscles']
@@ -102,9 +104,11 @@ def test_read_only_where_the_node_never_changes_a_parameter(make):
         assert ours and all(d.read_only for d in node.describe_parameters(ours)), cls
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     fixed = {
-        n for n, d in zip(listed(node), node.describe_parameters(listed(node))) if d.read_only
+        n
+        for n, d in zip(listed(node), node.describe_parameters(listed(node)))
+        if d.read_only and not n.startswith('qos_overrides.')  # rclpy's, always read-only
     }
-    assert fixed - RCLPY == {'muscles', 'input_mode', 'pairing', 'pairing_slop'}
+    assert fixed - RCLPY == {'muscles', 'input_mode', 'pairing', 'pairing_slop', 'autostart'}
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,7 @@ from .estimation import ABSURD_PRESSURE, Config, length_problem, Muscles, pressu
 from .flags import describe
 from .health import Health, Level, Status, WARN_MASK
 from .node_parameters import SPECS
-from .pairing import LENGTH, nanoseconds, Pairing, PRESSURE
+from .pairing import LENGTH, nanoseconds, Pairing, PRESSURE, UNSTAMPED
 
 __all__ = ['Config', 'Counter', 'Engine', 'Level', 'Status']
 
@@ -41,6 +41,7 @@ class Counter(enum.IntEnum):
     ESTIMATES = 8
     COMMANDS = 9
     NO_LENGTH = 10
+    STALE_COMMAND = 11
 
 
 LABELS = (
@@ -55,6 +56,7 @@ LABELS = (
     'estimates',
     'pressure commands',
     'commands without fresh length',
+    'stale force_command',
 )
 #: Inputs by topic name: (received counter, rejected counter).
 SOURCES = {
@@ -258,14 +260,19 @@ class Engine:
         return estimated
 
     # --- commands, rejections, reports
-    def command(self, k: int, force: float, now: int) -> float | None:
-        """A wanted tension [N] of muscle ``k``; the pressure [Pa, absolute or gauge as the
-        readings] giving it, or None without a fresh length.  ``flags`` then holds its flags.
+    def command(self, k: int, force: float, now: int, stamp: int = UNSTAMPED) -> float | None:
+        """A wanted tension [N] of muscle ``k`` stamped ``stamp`` [ns]; the pressure [Pa, absolute
+        or gauge as the readings] giving it, or None: a stamp older or newer than ``max_input_age``
+        (0, unstamped: taken as ``now``; :meth:`~.health.Health.stale_command`), or no fresh
+        length.  ``flags`` then holds its flags.
         """
         health = self.health
         health.count(Counter.RECEIVED_FORCE_COMMAND, k)
         if not np.isfinite(force):
             return self._invalid(k, 'force_command', f'force command is {force} N', now)
+        if health.stale_command(k, 'force_command', stamp, now):
+            health.count(Counter.STALE_COMMAND, k)
+            return None
         if not abs(now - self.pairing.stamps.item(LENGTH, k)) <= self.pairing.max_age:
             health.count(Counter.NO_LENGTH, k)
             return None

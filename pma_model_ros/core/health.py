@@ -3,8 +3,9 @@ rates and stamp ages, diagnostic levels with their texts, and when to report (no
 
 One implementation for model_node's and joint_node's engines, so both nodes report alike:
 
-* ERROR for ``hold`` after a rejected input (``invalid input: <reason>``), and while an input was
-  never received or is stale (``no <input> received yet``, ``stale <input>: ...``);
+* ERROR for ``hold`` after a rejected input (``invalid input: <reason>``) or a stale command
+  (``stale <command>: stamp is ...``), and while an input was never received or is stale
+  (``no <input> received yet``, ``stale <input>: newest stamp is ...``);
 * WARN for ``hold`` after a warning flag of an estimate or command (:data:`WARN_FLAGS`);
 * else OK, ``estimating``.
 
@@ -27,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .flags import Flag
-from .pairing import fresh, NEVER, SECOND
+from .pairing import fresh, NEVER, SECOND, UNSTAMPED
 
 Which = np.ndarray | int | None  #: every entity (None), a mask, or one entity
 
@@ -80,6 +81,20 @@ def levels_of(
     return np.where(error, np.int8(Level.ERROR), warn.view(np.int8))
 
 
+def invalid_text(reason: str) -> str:
+    """``invalid input: <reason>``: what a refused input latches for ``hold``."""
+    return f'invalid input: {reason}'
+
+
+def stale_text(name: str, which: str, age: int, max_age: int) -> str:
+    """``stale <name>: <which> is <age> s old (max_input_age <max_age> s)`` (ages [ns]; a negative
+    age: ``in the future``).
+    """
+    seconds = age / SECOND
+    when = f'{seconds:.3g} s old' if seconds > 0 else f'{-seconds:.3g} s in the future'
+    return f'stale {name}: {which} is {when} (max_input_age {max_age / SECOND:g} s)'
+
+
 @dataclass(frozen=True)
 class Status:
     level: Level
@@ -122,7 +137,8 @@ class Health:
         self._delay_max = [[-np.inf] * count for _ in range(shape[0])]
         self._delay_all = [[np.inf, -np.inf] for _ in range(shape[0])]  # (min, max) [s]
         self._late, self._early, self._zero = (np.zeros(shape, np.int64) for _ in range(3))
-        self._rejected_at, self._reason = np.full(count, NEVER, np.int64), [''] * count
+        # when each entity last refused an input or command, and the text of it
+        self._rejected_at, self._latched = np.full(count, NEVER, np.int64), [''] * count
         self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
         self._reported = np.full(count, -1, np.int64)  # level of the last report (-1: none)
         self._window_start = np.full(count, NEVER, np.int64)
@@ -173,7 +189,19 @@ class Health:
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
-        self._rejected_at[k], self._reason[k], self._steady = now, reason, False
+        self._rejected_at[k], self._latched[k], self._steady = now, invalid_text(reason), False
+
+    def stale_command(self, k: int, name: str, stamp: int, now: int) -> bool:
+        """Whether a command ``name`` of entity ``k`` stamped ``stamp`` [ns] is stale: its stamp
+        differs from ``now`` by more than ``max_age``, as a stale input's (a zero stamp,
+        :data:`~.pairing.UNSTAMPED`, is taken as ``now``).  A stale command is refused: the caller
+        counts it; its text holds the level at ERROR for ``hold``, as a rejection.
+        """
+        if stamp == UNSTAMPED or abs(now - stamp) <= self.max_age:
+            return False
+        text = stale_text(name, 'stamp', now - stamp, self.max_age)
+        self._rejected_at[k], self._latched[k], self._steady = now, text, False
+        return True
 
     def warn(self, which: np.ndarray | None, flags: np.ndarray, now: int) -> None:
         """The entities ``which`` (a mask, None: all) gave results with ``flags`` (one word per
@@ -209,18 +237,12 @@ class Health:
     def level(self, k: int, now: int) -> tuple[Level, str]:
         """Entity ``k``'s level and its one-line reason."""
         if now - self._rejected_at.item(k) < self.hold:
-            return Level.ERROR, f'invalid input: {self._reason[k]}'
+            return Level.ERROR, self._latched[k]
         for name, stamp in zip(self.inputs[k], self.stamps[:, k].tolist()):
             if stamp == NEVER:
                 return Level.ERROR, f'no {name} received yet'
-            age = (now - stamp) / SECOND
             if abs(now - stamp) > self.max_age:
-                when = f'{age:.3g} s old' if age > 0 else f'{-age:.3g} s in the future'
-                return (
-                    Level.ERROR,
-                    f'stale {name}: newest stamp is {when} (max_input_age '
-                    f'{self.max_age / SECOND:g} s)',
-                )
+                return Level.ERROR, stale_text(name, 'newest stamp', now - stamp, self.max_age)
         warned = self._warned_at[k].tolist()
         if now - max(warned) < self.hold:
             return Level.WARN, '; '.join(
@@ -240,14 +262,14 @@ class Health:
         """Set entity ``k``'s events as counted elsewhere (``bag estimate``'s pass over a whole
         recording), before :meth:`report`: its ``counts`` (in the order of the labels), valid
         ``arrivals`` of each input since start-up, the (earliest, latest) delay [s] of each input
-        since the last report ((inf, -inf): none), its latest rejection (time [ns], reason) and the
-        latest time [ns] each warning flag was raised (NEVER: never).  :attr:`stamps` is its
-        owner's.
+        since the last report ((inf, -inf): none), its latest refused input or command (time [ns],
+        the text it latches: :func:`invalid_text` or :func:`stale_text`) and the latest time [ns]
+        each warning flag was raised (NEVER: never).  :attr:`stamps` is its owner's.
         """
         self._counts[k][:] = counts
         for i, (n, (low, high)) in enumerate(zip(arrivals, delays)):
             self._arrivals[i][k], self._delay_min[i][k], self._delay_max[i][k] = n, low, high
-        self._rejected_at[k], self._reason[k] = rejected
+        self._rejected_at[k], self._latched[k] = rejected
         self._warned_at[k] = warned_at
         self._steady = False
 

@@ -31,7 +31,7 @@ from .hysteresis import play
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 from .muscle_model import served_pressure
 from .node_parameters import SPECS
-from .pairing import nanoseconds, NEVER
+from .pairing import nanoseconds, NEVER, UNSTAMPED
 
 
 class Counter(enum.IntEnum):
@@ -46,6 +46,7 @@ class Counter(enum.IntEnum):
     STALE = 6
     ESTIMATES = 7
     COMMANDS = 8
+    STALE_COMMAND = 9
 
 
 LABELS = (
@@ -58,6 +59,7 @@ LABELS = (
     'stale skipped',
     'estimates',
     'pressure commands',
+    'stale command',
 )
 #: Inputs by kind: (received counter, rejected counter).
 SOURCES = {
@@ -249,32 +251,44 @@ class JointEngine:
             if s.branch[muscle] != before and s.at is not None:  # the muscles at the new branch
                 s.at = self.joints[k].at(s.theta, s.branch)
 
-    def cocontraction(self, k: int, level: float, now: int) -> None:
+    def cocontraction(self, k: int, level: float, now: int, stamp: int = UNSTAMPED) -> None:
         """Joint ``k``'s torque commands from now on: co-contraction ``level`` [Pa gauge] (its
-        mode).
+        mode); a ``cocontraction_command`` stamped ``stamp`` [ns] (see :meth:`command`).
         """
         self.health.count(Counter.RECEIVED_COMMAND, k)
         if not (math.isfinite(level) and level >= 0):
             return self._invalid(
                 k, 'command', f'co-contraction {level:g} Pa is no gauge pressure >= 0', now
             )
+        if self._stale(k, 'cocontraction_command', stamp, now):
+            return None
         self.state[k].level, self.state[k].stiffness = level, None
 
-    def stiffness(self, k: int, stiffness: float, now: int) -> None:
-        """Joint ``k``'s torque commands from now on: the wanted ``stiffness`` [N·m/rad]."""
+    def stiffness(self, k: int, stiffness: float, now: int, stamp: int = UNSTAMPED) -> None:
+        """Joint ``k``'s torque commands from now on: the wanted ``stiffness`` [N·m/rad]; a
+        ``stiffness_command`` stamped ``stamp`` [ns] (see :meth:`command`).
+        """
         self.health.count(Counter.RECEIVED_COMMAND, k)
         if not (math.isfinite(stiffness) and stiffness >= 0):
             return self._invalid(k, 'command', f'stiffness {stiffness:g} N·m/rad is not >= 0', now)
+        if self._stale(k, 'stiffness_command', stamp, now):
+            return None
         self.state[k].stiffness = stiffness
 
-    def command(self, k: int, torque: float, now: int) -> tuple[float, float] | None:
-        """A wanted ``torque`` [N·m] of joint ``k``: both muscles' pressure commands [Pa, absolute
-        or gauge by ``pressure_reference``], if any.
+    def command(
+        self, k: int, torque: float, now: int, stamp: int = UNSTAMPED
+    ) -> tuple[float, float] | None:
+        """A wanted ``torque`` [N·m] of joint ``k`` stamped ``stamp`` [ns]: both muscles' pressure
+        commands [Pa, absolute or gauge by ``pressure_reference``], if any: none for a stamp older
+        or newer than ``max_age`` (0, unstamped: taken as ``now``;
+        :meth:`~.health.Health.stale_command`).
         """
         s = self.state[k]
         self.health.count(Counter.RECEIVED_COMMAND, k)
         if not math.isfinite(torque):
             return self._invalid(k, 'command', f'torque command is {torque} N·m', now)
+        if self._stale(k, 'torque_command', stamp, now):
+            return None
         if s.at is None:
             return self._invalid(
                 k, 'command', 'torque command before any angle (joint_states)', now
@@ -287,6 +301,13 @@ class JointEngine:
         self.health.count(Counter.COMMANDS, k)
         offset = self.ambient - self.reading_offset  # gauge + offset: the command's reference
         return result.pressures[0] + offset, result.pressures[1] + offset
+
+    def _stale(self, k: int, name: str, stamp: int, now: int) -> bool:
+        """Whether command ``name`` of joint ``k`` is stale (then counted and refused)."""
+        if self.health.stale_command(k, name, stamp, now):
+            self.health.count(Counter.STALE_COMMAND, k)
+            return True
+        return False
 
     def _note(self, k: int, flags: int, now: int) -> None:
         self.health.warn_one(k, flags, now)

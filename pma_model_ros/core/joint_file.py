@@ -42,7 +42,7 @@ from .param_file import (
     unknown_muscle_parameters,
 )
 from .param_file import identification as muscle_identification
-from .typos import missing_key, unknown_keys
+from .typos import did_you_mean, missing_key, unknown_keys
 
 #: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle
 #: (``<joint>.<muscle>.``).  All read-only: joint_node reads them at start-up.
@@ -63,6 +63,22 @@ NODE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     SPECS['ambient_pressure'],
     SPECS['pressure_reference'],
     SPECS['max_input_age'],
+    ParameterSpec(
+        'forward_command_topic',
+        'string',
+        '',
+        "topic of every muscle's pressure command as one std_msgs/Float64MultiArray per "
+        "torque command, in `forward_command_order` (what ros2_control's "
+        'forward_command_controller takes on `<controller>/commands`); empty: none',
+    ),
+    ParameterSpec(
+        'forward_command_order',
+        'string[]',
+        [],
+        "the muscles of the `forward_command_topic` array, in order (the controller's `joints`; "
+        "some or all of this node's muscles, each once); empty: every joint's muscles, joint by "
+        'joint, the one that shortens for positive θ first',
+    ),
 )
 JOINT_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     ParameterSpec(
@@ -231,7 +247,8 @@ def unknown_joint_parameters(parameters: dict) -> list[str]:
     """
     names = parameters.get('joints')
     names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
-    every_node = (SPECS['executor'].name, *ROS_PARAMETERS)  # nodes/startup.py declares executor
+    # nodes/startup.py declares executor, nodes/managed.py autostart
+    every_node = (SPECS['executor'].name, SPECS['autostart'].name, *ROS_PARAMETERS)
     problems = unknown_keys(parameters, (*_names(NODE_PARAMETERS), *every_node, *names))
     for name in names:
         block = parameters.get(name)
@@ -266,6 +283,24 @@ def joints(parameters: dict, base: Path) -> list[Joint]:
     if len(set(muscles)) != len(muscles):
         raise ValueError(f'two joints share a muscle name: {muscles}')
     return result
+
+
+def forward_order(order: list[str], found: list[Joint]) -> list[str]:
+    """The muscles of ``forward_command_order`` (empty: every muscle of ``found``, joint by joint,
+    the positive one first); ValueError for a name that is no muscle of the joints, or one given
+    twice.
+    """
+    muscles = [m for j in found for m in j.muscle_names]
+    for name in order:
+        if name not in muscles:
+            hint = did_you_mean(name, muscles)
+            raise ValueError(
+                f'forward_command_order: {name!r} is no muscle of the joints{hint}; the muscles: '
+                f'{muscles}'
+            )
+    if len(set(order)) != len(order):
+        raise ValueError(f'forward_command_order: a muscle named twice in {order}')
+    return list(order) or muscles
 
 
 def load_joints(path: str | Path) -> list[Joint]:

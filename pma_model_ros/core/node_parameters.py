@@ -304,6 +304,14 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         choices=EXECUTORS,
         read_only=True,
     ),
+    ParameterSpec(
+        'autostart',
+        'bool',
+        True,
+        'configure and activate the node at start-up (a bad parameter ends the process); '
+        '`false`: wait unconfigured for a lifecycle manager (`<node>/change_state`)',
+        read_only=True,
+    ),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
 #: The entries of a model's block ``models.<model>.``: its ROS parameters (the selected model's)...

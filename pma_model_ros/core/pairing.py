@@ -27,6 +27,9 @@ import numpy as np
 #: now - NEVER still fits int64 for any time before 2116.
 NEVER = -(1 << 62)
 SECOND = 10**9  #: [ns]
+#: A command's zero stamp [ns]: unstamped (robots often send commands with an empty header), taken
+#: as received at ``now``; any other command stamp is age-checked as an input's.
+UNSTAMPED = 0
 PAIRINGS = ('every_input', 'approximate_time')
 PRESSURE, LENGTH = 0, 1  #: rows of :attr:`Pairing.stamps`
 

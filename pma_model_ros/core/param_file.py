@@ -11,19 +11,19 @@ Layout (every value SI; ``config/dmsp_10_250.yaml``, its martens entry)::
         pressure_range: [0.0, 650000.0]  # identified gauge pressure range [Pa] (absent: rated)
         models:
           martens:
-            params: [121624751.799, -1339251496.2, 4799295897.34, -5346910896.4,
-                     -0.0990271864595]
+            params: [121624751.807, -1339251496.3, 4799295897.81, -5346910897.11,
+                     -0.0990271864564]
             extrapolates: true           # absent: false
             # identification results (diagnostics values, not ROS parameters):
             objective: minimax
-            err: 4.2030272397
-            rmse: 7.92133215023
-            r2: 0.996811298802
-            cv_err: 8.81150464854        # the worst nested held-out err [%]
-            edge_cv_err: 8.81150464854
+            err: 4.20302723951
+            rmse: 7.92133215146
+            r2: 0.996811298801
+            cv_err: 8.81150464667        # the worst nested held-out err [%]
+            edge_cv_err: 8.81150464667
             held_out:                    # nested held-out err [%] of each identified length
               lengths: [0.25, 0.234, 0.219, 0.204, 0.198]
-              err: [8.81150464854, 4.65750678049, 1.79429022943, 0.406203906509, 0.44477631851]
+              err: [8.81150464667, 4.65750678692, 1.79429019697, 0.406203929704, 0.44477631869]
               max_force: 542.5
             # a calibrated fit (core/calibration.py) also has nominal_length [m] (replaces
             # muscle.nominal_length for this model) and pressure_offset [Pa] (the model sees

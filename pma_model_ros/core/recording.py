@@ -33,9 +33,10 @@ import numpy as np
 from .engine import Counter, Engine
 from .estimation import ABSURD_PRESSURE, length_problem, pressure_problem
 from .flags import describe, Flag
+from .health import invalid_text, stale_text
 from .hysteresis import play
 from .muscle_model import force_at, Operating
-from .pairing import fresh, NEVER, pair_every_input, Pairing
+from .pairing import fresh, NEVER, pair_every_input, Pairing, UNSTAMPED
 from .timeline import Events, Report, Timeline, WARN_BITS
 
 PRESSURE_IN, LENGTH_IN, COMMAND_IN = 0, 1, 2  #: kinds of input
@@ -50,7 +51,7 @@ class Inputs:
     at: np.ndarray  #: int64, increasing: each message's position in the recording
     now: np.ndarray  #: int64 [ns]: its log time (the node's clock)
     kind: np.ndarray  #: int8: PRESSURE_IN, LENGTH_IN or COMMAND_IN
-    stamp: np.ndarray  #: int64 [ns]: header stamp (commands: unused)
+    stamp: np.ndarray  #: int64 [ns]: header stamp (UNSTAMPED, 0: a command taken as sent now)
     value: np.ndarray  #: pressure reading [Pa], length [m] or wanted tension [N]
     rate: np.ndarray  #: length rate [m/s] (NaN: unknown)
     #: messages refused before they gave a value (a JointState without the muscle): index -> reason
@@ -297,8 +298,9 @@ class Recording:
         no_force[pairs[~has_force]] = True
         why_not = dict(zip(pairs[~has_force].tolist(), result.flags[~has_force].tolist()))
 
-        # commands, in one call
-        wanted = np.flatnonzero(ok_c)
+        # commands, in one call: a stamp beyond max_age of now is stale (Health.stale_command)
+        stale_c = ok_c & (stamp != UNSTAMPED) & ~(np.abs(now - stamp) <= self.max_age)
+        wanted = np.flatnonzero(ok_c & ~stale_c)
         with_length = fresh(l_stamp[wanted], now[wanted], self.max_age)
         sent = wanted[with_length]
         result = model.pressure(value[sent], length[sent], branch[sent])
@@ -310,7 +312,7 @@ class Recording:
 
         # health events
         is_p, is_l, is_c = kind == PRESSURE_IN, kind == LENGTH_IN, kind == COMMAND_IN
-        rejected = (is_p & ~ok_p) | (is_l & ~ok_l) | (is_c & ~ok_c) | no_force
+        rejected = (is_p & ~ok_p) | (is_l & ~ok_l) | (is_c & ~ok_c) | no_force | stale_c
         masks = {
             Counter.RECEIVED_PRESSURE: is_p,
             Counter.RECEIVED_MUSCLE_STATE: is_l,
@@ -320,29 +322,31 @@ class Recording:
             Counter.REJECTED_FORCE_COMMAND: is_c & ~ok_c,
             Counter.STALE: stale,
             Counter.UNPAIRED: unpaired,
+            Counter.STALE_COMMAND: stale_c,
         }
-        counters = [
-            at[masks[c]]
-            if c in masks
-            else estimates.at
-            if c == Counter.ESTIMATES
-            else commands.at
-            if c == Counter.COMMANDS
-            else at[wanted[~with_length]]
-            for c in Counter
-        ]
-        reasons = []
+        positions = {
+            Counter.ESTIMATES: estimates.at,
+            Counter.COMMANDS: commands.at,
+            Counter.NO_LENGTH: at[wanted[~with_length]],
+        }
+        counters = [at[masks[c]] if c in masks else positions[c] for c in Counter]
+        texts = []  # what each rejection latches, as Health.reject and Health.stale_command
         for i in np.flatnonzero(rejected).tolist():
+            if stale_c[i]:
+                age = now.item(i) - stamp.item(i)
+                texts.append(stale_text('force_command', 'stamp', age, self.max_age))
+                continue
             if i in ev.refused:
-                reasons.append(ev.refused[i])
+                reason = ev.refused[i]
             elif i in why_not:
-                reasons.append(f'no force at length {length.item(i):g} m ({describe(why_not[i])})')
+                reason = f'no force at length {length.item(i):g} m ({describe(why_not[i])})'
             elif is_p[i]:
-                reasons.append(pressure_problem(prep.absolute.item(i)))
+                reason = pressure_problem(prep.absolute.item(i))
             elif is_l[i]:
-                reasons.append(length_problem(value.item(i), model.max_length))
+                reason = length_problem(value.item(i), model.max_length)
             else:
-                reasons.append(f'force command is {value.item(i)} N')
+                reason = f'force command is {value.item(i)} N'
+            texts.append(invalid_text(reason))
         flagged_at = np.concatenate([estimates.at, commands.at])
         flagged = np.concatenate([estimates.flags, commands.flags]).astype(np.int64)
         order = np.argsort(flagged_at, kind='stable')
@@ -360,7 +364,7 @@ class Recording:
             at,
             counters,
             [(at[ok], (now - stamp)[ok]) for ok in (ok_p, ok_l)],
-            (at[rejected], now[rejected], reasons),
+            (at[rejected], now[rejected], texts),
             warnings,
             np.vstack(
                 [np.concatenate([[before[0]], p_stamp]), np.concatenate([[before[1]], l_stamp])]

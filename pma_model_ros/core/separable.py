@@ -18,7 +18,13 @@ multi-start.
 
 Equal-cost linear parameters (an elastic polynomial the map cannot determine, e.g. three lengths
 for a cubic) are resolved by the minimum-norm solution in columns scaled to unit norm
-(``numpy.linalg.lstsq``), which does not depend on the data's last digits.
+(``numpy.linalg.lstsq``), which does not depend on the data's last digits.  Equal-cost
+nonlinear parameters are resolved alike: costs within :data:`~.validation.TIE` (relative) of the
+best are equal, and of equal fits the one nearest the start point (least squares: Table 1's;
+minimax: the least-squares fit's) is taken.  Rounding (BLAS kernels, SIMD paths, thread counts)
+moves a cost by about 1e-13 relative, so without that rule a flat objective (Sárosi's c2 on three
+lengths, which the exponential and the linear terms fit equally well at any value; a minimax error
+set by a measured force where the model is slack) returned a different optimum on another CPU.
 """
 
 from __future__ import annotations
@@ -32,11 +38,14 @@ from scipy.optimize import least_squares, linprog, minimize_scalar
 from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .models import Domain, Model
+from .validation import TIE
 
 GRID = 41  #: grid points over each model's first nonlinear parameter
 _REFINED = 3  #: best grid points refined by least squares
 _ACTIVE_SET_STEPS = 20  #: most active-set iterations of the clipped linear least squares
 _RCOND = 1e-10  #: relative singular value below which a linear direction is undetermined
+_ZERO = 1e-9  #: model force, relative to the map's largest, that counts as 0 N (not pulling)
+_BISECTIONS = 30  #: halvings of the interval that bounds a minimax plateau's nearest edge
 
 
 @dataclass(frozen=True)
@@ -110,9 +119,10 @@ class Separable:
             force = base + scaled @ z
             residuals = y - np.maximum(force, 0.0)
             cost = float(residuals @ residuals)
-            if cost < best[0]:
+            if cost < best[0] * (1 - TIE):  # an equal cost later is not better
                 best = (cost, z / norms, residuals)
-            pulling = force > 0
+            # a force within rounding of 0 N (a fit through a measured zero) does not pull
+            pulling = force > _ZERO * np.max(np.abs(y))
         return best[1], best[2]
 
     def fit_least_squares(self, near: Solution | None = None) -> Solution:
@@ -123,14 +133,11 @@ class Separable:
         if self.nonlinear.size == 0:
             c, r = self.linear_least_squares(np.zeros(0))
             return Solution(self.theta(np.zeros(0), c), float(r @ r))
-        starts = (
-            [(self._sse(near.theta[self.nonlinear]), tuple(near.theta[self.nonlinear]))]
-            if near is not None
-            else sorted(
-                ((self._sse(phi), tuple(phi)) for phi in self._grid()), key=lambda s: s[0]
-            )[:_REFINED]
-        )
-        best = None
+        if near is not None:
+            starts = [(self._sse(near.theta[self.nonlinear]), near.theta[self.nonlinear])]
+        else:
+            starts = self._ranked([(self._sse(phi), phi) for phi in self._grid()])[:_REFINED]
+        found = []
         for cost, phi0 in starts:
             if not np.isfinite(cost):
                 continue
@@ -147,18 +154,35 @@ class Separable:
                     gtol=1e-12,
                     max_nfev=200,
                 )
-            candidate = min((2 * result.cost, tuple(result.x)), (cost, phi0))
-            if best is None or candidate[0] < best[0]:
-                best = candidate
-        if best is None:
+            # a refinement counts only where it lowers the cost beyond a tie: on a flat objective
+            # it wanders by rounding, and the grid point stays
+            refined = 2 * result.cost < cost - TIE * abs(cost)
+            found.append((2 * result.cost, result.x) if refined else (cost, phi0))
+        if not found:
             raise ValueError(f'model {self.model.name!r} is not finite on this map')
-        phi = np.array(best[1])
+        phi = np.array(self._ranked(found)[0][1])
         c, r = self.linear_least_squares(phi)
         return Solution(self.theta(phi, c), float(r @ r))
 
     def _sse(self, phi: np.ndarray) -> float:
         r = self.linear_least_squares(phi)[1]
         return float(r @ r)
+
+    def _ranked(self, fits: list[tuple[float, np.ndarray]]) -> list[tuple[float, np.ndarray]]:
+        """``fits`` (cost, phi) best first: those within :data:`TIE` of the best cost count as
+        equal and come first, nearest the start point first (distances in :meth:`_phi_scale`
+        units); the rest by cost.
+        """
+        best = min(cost for cost, _ in fits)
+        scale = self._phi_scale()
+
+        def key(fit: tuple[float, np.ndarray]) -> tuple[bool, float]:
+            cost, phi = fit
+            if cost <= best + TIE * abs(best):
+                return False, float(np.linalg.norm((np.asarray(phi) - self.start) / scale))
+            return True, cost
+
+        return sorted(fits, key=key)
 
     def _grid(self) -> list[np.ndarray]:
         """Nonlinear starting points: :data:`GRID` values of the first parameter over its bounds
@@ -216,7 +240,7 @@ class Separable:
                 break
             c = result.x[:k] / norms
             worst = float(np.max(np.abs(y - np.maximum(base + columns @ c, 0.0))))
-            if worst < best[0]:
+            if worst < best[0] * (1 - TIE):
                 best = (worst, c, bounded)
             bounded = y > result.x[-1]
         worst, c, bounded_rows = best
@@ -248,7 +272,8 @@ class Separable:
         """Eq. 23 minimised: the linear program at fixed nonlinear parameters, the first nonlinear
         parameter searched by Brent's method within two grid steps of ``start``'s (a least-squares
         fit; other nonlinear parameters kept at its values); ties resolved towards the
-        least-squares linear parameters.
+        least-squares parameters: of a plateau of equal worst errors (within :data:`TIE`), its
+        edge nearest the least-squares value, found by bisection.
         """
         phi = start.theta[self.nonlinear].copy()
         if self.nonlinear.size:
@@ -267,8 +292,16 @@ class Separable:
                 method='bounded',
                 options={'xatol': 1e-6 * width},
             )
-            if result.fun < at_start:
-                phi[0] = float(result.x)
+            level = result.fun + TIE * abs(result.fun)
+            if at_start > level:
+                worse, good = phi[0], float(result.x)
+                for _ in range(_BISECTIONS):
+                    middle = (worse + good) / 2
+                    if worst_at(middle) <= level:
+                        good = middle
+                    else:
+                        worse = middle
+                phi[0] = good
         near = self.linear_least_squares(phi)[0]
         c, worst = self.linear_minimax(phi, near)
         return Solution(self.theta(phi, c), worst)

@@ -41,7 +41,8 @@ class Events(NamedTuple):
     at: np.ndarray  #: positions of its inputs
     counters: list[np.ndarray]  #: per Counter, the positions where it counts one
     arrivals: list[tuple[np.ndarray, np.ndarray]]  #: per input: (positions, now - stamp [ns])
-    rejections: tuple[np.ndarray, np.ndarray, list[str]]  #: positions, times [ns], reasons
+    #: refused inputs and commands: positions, times [ns], the texts they latch (Health's)
+    rejections: tuple[np.ndarray, np.ndarray, list[str]]
     warnings: list[tuple[np.ndarray, np.ndarray]]  #: per warning flag: (positions, times)
     #: before the stretch (column 0) and after each input: the newest stamps (2 x E+1), the
     #: latest rejection and warning times (E+1)
@@ -189,9 +190,9 @@ class Timeline:
                     else (window[0] / SECOND, window[1] / SECOND)
                 )
                 carry.window[s], windows[k][s] = None, end
-            positions, when, reasons = h.rejections
+            positions, when, texts = h.rejections
             r = int(np.searchsorted(positions, at, side)) - 1
-            rejected = (int(when[r]), reasons[r]) if r >= 0 else carry.rejected
+            rejected = (int(when[r]), texts[r]) if r >= 0 else carry.rejected
             warned = []
             for held, (positions, when) in zip(carry.warned_at.tolist(), h.warnings):
                 w = int(np.searchsorted(positions, at, side)) - 1
@@ -212,9 +213,9 @@ class Timeline:
                 carry.window[s] = (
                     (low, high) if window is None else (min(window[0], low), max(window[1], high))
                 )
-        positions, when, reasons = h.rejections
+        positions, when, texts = h.rejections
         if len(positions):
-            carry.rejected = (int(when[-1]), reasons[-1])
+            carry.rejected = (int(when[-1]), texts[-1])
         for j, (positions, when) in enumerate(h.warnings):
             if len(positions):
                 carry.warned_at[j] = when[-1]

@@ -23,6 +23,9 @@ from .force_map import ForceMap
 
 _MAX_FOLDS = 8  #: most held-out groups of a map
 _SAME_LENGTH = 1e-3  #: [m] lengths closer than this are one held-out length
+#: Relative difference below which two costs or errors are equal: rounding (BLAS kernels, SIMD
+#: paths, thread counts) moves them by about 1e-13, and must not decide a choice.
+TIE = 1e-9
 
 
 class Predictor(Protocol):
@@ -146,19 +149,27 @@ def select(
         errors = held.errors(key)
         return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else np.inf
 
-    chosen = names[0] if len(names) == 1 else min(names, key=worst)
+    chosen = _first_best(names, worst)
     n_folds = len(next(iter(candidates.values()))[0].folds)
     per_fold, errors = [], []
     for k in range(n_folds):
-        name = (
-            names[0]
-            if len(names) == 1
-            else min(names, key=lambda n: candidates[n][0].inner_worst(candidates[n][1], k))
-        )
+        name = _first_best(names, lambda n: candidates[n][0].inner_worst(candidates[n][1], k))
         held, key = candidates[name]
         per_fold.append(name)
         errors.append(held.error(key, k, frozenset({k}), against_truth))
     return chosen, np.array(errors), per_fold
+
+
+def _first_best(names: list[str], score: Callable[[str], float]) -> str:
+    """The first of ``names`` whose score is within :data:`TIE` of the lowest.
+    Equal errors are common (a held-out length that two fits both predict slack errs by its
+    measured force), and rounding must not decide between them.
+    """
+    if len(names) == 1:
+        return names[0]
+    scores = [score(name) for name in names]
+    best = min(scores)
+    return next(n for n, s in zip(names, scores) if s <= best + TIE * abs(best))
 
 
 @dataclass(frozen=True)
@@ -200,6 +211,28 @@ class HeldOutBand:
         if lengths[i] == length:
             return float(errors[i]), True
         return float(max(errors[i - 1], errors[i])), True
+
+    def values_at(self, length: float) -> dict[str, str]:
+        """The expected error at ``length`` [m] as diagnostic key-values (model_node's status of a
+        muscle at its newest length): in N and in % of the map's max force (:meth:`at`), or
+        ``unknown`` and why (no length yet, or one outside the held-out lengths).
+        """
+        keys = ('expected error [N]', 'expected error [% of max force]')
+        if not np.isfinite(length):
+            return dict(zip(keys, ('unknown', 'unknown: no length yet')))
+        percent, inside = self.at(length)
+        if not inside:
+            return dict(
+                zip(
+                    keys,
+                    (
+                        'unknown',
+                        f'unknown: {length:.4g} m is outside the held-out lengths '
+                        f'{min(self.lengths):.4g}..{max(self.lengths):.4g} m',
+                    ),
+                )
+            )
+        return dict(zip(keys, (f'{percent * self.max_force / 100:.3g}', f'{percent:.3g}')))
 
 
 def fit_or_none(

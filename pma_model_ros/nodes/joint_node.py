@@ -1,7 +1,8 @@
 """joint_node: torque and stiffness estimates and pressure commands of antagonistic joints.
 
 Parameters: a joint file (``config/example_joint.yaml``, layout in
-:mod:`pma_model_ros.core.joint_file`), read at start-up: all read-only.  Topics (relative, so
+:mod:`pma_model_ros.core.joint_file`), read by the ``configure`` transition: all read-only.  The
+node is managed (:mod:`.managed`) and answers only while active.  Topics (relative, so
 a namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge``):
 
 * in ``joint_states`` (sensor_msgs/JointState: position θ [rad], entries by joint name; the
@@ -16,7 +17,12 @@ a namespace applies; pressures absolute, or gauge with ``pressure_reference: gau
   ``<muscle>/pressure_command`` (FluidPressure, absolute Pa), at the newest angle, with the joint's
   co-contraction level, or with its wanted stiffness once a ``stiffness_command`` (JointState:
   effort = K [N·m/rad]) arrived; a ``cocontraction_command`` (JointState: effort = level [Pa
-  gauge]) returns to co-contraction.  Every decision is the
+  gauge]) returns to co-contraction;
+* with ``forward_command_topic``: also every muscle's pressure command [Pa, as
+  ``pressure_command``] in one std_msgs/Float64MultiArray per torque command, in
+  ``forward_command_order``, for ros2_control's forward_command_controller
+  (:mod:`pma_model_ros.wire.forward_commands`: the others' last values; nothing until every muscle
+  had a command).  Every decision is the
   :class:`~pma_model_ros.core.joint_engine.JointEngine`'s.
 """
 
@@ -29,14 +35,18 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import Float64MultiArray
 
 from . import model_params, parameters
 from .diagnostics import diagnostic_array
-from .model_node import DESERIALIZE, DIAGNOSTIC_PERIOD, INPUT_QOS
-from .startup import refusing, run
+from .managed import DIAGNOSTIC_PERIOD, ManagedNode
+from .model_node import DESERIALIZE
+from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
+from .startup import run
 from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import (
+    forward_order,
     identification,
     JOINT_PARAMETERS,
     joints,
@@ -45,6 +55,7 @@ from ..core.joint_file import (
 )
 from ..core.shipped_data import share_directory
 from ..wire.cdr import fluid_pressure, joint_state
+from ..wire.forward_commands import ForwardCommands
 from ..wire.joint_state import JointStateArrays, JointStateReader
 from ..wire.muscle_inputs import stamped_value
 
@@ -62,38 +73,47 @@ def declare(node: Node) -> None:
             model_params.declare_muscle(node, f'{joint}.{muscle}.', defaults=False, read_only=True)
 
 
-class JointNode(Node):
-    """Thin ROS shell around one :class:`JointEngine` for all its joints."""
+class JointNode(ManagedNode):
+    """Thin ROS shell around one :class:`JointEngine` for all its joints; a managed node
+    (:mod:`.managed`): it answers inputs only while active.
+    """
 
     def __init__(self, **kwargs) -> None:
+        self.engine: JointEngine | None = None
         super().__init__('joint_node', **kwargs)
-        with refusing(self):
-            declare(self)
-            # the overrides: also what is not declared, e.g. an inline muscle's other models
-            flat = parameters.overrides(self) | parameters.values(self)
-            nested = parameters.nest(flat)
-            base = Path(flat.get('config_dir') or share_directory() / 'config')
-            found = joints(nested, base)
-            self.identification = [identification(j, nested, base) for j in found]
-            settings = [
-                Settings(
-                    float(nested[j.name]['cocontraction']),
-                    str(nested[j.name]['cocontraction_mode']),
-                )
-                for j in found
-            ]
-            self.engine = JointEngine(
-                found,
-                settings,
-                float(flat['ambient_pressure']),
-                float(flat['max_input_age']),
-                hold=DIAGNOSTIC_PERIOD,
-                report_interval=REPORT_INTERVAL_PER_STATUS * len(found),
-                pressure_reference=str(flat['pressure_reference']),
+
+    def configure(self) -> None:
+        """Read and check the parameters, build the engine, create every ROS entity."""
+        declare(self)
+        # the overrides: also what is not declared, e.g. an inline muscle's other models
+        flat = parameters.overrides(self) | parameters.values(self)
+        nested = parameters.nest(flat)
+        base = Path(flat.get('config_dir') or share_directory() / 'config')
+        found = joints(nested, base)
+        self.identification = [identification(j, nested, base) for j in found]
+        settings = [
+            Settings(
+                float(nested[j.name]['cocontraction']),
+                str(nested[j.name]['cocontraction_mode']),
             )
-            self._hardware = [str(nested[j.name].get('hardware_id') or j.name) for j in found]
-        parameters.warn_unknown(self, model_params.expected_undeclared)  # inline muscles' models
-        self._ros_clock = self.get_clock().handle
+            for j in found
+        ]
+        self._new_engine = partial(
+            JointEngine,
+            found,
+            settings,
+            float(flat['ambient_pressure']),
+            float(flat['max_input_age']),
+            hold=DIAGNOSTIC_PERIOD,
+            report_interval=REPORT_INTERVAL_PER_STATUS * len(found),
+            pressure_reference=str(flat['pressure_reference']),
+        )
+        topic = str(flat['forward_command_topic'])
+        self._forward_order = (
+            forward_order(list(flat['forward_command_order'] or []), found) if topic else None
+        )
+        self.reset()
+        self._hardware = [str(nested[j.name].get('hardware_id') or j.name) for j in found]
         self._names = [j.name for j in found]
         # prebuilt answers of every joint (the usual joint_states), and each muscle's command
         self._all = [joint_state(self._names, 'effort') for _ in range(2)]
@@ -108,6 +128,7 @@ class JointNode(Node):
             )
         }
         self.create_interfaces()
+        parameters.warn_unknown(self, model_params.expected_undeclared)  # inline muscles' models
         self.get_logger().info(
             '; '.join(
                 f"joint '{j.name}': {j.muscle_names[0]} ({j.muscles[0].model.name}) "
@@ -116,46 +137,59 @@ class JointNode(Node):
             )
         )
 
+    def reset(self) -> None:
+        """A fresh engine (no input known, co-contraction levels from the parameters), and no
+        forwarded command known.
+        """
+        self.engine = self._new_engine()
+        self._forward = (
+            ForwardCommands(self._forward_order, [j.muscle_names for j in self.engine.joints])
+            if self._forward_order
+            else None
+        )
+
+    def release(self) -> None:
+        self.engine = self._new_engine = self._forward = None
+        self._command_pubs = []
+
     def create_interfaces(self) -> None:
-        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
-        self._torque_pub = self.create_publisher(JointState, 'torque_estimate', 10)
-        self._stiffness_pub = self.create_publisher(JointState, 'stiffness_estimate', 10)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        """Every subscription and publisher of the node (raw subscriptions: bytes in), each QoS
+        overridable by parameters (:mod:`.qos`).
+        """
+        self._torque_pub = publisher(self, JointState, 'torque_estimate', RELIABLE)
+        self._stiffness_pub = publisher(self, JointState, 'stiffness_estimate', RELIABLE)
+        self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
+        if self._forward_order:
+            topic = self.get_parameter('forward_command_topic').value
+            self._forward_pub = publisher(self, Float64MultiArray, topic, RELIABLE)
         self._command_pubs = []
         for k, joint in enumerate(self.engine.joints):
             pubs = []
             for m, muscle in enumerate(joint.muscle_names):
-                self.create_subscription(
-                    FluidPressure,
-                    f'{muscle}/pressure',
-                    partial(self._on_pressure, k, m),
-                    INPUT_QOS,
-                    raw=True,
+                callback = partial(self._on_pressure, k, m)
+                subscription(
+                    self, FluidPressure, f'{muscle}/pressure', callback, SENSOR_INPUT, raw=True
                 )
-                pubs.append(self.create_publisher(FluidPressure, f'{muscle}/pressure_command', 10))
+                pubs.append(publisher(self, FluidPressure, f'{muscle}/pressure_command', RELIABLE))
             self._command_pubs.append(pubs)
-        self.create_subscription(JointState, 'joint_states', self._on_states, INPUT_QOS, raw=True)
-        self.create_subscription(JointState, 'torque_command', self._on_torque, 10, raw=True)
-        for topic, apply in (
-            ('stiffness_command', self.engine.stiffness),
-            ('cocontraction_command', self.engine.cocontraction),
-        ):
-            self.create_subscription(
-                JointState, topic, partial(self._on_level, topic, apply), 10, raw=True
-            )
-        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
+        subscription(self, JointState, 'joint_states', self._on_states, SENSOR_INPUT, raw=True)
+        subscription(self, JointState, 'torque_command', self._on_torque, RELIABLE, raw=True)
+        for topic in ('stiffness_command', 'cocontraction_command'):
+            callback = partial(self._on_level, topic)
+            subscription(self, JointState, topic, callback, RELIABLE, raw=True)
 
-    def now(self) -> int:
-        """The node clock (ROS time) [ns], read without building an rclpy Time."""
-        return self._ros_clock.get_now().nanoseconds
-
+    # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
     def _on_pressure(self, k: int, m: int, data: bytes) -> None:
+        if not self.active:
+            return
         now = self.now()
         stamp, value = stamped_value(data, DESERIALIZE['FluidPressure'], 'fluid_pressure')
         self.engine.pressure(k, m, value, stamp, now)
-        self._report(now)
+        self.report(now)
 
     def _on_states(self, data: bytes) -> None:
+        if not self.active:
+            return
         now, msg = self.now(), self._readers['joint_states'](data)
         done, torques, stiffnesses = self.engine.joint_states(
             msg.names, msg.position.tolist(), msg.stamp, now
@@ -168,26 +202,42 @@ class JointNode(Node):
                 out = template if every else joint_state(done, 'effort')
                 out.values[:] = values
                 pub.publish(out(msg.stamp))
-        self._report(now)
+        self.report(now)
 
     def _on_torque(self, data: bytes) -> None:
-        now = self.now()
-        for name, torque in self._entries(self._readers['torque_command'](data), now):
+        if not self.active:
+            return
+        now, forward = self.now(), self._forward
+        msg = self._readers['torque_command'](data)
+        for name, torque in self._entries(msg, now):
             k = self.engine.index[name]
-            absolute = self.engine.command(k, torque, now)
+            absolute = self.engine.command(k, torque, now, msg.stamp)
             if absolute is not None:
                 for pub, value, template in zip(
                     self._command_pubs[k], absolute, self._commands[k]
                 ):
                     template.values[0] = value
                     pub.publish(template(now))
-        self._report(now)
+                if forward is not None:
+                    forward.command(k, absolute)
+        if forward is not None and (message := forward.message()) is not None:
+            self._forward_pub.publish(message)
+        self.report(now)
 
-    def _on_level(self, topic: str, apply, data: bytes) -> None:
+    def _on_level(self, topic: str, data: bytes) -> None:
+        """A ``stiffness_command`` or ``cocontraction_command``: the engine's method of that name
+        sets how the next torque commands are made.
+        """
+        if not self.active:
+            return
         now = self.now()
-        for name, value in self._entries(self._readers[topic](data), now):
-            apply(self.engine.index[name], value, now)
-        self._report(now)
+        apply, msg = (
+            getattr(self.engine, topic.removesuffix('_command')),
+            self._readers[topic](data),
+        )
+        for name, value in self._entries(msg, now):
+            apply(self.engine.index[name], value, now, msg.stamp)
+        self.report(now)
 
     def _entries(self, msg: JointStateArrays, now: int) -> list[tuple[str, float]]:
         """(joint, effort) of a command's entries of this node's joints; mismatched arrays are
@@ -204,10 +254,6 @@ class JointNode(Node):
                 )
             return []
         return [(n, e) for n, e in zip(msg.names, msg.effort.tolist()) if n in self.engine.index]
-
-    def _report(self, now: int) -> None:
-        if self.engine.status_due(now):
-            self.publish_status(now)
 
     def publish_status(self, now: int) -> None:
         """One DiagnosticStatus per joint in one DiagnosticArray."""

@@ -17,10 +17,10 @@ from functools import partial
 import sys
 
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
 from .parameters import declare_table, warn_unknown
+from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription
 from .ros_time import now_seconds
 from .startup import refusing, run
 from ..core.joint_simulation import PARAMETERS, SimulatedJoint
@@ -36,18 +36,14 @@ class JointSimulatorNode(Node):
             self.joint = SimulatedJoint(p, now_seconds(self))
         warn_unknown(self)
         self._name = str(p['joint_name'])
-        self._state_pub = self.create_publisher(
-            JointState, 'joint_states', qos_profile_sensor_data
-        )
+        self._state_pub = publisher(self, JointState, 'joint_states', SENSOR_OUTPUT)
         self._pressure_pubs = [
-            self.create_publisher(FluidPressure, f'{m}/pressure', qos_profile_sensor_data)
-            for m in p['muscles']
+            publisher(self, FluidPressure, f'{m}/pressure', SENSOR_OUTPUT) for m in p['muscles']
         ]
         for k, muscle in enumerate(p['muscles']):
-            self.create_subscription(
-                FluidPressure, f'{muscle}/pressure_command', partial(self._on_command, k), 10
-            )
-        self.create_subscription(JointState, 'angle_command', self._on_angle, 10)
+            callback = partial(self._on_command, k)
+            subscription(self, FluidPressure, f'{muscle}/pressure_command', callback, RELIABLE)
+        subscription(self, JointState, 'angle_command', self._on_angle, RELIABLE)
         self.create_timer(1.0 / p['rate'], self._tick)
         self.get_logger().info(
             f"simulating joint '{self._name}' ({p['mode']}) of {p['maps'][0]} and "

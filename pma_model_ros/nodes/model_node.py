@@ -15,7 +15,8 @@ answered by one ``force_estimates`` JointState (effort = tension [N]); commands 
 JointState (position = absolute pressure [Pa]).  Every decision is the
 :class:`~pma_model_ros.core.engine.Engine`'s.  Subscriptions are raw: the wire layer
 (:mod:`pma_model_ros.wire.muscle_inputs`) reads the bytes into its calls and writes the answers'
-bytes; every entity is created in :meth:`ModelNode.create_interfaces`.
+bytes; every entity is created in :meth:`ModelNode.create_interfaces`, by the ``configure``
+transition: the node is managed (:mod:`.managed`) and answers only while active.
 """
 
 from __future__ import annotations
@@ -26,33 +27,22 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from . import model_params
 from .diagnostics import diagnostic_array
+from .managed import DIAGNOSTIC_PERIOD, ManagedNode
 from .parameters import warn_unknown
-from .startup import refusing, run
+from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
+from .startup import run
 from ..core.engine import Engine
 from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.param_file import NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
 
-DIAGNOSTIC_PERIOD = 1.0  # [s]; also how long a bad input or a warning holds the level up
-
-#: Inputs: sensor-data QoS (best effort, volatile) with a queue of 100 instead of 5 (0.1 s at 1
-#: kHz): a briefly stalled node catches up, and inputs older than max_input_age are counted stale
-#: (ERROR), instead of being dropped unseen.
-INPUT_QOS = QoSProfile(
-    depth=100,
-    reliability=qos_profile_sensor_data.reliability,
-    durability=qos_profile_sensor_data.durability,
-    history=qos_profile_sensor_data.history,
-)
 #: rclpy's deserializers of the input types: what the wire layer's fast readers do not read.
 DESERIALIZE = {
     kind.__name__: partial(lambda kind, data: deserialize_message(data, kind), kind)
@@ -60,30 +50,32 @@ DESERIALIZE = {
 }
 
 
-class ModelNode(Node):
-    """Thin ROS shell around one :class:`Engine` for all its muscles."""
+class ModelNode(ManagedNode):
+    """Thin ROS shell around one :class:`Engine` for all its muscles; a managed node
+    (:mod:`.managed`): it answers inputs only while active.
+    """
 
     def __init__(self, **kwargs) -> None:
+        self._blocks: model_params.ModelBlocks | None = None  # the parameters' own state
+        self.engine: Engine | None = None
         super().__init__('model_node', **kwargs)
-        with refusing(self):
-            self._names, self.mode = model_params.declare(self)
+
+    def configure(self) -> None:
+        """Read and check the parameters, build the engine, create every ROS entity."""
+        self._names, self.mode = model_params.declare(self)
+        if self._blocks is None:  # the first configure; the blocks outlive a cleanup
             self._blocks = model_params.ModelBlocks(self, self._names)
-            flat = self._blocks.would_be([])
-            self.settings = model_params.all_settings(flat, self._names)
-            self.identification = model_params.identifications(flat, self._names)
-            self.engine = Engine(
-                [s.config for s in self.settings],
-                hold=DIAGNOSTIC_PERIOD,
-                report_interval=REPORT_INTERVAL_PER_STATUS * len(self.settings),
-                **model_params.pairing(flat),
-            )
-        warn_unknown(self, model_params.expected_undeclared)
-        self.add_pre_set_parameters_callback(self._blocks.hold)
-        self.add_on_set_parameters_callback(self._validate)
-        self.add_post_set_parameters_callback(self._apply)
-        self._ros_clock = self.get_clock().handle  # see now()
-        self.use(self.settings)
+            self.add_pre_set_parameters_callback(self._blocks.hold)
+            self.add_on_set_parameters_callback(self._validate)
+            self.add_post_set_parameters_callback(self._apply)
+        flat = self._blocks.would_be([])
+        self.settings = model_params.all_settings(flat, self._names)
+        self.identification = model_params.identifications(flat, self._names)
+        self.bands = model_params.held_out_bands(flat, self._names)
+        self._pairing = model_params.pairing(flat)
+        self.reset()
         self.create_interfaces()
+        warn_unknown(self, model_params.expected_undeclared)
         muscles = [
             f'{s.config.model.spec.name} with model {s.config.model.model.name}, joint '
             f"'{s.joint_name}'"
@@ -95,34 +87,49 @@ class ModelNode(Node):
             else f'{len(muscles)} muscles, {self.mode}: ' + '; '.join(muscles)
         )
 
+    def reset(self) -> None:
+        """A fresh engine of the current settings (no input known, counters at zero)."""
+        self.engine = Engine(
+            [s.config for s in self.settings],
+            hold=DIAGNOSTIC_PERIOD,
+            report_interval=REPORT_INTERVAL_PER_STATUS * len(self.settings),
+            **self._pairing,
+        )
+        self.use(self.settings)
+
+    def release(self) -> None:
+        self.engine = self.inputs = None
+        self._estimate_pubs = self._command_pubs = []
+
     def create_interfaces(self) -> None:
-        """Every subscription, publisher and timer of the node (raw subscriptions: bytes in)."""
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_timer(DIAGNOSTIC_PERIOD, lambda: self.publish_status(self.now()))
+        """Every subscription and publisher of the node (raw subscriptions: bytes in), each QoS
+        overridable by parameters (:mod:`.qos`).
+        """
+        self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
         if self.mode == 'combined':
-            self._estimate_pubs = [self.create_publisher(JointState, 'force_estimates', 10)]
-            self._command_pubs = [self.create_publisher(JointState, 'pressure_commands', 10)]
+            self._estimate_pubs = [publisher(self, JointState, 'force_estimates', RELIABLE)]
+            self._command_pubs = [publisher(self, JointState, 'pressure_commands', RELIABLE)]
             for topic, callback, qos in (
-                ('muscle_pressures', self._on_pressures, INPUT_QOS),
-                ('muscle_states', self._on_states, INPUT_QOS),
-                ('force_commands', self._on_commands, 10),
+                ('muscle_pressures', self._on_pressures, SENSOR_INPUT),
+                ('muscle_states', self._on_states, SENSOR_INPUT),
+                ('force_commands', self._on_commands, RELIABLE),
             ):
-                self.create_subscription(JointState, topic, callback, qos, raw=True)
+                subscription(self, JointState, topic, callback, qos, raw=True)
             return
         prefixes = [f'{name}/' for name in self._names] or ['']
         self._estimate_pubs = [
-            self.create_publisher(WrenchStamped, f'{p}force_estimate', 10) for p in prefixes
+            publisher(self, WrenchStamped, f'{p}force_estimate', RELIABLE) for p in prefixes
         ]
         self._command_pubs = [
-            self.create_publisher(FluidPressure, f'{p}pressure_command', 10) for p in prefixes
+            publisher(self, FluidPressure, f'{p}pressure_command', RELIABLE) for p in prefixes
         ]
         for k, p in enumerate(prefixes):
             for kind, topic, callback, qos in (
-                (FluidPressure, 'pressure', self._on_pressure, INPUT_QOS),
-                (JointState, 'muscle_state', self._on_state, INPUT_QOS),
-                (WrenchStamped, 'force_command', self._on_command, 10),
+                (FluidPressure, 'pressure', self._on_pressure, SENSOR_INPUT),
+                (JointState, 'muscle_state', self._on_state, SENSOR_INPUT),
+                (WrenchStamped, 'force_command', self._on_command, RELIABLE),
             ):
-                self.create_subscription(kind, p + topic, partial(callback, k), qos, raw=True)
+                subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
 
     def use(self, settings: list[NodeSettings]) -> None:
         """Translate messages for the muscles of ``settings`` (their joint names and frames)."""
@@ -134,79 +141,99 @@ class ModelNode(Node):
         )
         self._commands = [fluid_pressure(s.frame_id) for s in settings]
 
-    def now(self) -> int:
-        """The node clock (ROS time; sim time with use_sim_time) [ns], read without building an
-        rclpy Time.
-        """
-        return self._ros_clock.get_now().nanoseconds
-
     def _validate(self, changes: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the whole would-be parameter set builds every muscle."""
-        if not self._blocks.swapping:
+        if not self._blocks.swapping and not only_overrides(changes):
             try:
                 model_params.all_settings(self._blocks.would_be(changes), self._names)
             except ValueError as err:
                 return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
 
-    def _apply(self, _changes: list[Parameter]) -> None:
-        if self._blocks.swapping:
+    def _apply(self, changes: list[Parameter]) -> None:
+        """Swap a good change in atomically (unconfigured: the next configure reads it)."""
+        if self._blocks.swapping or only_overrides(changes):
             return
         flat = self._blocks.applied()
+        if self.engine is None:
+            return
         settings = model_params.all_settings(flat, self._names)
         self.engine.configure([s.config for s in settings])
         self.settings = settings
         self.identification = model_params.identifications(flat, self._names)
+        self.bands = model_params.held_out_bands(flat, self._names)
         self.use(settings)
 
-    # --- callbacks: bytes in, bytes out
+    # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
     def _on_pressure(self, k: int, data: bytes) -> None:
+        if not self.active:
+            return
         now = self.now()
         self._answer(k, self.inputs.pressure(k, data, now), now)
 
     def _on_state(self, k: int, data: bytes) -> None:
+        if not self.active:
+            return
         now = self.now()
         self._answer(k, self.inputs.muscle_state(k, data, now), now)
 
     def _on_pressures(self, data: bytes) -> None:
+        if not self.active:
+            return
         now = self.now()
         self._answer(0, self.inputs.pressures(data, now), now)
 
     def _on_states(self, data: bytes) -> None:
+        if not self.active:
+            return
         now = self.now()
         self._answer(0, self.inputs.states(data, now), now)
 
     def _answer(self, k: int, estimate: bytes | None, now: int) -> None:
         if estimate is not None:
             self._estimate_pubs[k].publish(estimate)
-        if self.engine.status_due(now):
+        if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
 
     def _on_command(self, k: int, data: bytes) -> None:
+        if not self.active:
+            return
         now = self.now()
         pressure = self.inputs.force_command(k, data, now)
         if pressure is not None:
             command = self._commands[k]
             command.values[0] = pressure
             self._command_pubs[k].publish(command(now))
-        if self.engine.status_due(now):
+        if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
 
     def _on_commands(self, data: bytes) -> None:
         """Pressure commands of the muscles named in the message (the others are not commanded)."""
+        if not self.active:
+            return
         now = self.now()
         commands = self.inputs.force_commands(data, now)
         if commands is not None:
             self._command_pubs[0].publish(commands(now))
-        if self.engine.status_due(now):
+        if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
 
     def publish_status(self, now: int) -> None:
-        """One DiagnosticStatus per muscle in one DiagnosticArray."""
+        """One DiagnosticStatus per muscle in one DiagnosticArray: the engine's status, the
+        identification results and the expected error at the muscle's newest length.
+        """
         entries = [
-            (s.joint_name, s.hardware_id, status.level, status.message, status.values | ident)
-            for s, status, ident in zip(
-                self.settings, self.engine.statuses(now), self.identification
+            (
+                s.joint_name,
+                s.hardware_id,
+                status.level,
+                status.message,
+                status.values
+                | ident
+                | (band.values_at(self.engine.inputs(k)[1]) if band is not None else {}),
+            )
+            for k, (s, status, ident, band) in enumerate(
+                zip(self.settings, self.engine.statuses(now), self.identification, self.bands)
             )
         ]
         self._diag_pub.publish(diagnostic_array(self, entries))

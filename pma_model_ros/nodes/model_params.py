@@ -4,7 +4,8 @@ the model blocks, and validation.
 One node serves one muscle (the per-muscle parameters at the top level, as in
 ``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per name with the
 per-muscle parameters under ``<name>.`` (``config/example_multi_muscle.yaml``); the others are
-node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`.
+node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`, ``autostart`` by
+:mod:`pma_model_ros.nodes.managed`.
 
 Of a muscle's ``models.<model>.*`` entries only the selected ``model``'s block
 (:data:`~pma_model_ros.core.node_parameters.MODEL_BLOCK`) is declared; the other models' blocks
@@ -25,7 +26,8 @@ from .parameters import declare as declare_spec
 from .parameters import descriptor, nest, overrides, plain, TYPES, values
 from ..core.models import get_model, MODELS
 from ..core.node_parameters import IDENTIFICATION, MODEL_BLOCK, PARAMETERS, SPECS
-from ..core.param_file import all_node_settings, identification, NodeSettings
+from ..core.param_file import all_node_settings, held_out_band, identification, NodeSettings
+from ..core.validation import HeldOutBand
 
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
 REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith('models.')]
@@ -54,7 +56,12 @@ def declare(node: Node) -> tuple[list[str], str]:
     mode = declare_spec(node, SPECS['input_mode']).value
     _check_names(names, mode)
     for spec in PARAMETERS:
-        if not spec.per_muscle and spec.name not in ('muscles', 'input_mode', 'executor'):
+        if not spec.per_muscle and spec.name not in (
+            'muscles',
+            'input_mode',
+            'executor',
+            'autostart',
+        ):
             declare_spec(node, spec)
     for prefix in prefixes(names):
         declare_muscle(node, prefix)
@@ -90,6 +97,8 @@ def declare_block(
     for entry, table_spec in BLOCK_SPECS.items():
         spec = replace(table_spec, read_only=read_only)
         name = f'{prefix}models.{model}.{entry}'
+        if node.has_parameter(name):  # configured again after a cleanup
+            continue
         text = None
         if entry == 'params':
             m = MODELS[model]
@@ -214,3 +223,11 @@ def identifications(flat: dict[str, object], names: list[str]) -> list[dict[str,
     """Each muscle's identification results (diagnostic key-values) of its selected model."""
     nested = nest(flat)
     return [identification(nested[name] if name else nested) for name in names or ['']]
+
+
+def held_out_bands(flat: dict[str, object], names: list[str]) -> list[HeldOutBand | None]:
+    """Each muscle's nested held-out error per identified length of its selected model (None:
+    the file has none).
+    """
+    nested = nest(flat)
+    return [held_out_band(nested[name] if name else nested) for name in names or ['']]

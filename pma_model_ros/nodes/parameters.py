@@ -47,10 +47,15 @@ def descriptor(spec: ParameterSpec, description: str | None = None) -> Parameter
 
 def declare(node: Node, spec: ParameterSpec, prefix: str = '', default: bool = True) -> Parameter:
     """Declare ``spec`` as ``prefix + spec.name`` with its default (without ``default``, or
-    without one: only its type, so it stays unset unless a file or ``-p`` sets it).
+    without one: only its type, so it stays unset unless a file or ``-p`` sets it); the
+    parameter.  Already declared (a managed node configured again after a cleanup: parameters
+    outlive it, as in any ROS node), it is left as it is.
     """
+    name = prefix + spec.name
+    if node.has_parameter(name):
+        return node.get_parameter_or(name)  # unset: a NOT_SET parameter, value None
     value = spec.default if default and spec.default not in (None, []) else TYPES[spec.kind]
-    return node.declare_parameter(prefix + spec.name, value, descriptor(spec))
+    return node.declare_parameter(name, value, descriptor(spec))
 
 
 def declare_table(

@@ -20,12 +20,12 @@ import sys
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, JointState
 
 from .parameters import declare_table, warn_unknown
+from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription
 from .ros_time import now_seconds
 from .startup import refusing, run
 from ..core.simulation import PARAMETERS, SimulatedMuscle
@@ -40,17 +40,13 @@ class SimulatorNode(Node):
             p = declare_table(self, PARAMETERS)
             self._muscle = SimulatedMuscle(p, now_seconds(self))
         warn_unknown(self)
-        self._pressure_pub = self.create_publisher(
-            FluidPressure, 'pressure', qos_profile_sensor_data
-        )
-        self._state_pub = self.create_publisher(
-            JointState, 'muscle_state', qos_profile_sensor_data
-        )
-        self._force_pub = self.create_publisher(WrenchStamped, 'force', qos_profile_sensor_data)
+        self._pressure_pub = publisher(self, FluidPressure, 'pressure', SENSOR_OUTPUT)
+        self._state_pub = publisher(self, JointState, 'muscle_state', SENSOR_OUTPUT)
+        self._force_pub = publisher(self, WrenchStamped, 'force', SENSOR_OUTPUT)
         self._ticks = 0
         with refusing(self):
             self._recorder = self._open_record(record, storage) if record else None
-        self.create_subscription(FluidPressure, 'pressure_command', self._on_command, 10)
+        subscription(self, FluidPressure, 'pressure_command', self._on_command, RELIABLE)
         self.create_timer(1.0 / p['rate'], self._tick)
         self.get_logger().info(
             f'simulating {p["muscle"]} ({p["trajectory"]}) at {p["rate"]:g} Hz'

@@ -2,7 +2,8 @@
 
 Every node spins on the executor named by its read-only ROS parameter ``executor``:
 ``events`` (``rclpy.experimental.EventsExecutor``, the default) or ``single`` (rclpy's
-SingleThreadedExecutor); docs/performance-nodes.md compares them.
+SingleThreadedExecutor); docs/performance-nodes.md compares them.  Several nodes in one process
+(``pma_composed``, :mod:`.composed`) share one executor: their ``executor`` parameters must agree.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import gc
 import re
 import signal
 import threading
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Sequence
 
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
@@ -84,59 +85,78 @@ def refusing(node: Node) -> Iterator[None]:
         raise StartupError(str(err), node) from None
 
 
-def executor(node: Node) -> Executor:
-    """The executor named by ``node``'s parameter ``executor`` (declared here, read-only)."""
+def executor(nodes: Sequence[Node]) -> Executor:
+    """The executor named by the ``executor`` parameter of ``nodes`` (declared here on each,
+    read-only; they must name the same one).
+    """
     spec = SPECS['executor']
-    name = declare(node, spec).value
+    names = [declare(node, spec).value for node in nodes]
     try:
-        spec.check(name)
+        for name in names:
+            spec.check(name)
     except ValueError as err:
         raise StartupError(str(err)) from None
-    return EXECUTORS[name](context=node.context)
+    if len(set(names)) > 1:
+        raise StartupError(
+            f"parameter 'executor': the nodes of one process share one executor, got "
+            f'{", ".join(f"{n.get_name()}: {e}" for n, e in zip(nodes, names))}'
+        )
+    return EXECUTORS[names[0]](context=nodes[0].context)
 
 
-def run(node_name: str, make_node: Callable[[], Node], args: list[str] | None) -> int:
-    """Init, build the node, spin until SIGINT, SIGTERM or shutdown; the exit code (1: bad
-    parameters, logged as one FATAL line).
+def run(
+    node_name: str,
+    make_node: Callable[[], Node] | Sequence[Callable[[], Node]],
+    args: list[str] | None,
+) -> int:
+    """Init, build the node (or each of a sequence of nodes, in order), spin until SIGINT, SIGTERM
+    or shutdown; the exit code (1: bad parameters, logged as one FATAL line by ``node_name``'s
+    logger).
 
-    The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the node
+    The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the nodes
     are shut down before the context.  With rclpy's own signal handler the context went first, and
     the EventsExecutor could still run a callback whose ``publish`` then failed
     (docs/performance-nodes.md).
     """
-    node = spinner = None
+    makers = [make_node] if callable(make_node) else list(make_node)
+    nodes: list[Node] = []
+    spinner = None
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
     try:
         try:
             init(args)
-            node = make_node()
-            spinner = executor(node)
+            for make in makers:
+                nodes.append(make())
+            spinner = executor(nodes)
         except (StartupError, ParameterException) as err:  # also use_sim_time, read by Node()
             rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {err}')
-            node = node or getattr(err, 'node', None)
+            if getattr(err, 'node', None) is not None:
+                nodes.append(err.node)
             return 1
-        spinner.add_node(node)
-        # start-up's objects (modules, the node, its models) to the permanent generation: a full
-        # collection then scans only what came since (one of 90,000 objects took 19 ms, a stall
-        # of 19 cycles at 1 kHz; docs/performance-nodes.md)
+        for node in nodes:
+            spinner.add_node(node)
+        # start-up's objects (modules, the nodes, their models) to the permanent generation: a
+        # full collection then scans only what came since (one of 90,000 objects took 19 ms, a
+        # stall of 19 cycles at 1 kHz; docs/performance-nodes.md)
         gc.collect()
         gc.freeze()
-        while node.context.ok() and not stop.is_set():
+        context = nodes[0].context
+        while context.ok() and not stop.is_set():
             spinner.spin_once(timeout_sec=SPIN_TIMEOUT)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RCLError:  # a signal shut the context down while the executor built its wait set
-        if node.context.ok():
+        if nodes[0].context.ok():
             raise
     finally:
-        teardown(spinner, node)
+        teardown(spinner, *nodes)
     return 0
 
 
-def teardown(spinner: Executor | None, node: Node | None) -> None:
-    """Shut down the executor, destroy the node, shut down the context; at most
+def teardown(spinner: Executor | None, *nodes: Node) -> None:
+    """Shut down the executor, destroy the nodes, shut down the context; at most
     :data:`TEARDOWN_TIMEOUT`.
 
     Fast DDS 2.14 can deadlock in discovery, and destroying the participant then waits for it
@@ -150,7 +170,7 @@ def teardown(spinner: Executor | None, node: Node | None) -> None:
     try:
         if spinner is not None:
             spinner.shutdown()
-        if node is not None:
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
     finally:

@@ -139,6 +139,10 @@ class Template:
         data = rows.tobytes()
         return [data[i : i + size] for i in range(0, len(data), size)]
 
+    def unstamped(self) -> bytes:
+        """The bytes of a message without a header, with the current ``values``."""
+        return bytes(self._buffer)
+
 
 def wrench_stamped(frame_id: str) -> Template:
     """``geometry_msgs/WrenchStamped``: ``values`` = [force.x]; the rest 0."""
@@ -175,3 +179,13 @@ def joint_state(names: Sequence[str], field: str, frame_id: str = '') -> Templat
         else:
             writer.floats(0)
     return Template(writer, at, len(names))
+
+
+def float64_multi_array(count: int) -> Template:
+    """``std_msgs/Float64MultiArray`` of ``count`` values (``values`` = ``data``), its layout
+    empty (no dimensions, data_offset 0): bytes by :meth:`Template.unstamped` (it has no header).
+    """
+    writer = CdrWriter()
+    writer.count(0)  # layout.dim: no dimensions
+    writer.count(0)  # layout.data_offset (uint32)
+    return Template(writer, writer.floats(count)[1], count)

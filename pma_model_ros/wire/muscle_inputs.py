@@ -97,8 +97,8 @@ class MuscleInputs:
 
     def force_command(self, k: int, data: bytes, now: int) -> float | None:
         """A ``force_command`` of muscle ``k``: the pressure command [Pa], if any."""
-        _, force = stamped_value(data, self._deserialize['WrenchStamped'], 'force')
-        return self.engine.command(k, force, now)
+        stamp, force = stamped_value(data, self._deserialize['WrenchStamped'], 'force')
+        return self.engine.command(k, force, now, stamp)
 
     # --- combined
     def pressures(self, data: bytes, now: int) -> bytes | None:
@@ -163,7 +163,9 @@ class MuscleInputs:
                 continue
             if present is not None and not present[k]:
                 self.engine.reject(k, 'force_command', problems[0], now)
-            elif (pressure := self.engine.command(k, float(msg.effort[take[k]]), now)) is not None:
+            elif (
+                pressure := self.engine.command(k, float(msg.effort[take[k]]), now, msg.stamp)
+            ) is not None:
                 joints.append(joint)
                 pressures.append(pressure)
         if not joints:

@@ -1,0 +1,188 @@
+"""The managed (lifecycle) shell of model_node and joint_node.
+
+States and transitions are ROS 2's (``rclpy.lifecycle``), driven through the standard
+``lifecycle_msgs`` services ``<node>/change_state``, ``<node>/get_state``, ... (``ros2 lifecycle
+set <node> configure``):
+
+* ``configure``: the node reads and checks its parameters, builds its engine, and creates its
+  publishers, subscriptions and status timer (:meth:`ManagedNode.configure`).  A bad parameter
+  fails the transition (FAILURE), logged as one line ``invalid parameters: <reason>``, and leaves
+  the node unconfigured with nothing of it built.
+* ``activate``: inputs are answered with estimates, commands with pressure commands, and
+  ``/diagnostics`` is published.
+* ``deactivate``: no output any more.  Every input callback starts with the gate
+  ``if not self.active: return`` (one attribute check): a message that arrives while inactive is
+  dropped unread, so neither an estimate nor a pressure command nor a change of the command
+  settings comes of it, and the status timer publishes nothing.  The engine is then rebuilt fresh
+  (:meth:`ManagedNode.reset`): the next activation starts as after configure (no input known,
+  hysteresis branches unknown, counters at zero), since the node cannot know what happened while
+  it did not listen.
+* ``cleanup`` (back to unconfigured) and ``shutdown`` (finalized, from any state) destroy what
+  configure created and drop the engine.  The parameters stay declared, as in any ROS node: a
+  configure after a cleanup reads their current values.
+
+``autostart`` (read-only, default true): the constructor configures and activates the node, so
+``ros2 run`` behaves as before the nodes were managed; a configure failure then raises
+:class:`~.startup.StartupError`, which :func:`~.startup.run` logs as one FATAL line before exit
+code 1.  ``false``: the node waits unconfigured for a lifecycle manager.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+import traceback
+
+from lifecycle_msgs.srv import ChangeState
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.exceptions import ParameterException
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
+from rclpy.timer import Timer
+
+from .parameters import declare
+from .startup import refusing, StartupError
+from ..core.node_parameters import SPECS
+
+#: [s] Period of the /diagnostics reports; also how long a bad input or a warning holds the level.
+DIAGNOSTIC_PERIOD = 1.0
+SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
+
+
+class ManagedNode(LifecycleNode):
+    """A lifecycle node whose subclass builds itself in :meth:`configure` and answers inputs only
+    while :attr:`active`.
+
+    A subclass sets its own attributes before calling this constructor (with ``autostart`` it
+    configures the node), and provides :meth:`configure`, :meth:`reset`, :meth:`release` and
+    :meth:`publish_status`; its engine has ``status_due(now)``.
+    """
+
+    def __init__(self, node_name: str, **kwargs) -> None:
+        super().__init__(node_name, **kwargs)
+        service = self._service_change_state
+        service.callback = partial(_refuse_unknown_transitions, service.callback)
+        self.active = False  #: the gate of every input callback
+        self.refusal = ''  #: why the last configure failed
+        self._ros_clock = self.get_clock().handle  # see now()
+        self._built: list = []  # the publishers, subscriptions and timer of configure
+        self._starting = False
+        with refusing(self):
+            self.autostart = declare(self, SPECS['autostart']).value
+        if self.autostart:
+            self._starting = True
+            try:
+                if self.trigger_configure() != SUCCESS:
+                    raise StartupError(self.refusal, self)
+            finally:
+                self._starting = False
+            self.trigger_activate()
+
+    # --- what a node provides
+    def configure(self) -> None:
+        """Read and check the parameters, build the engine, create publishers and subscriptions;
+        ValueError or an rclpy ParameterException for a bad parameter.
+        """
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        """Replace the engine by a fresh one of the same settings."""
+        raise NotImplementedError
+
+    def release(self) -> None:
+        """Drop what :meth:`configure` built besides its ROS entities (the engine)."""
+        raise NotImplementedError
+
+    def publish_status(self, now: int) -> None:
+        """Publish every status of the engine on /diagnostics."""
+        raise NotImplementedError
+
+    # --- shared by the nodes
+    def now(self) -> int:
+        """The node clock (ROS time; sim time with use_sim_time) [ns], read without building an
+        rclpy Time.
+        """
+        return self._ros_clock.get_now().nanoseconds
+
+    def report(self, now: int) -> None:
+        """After an input: publish the statuses if a level changed (:meth:`Health.due`)."""
+        if self.engine.status_due(now):
+            self.publish_status(now)
+
+    def _on_timer(self) -> None:
+        if self.active:
+            self.publish_status(self.now())
+
+    # --- transitions
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        before = {id(e) for e in self._entities()}
+        self.refusal = ''
+        try:
+            self.configure()
+            self.create_timer(DIAGNOSTIC_PERIOD, self._on_timer)
+        except (ParameterException, ValueError) as err:
+            self.refusal = str(err)
+        except Exception as err:  # a bug: rclpy would swallow it (ERROR, then on_error)
+            self.refusal = f'configure raised {type(err).__name__}: {err} (traceback logged)'
+            self.get_logger().error(f'configure raised:\n{traceback.format_exc()}')
+            raise
+        finally:
+            self._built = [e for e in self._entities() if id(e) not in before]
+        if not self.refusal:
+            return SUCCESS
+        self._release()
+        if not self._starting:  # at start-up, run() logs it, as FATAL
+            self.get_logger().error(f'invalid parameters: {self.refusal}')
+        return FAILURE
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = True
+        return SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self.reset()
+        return SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._release()
+        return SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self._release()
+        return SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """After an exception in a transition (ERROR): release everything, back to unconfigured."""
+        self.active = False
+        self._release()
+        return SUCCESS
+
+    def _entities(self) -> list:
+        return [*self.publishers, *self.subscriptions, *self.timers]
+
+    def _release(self) -> None:
+        destroy = {
+            Publisher: self.destroy_publisher,
+            Subscription: self.destroy_subscription,
+            Timer: self.destroy_timer,
+        }
+        for entity in self._built:
+            destroy[next(t for t in destroy if isinstance(entity, t))](entity)
+        self._built = []
+        self.release()
+
+
+def _refuse_unknown_transitions(
+    change_state, request: ChangeState.Request, response: ChangeState.Response
+) -> ChangeState.Response:
+    """Rclpy's ``change_state`` service callback, answering ``success: false`` to a transition the
+    current state does not have (e.g. ``activate`` while unconfigured), as rclcpp does: rclpy
+    raises RCLError there, out of the executor, which ended the node's process.
+    """
+    try:
+        return change_state(request, response)
+    except RCLError:
+        response.success = False
+        return response

@@ -1,0 +1,51 @@
+"""joint_node's pressure commands of every muscle as one ``std_msgs/Float64MultiArray``: what
+ros2_control's forward_command_controller takes on ``<controller>/commands``, in the order of its
+``joints`` (here: muscles, e.g. each with a ``pressure`` command interface).
+
+Such a controller writes a message's values to its command interfaces and holds them until the
+next message, and it refuses a message whose size differs from its number of interfaces.  So a
+message always carries every muscle of the order: a torque command that names only some joints
+updates their muscles' values and repeats the others' last values (what the hardware holds
+anyway).  Until every muscle of the order has had a command, nothing is published: no value would
+be a guess.  Units as the muscles' ``pressure_command``: Pa, absolute or gauge by
+``pressure_reference``.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from .cdr import float64_multi_array
+
+
+class ForwardCommands:
+    """The array of the muscles ``order``; ``muscles[k]``: joint ``k``'s muscle names, in the order
+    of its pressure commands.
+    """
+
+    def __init__(self, order: Sequence[str], muscles: Sequence[Sequence[str]]) -> None:
+        place = {name: i for i, name in enumerate(order)}
+        #: per joint, per muscle: its place in the array (None: not in the order)
+        self.places = [[place.get(m) for m in names] for names in muscles]
+        self._message = float64_multi_array(len(order))
+        self.values = self._message.values  #: [Pa] the last command of each muscle of the order
+        self._known = [False] * len(order)
+        self._missing = len(order)  # muscles of the order without a command yet
+        self._commanded = False
+
+    def command(self, k: int, pressures: Sequence[float]) -> None:
+        """Joint ``k``'s new pressure commands [Pa]."""
+        for i, value in zip(self.places[k], pressures):
+            if i is not None:
+                self.values[i] = value
+                self._commanded = True
+                if not self._known[i]:
+                    self._known[i] = True
+                    self._missing -= 1
+
+    def message(self) -> bytes | None:
+        """After a torque command's joints: the array's bytes if a value of it changed and every
+        muscle has one, else None.
+        """
+        changed, self._commanded = self._commanded, False
+        return self._message.unstamped() if changed and not self._missing else None

@@ -1,0 +1,340 @@
+"""model_node and joint_node as managed (lifecycle) nodes (nodes/managed.py).
+
+In-process, on private Contexts: the transitions called directly, the callbacks fed bytes, what the
+publishers publish recorded.  Then once over DDS: a model_node process started with
+``autostart:=false``, driven from this process through the standard ``lifecycle_msgs`` services.
+"""
+
+import time
+
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+import pytest
+import rclpy
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.lifecycle import TransitionCallbackReturn
+from rclpy.parameter import Parameter
+from test_nodes_joint_node import command, joint_state
+from test_nodes_joint_node import pressure as joint_pressure
+from test_nodes_model_node import frozen_clock, record
+
+from conftest import CONFIGS, REPO
+from node_messages import (
+    AMBIENT,
+    force_command,
+    pressure,
+    raw,
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    stamp_key,
+    state,
+)
+from pma_model_ros.nodes.joint_node import JointNode
+from pma_model_ros.nodes.model_node import ModelNode
+from pma_model_ros.nodes.startup import StartupError
+
+CONFIG = CONFIGS['DMSP-10-250']
+EXAMPLE_JOINT = REPO / 'config' / 'example_joint.yaml'
+SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
+
+
+@pytest.fixture
+def make():
+    """A factory of managed nodes (class, parameter file, overrides) on their own Contexts."""
+    made = []
+
+    def make(cls, params_file, **overrides):
+        context = rclpy.Context()
+        rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
+        made.append(context)
+        node = cls(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+        )
+        made.append(node)
+        return node
+
+    yield make
+    for thing in reversed(made):
+        if isinstance(thing, rclpy.Context):
+            rclpy.shutdown(context=thing)
+        else:
+            thing.destroy_node()
+
+
+@pytest.fixture
+def errors(monkeypatch):
+    """The error lines the nodes log from now on."""
+    logged = []
+    monkeypatch.setattr(RcutilsLogger, 'error', lambda self, text, **_: logged.append(text))
+    return logged
+
+
+def label(node) -> str:
+    return node._state_machine.current_state[1]
+
+
+def entities(node) -> set[str]:
+    """The topics of the node's publishers and subscriptions, and how many timers it has."""
+    return {
+        *(f'pub {p.topic_name}' for p in node.publishers),
+        *(f'sub {s.topic_name}' for s in node.subscriptions),
+        f'{len(list(node.timers))} timers',
+    }
+
+
+def feed_model_node(node, stamp, force: float = 100.0) -> None:
+    """A pressure, a length and a force command, as bytes into the callbacks."""
+    node._on_pressure(0, raw(pressure(stamp, AMBIENT + 300e3)))
+    node._on_state(0, raw(state(stamp, 0.23, 0.0)))
+    node._on_command(0, raw(force_command(force)))
+
+
+def test_model_node_goes_through_every_transition(make):
+    node = make(ModelNode, CONFIG, autostart=False)
+    bare = entities(node)
+    assert label(node) == 'unconfigured' and node.engine is None
+    assert node.trigger_configure() == SUCCESS and label(node) == 'inactive'
+    assert {'sub /pressure', 'sub /muscle_state', 'pub /pressure_command', '1 timers'} <= (
+        entities(node) - bare
+    )
+    estimates, commands = record(node._estimate_pubs[0]), record(node._command_pubs[0])
+    diagnostics = record(node._diag_pub)
+    now = frozen_clock(node)
+    feed_model_node(node, now)  # inactive: dropped unread
+    node._on_timer()
+    assert (estimates, commands, diagnostics) == ([], [], [])
+    assert node.engine.counts(0) == {}
+
+    assert node.trigger_activate() == SUCCESS and label(node) == 'active'
+    feed_model_node(node, now)
+    node._on_timer()
+    assert len(estimates) == 1 and len(commands) == 1 and diagnostics
+    assert node.engine.counts(0)['estimates'] == 1
+
+    assert node.trigger_deactivate() == SUCCESS and label(node) == 'inactive'
+    assert node.engine.counts(0) == {}  # a fresh engine: nothing known
+    sent = len(diagnostics)
+    feed_model_node(node, now, force=200.0)
+    node._on_timer()
+    assert (len(estimates), len(commands), len(diagnostics)) == (1, 1, sent)
+
+    assert node.trigger_activate() == SUCCESS
+    node._on_command(0, raw(force_command(100.0)))  # no length known since the activation
+    assert len(commands) == 1
+    feed_model_node(node, now)
+    assert len(estimates) == 2 and len(commands) == 2
+
+    assert node.trigger_deactivate() == SUCCESS and node.trigger_cleanup() == SUCCESS
+    assert label(node) == 'unconfigured' and node.engine is None and entities(node) == bare
+    assert node.trigger_configure() == SUCCESS and node.trigger_activate() == SUCCESS
+    estimates = record(node._estimate_pubs[0])
+    feed_model_node(node, now)
+    assert len(estimates) == 1
+    assert node.trigger_shutdown() == SUCCESS and label(node) == 'finalized'
+    assert node.engine is None and entities(node) == bare
+
+
+def test_a_parameter_changed_while_unconfigured_is_read_by_the_next_configure(make):
+    node = make(ModelNode, CONFIG, autostart=False)
+    assert node.trigger_configure() == SUCCESS and node.trigger_cleanup() == SUCCESS
+    assert node.set_parameters([Parameter('model', value='hildebrandt')])[0].successful
+    assert node.trigger_configure() == SUCCESS
+    assert node.engine.configs[0].model.model.name == 'hildebrandt'
+
+
+def bad_file(tmp_path, old: str, new: str):
+    path = tmp_path / 'bad.yaml'
+    text = CONFIG.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    return path
+
+
+@pytest.mark.parametrize(
+    'old, new, reason',
+    [
+        ('max_input_age: 0.1', 'max_input_age: -1.0', 'Parameter max_input_age out of range'),
+        ('    model: martens', '    model: foo', "parameter 'model': unknown model 'foo'"),
+    ],
+)
+def test_a_bad_file_fails_configure_and_leaves_the_node_unconfigured(
+    make, errors, tmp_path, old, new, reason
+):
+    node = make(ModelNode, bad_file(tmp_path, old, new), autostart=False)
+    bare = entities(node)
+    for _ in range(2):  # and again: nothing of the first attempt is left behind
+        assert node.trigger_configure() == FAILURE
+        assert label(node) == 'unconfigured' and node.engine is None and entities(node) == bare
+    assert len(errors) == 2 and errors[0] == errors[1]
+    assert errors[0].startswith('invalid parameters: ') and reason in errors[0]
+    assert '\n' not in errors[0] and reason in node.refusal
+    assert node.trigger_shutdown() == SUCCESS and label(node) == 'finalized'
+
+
+def test_an_unexpected_error_in_configure_is_logged_and_released(make, errors, monkeypatch):
+    """A bug in configure (not a bad parameter): its traceback logged, the transition's error
+    processing releases what was built, and the node is unconfigured again.
+    """
+    node = make(ModelNode, CONFIG, autostart=False)
+    bare = entities(node)
+    built = ModelNode.configure
+
+    def broken(self):
+        built(self)
+        raise RuntimeError('a bug')
+
+    monkeypatch.setattr(ModelNode, 'configure', broken)
+    assert node.trigger_configure() == TransitionCallbackReturn.ERROR
+    assert label(node) == 'unconfigured' and node.engine is None and entities(node) == bare
+    assert len(errors) == 1 and 'RuntimeError: a bug' in errors[0] and 'Traceback' in errors[0]
+    assert node.refusal == 'configure raised RuntimeError: a bug (traceback logged)'
+    monkeypatch.undo()
+    assert node.trigger_configure() == SUCCESS
+
+
+def test_with_autostart_a_bad_file_raises_at_construction_without_logging(make, errors, tmp_path):
+    """run() logs the one FATAL line (test_nodes_startup, test_bad_input_matrix)."""
+    with pytest.raises(StartupError, match="unknown model 'foo'"):
+        make(ModelNode, bad_file(tmp_path, '    model: martens', '    model: foo'))
+    assert errors == []
+
+
+def test_autostart_is_read_only_and_defaults_to_true(make):
+    node = make(ModelNode, CONFIG)
+    assert label(node) == 'active' and node.get_parameter('autostart').value is True
+    assert not node.set_parameters([Parameter('autostart', value=False)])[0].successful
+
+
+def test_joint_node_commands_only_while_active(make):
+    node = make(JointNode, EXAMPLE_JOINT, autostart=False)
+    assert label(node) == 'unconfigured' and node.trigger_configure() == SUCCESS
+    flexor, torques = record(node._command_pubs[0][0]), record(node._torque_pub)
+
+    def feed():
+        node._on_pressure(0, 0, raw(joint_pressure(node, AMBIENT + 400e3)))
+        node._on_pressure(0, 1, raw(joint_pressure(node, AMBIENT + 300e3)))
+        node._on_states(raw(joint_state(node, 0.5)))
+        node._on_level('stiffness_command', raw(command(elbow=4.5)))
+        node._on_torque(raw(command(elbow=1.0)))
+
+    feed()
+    assert (flexor, torques) == ([], [])
+    assert node.trigger_activate() == SUCCESS
+    feed()
+    assert len(flexor) == 1 and len(torques) == 1
+    assert node.engine.statuses(node.now())[0].values['commands'].startswith('stiffness 4.5')
+    assert node.trigger_deactivate() == SUCCESS
+    feed()
+    assert len(flexor) == 1 and len(torques) == 1
+    assert node.trigger_activate() == SUCCESS
+    # fresh: the parameters' co-contraction again, no angle known
+    assert node.engine.statuses(node.now())[0].values['commands'].startswith('co-contraction')
+    node._on_torque(raw(command(elbow=1.0)))
+    assert len(flexor) == 1
+    assert node.trigger_shutdown() == SUCCESS and node.engine is None
+
+
+# --- over DDS, from a second process
+def lifecycle(ros, node_name: str):
+    """(change(transition label or id) -> success, get() -> state label) of ``node_name``'s
+    services.
+    """
+
+    def change(transition: str | int) -> bool:
+        request = ChangeState.Request(
+            transition=Transition(label=transition)
+            if isinstance(transition, str)
+            else Transition(id=transition)
+        )
+        return ros.call(ChangeState, f'{node_name}/change_state', request).success
+
+    def get() -> str:
+        return ros.call(GetState, f'{node_name}/get_state', GetState.Request()).current_state.label
+
+    return change, get
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('executor', ['events', 'single'])
+def test_lifecycle_services_from_another_process(ros, processes, namespace, executor):
+    """model_node (a process, autostart false) answers only while active, driven through
+    ``<node>/change_state`` (by label, as the README shows) and ``<node>/get_state``.
+    """
+    from geometry_msgs.msg import WrenchStamped
+    from sensor_msgs.msg import FluidPressure, JointState
+
+    proc = processes.node('model_node', namespace, CONFIG, autostart='false', executor=executor)
+    why = lambda: processes.output(proc)  # noqa: E731
+    node = f'{namespace}/model_node'
+    change, get = lifecycle(ros, node)
+    estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
+    commands = ros.collect(FluidPressure, f'{namespace}/pressure_command', RELIABLE_QOS)
+    pressure_pub = ros.node.create_publisher(FluidPressure, f'{namespace}/pressure', SENSOR_QOS)
+    state_pub = ros.node.create_publisher(JointState, f'{namespace}/muscle_state', SENSOR_QOS)
+    command_pub = ros.node.create_publisher(
+        WrenchStamped, f'{namespace}/force_command', RELIABLE_QOS
+    )
+
+    def publish():
+        stamp = ros.now().to_msg()
+        pressure_pub.publish(pressure(stamp, AMBIENT + 300e3))
+        state_pub.publish(state(stamp, 0.23, 0.0))
+        command_pub.publish(force_command(100.0))
+
+    def quiet_for(seconds: float, what: str) -> None:
+        """Publish inputs and commands for ``seconds`` (a deadline loop): nothing may answer."""
+        end = time.monotonic() + seconds
+        ros.spin_until(lambda: time.monotonic() > end, seconds + 5, what, every=publish)
+        assert (estimates, commands) == ([], []), what
+
+    assert get() == 'unconfigured'
+    print(f'\n{node}: {get()}')
+    # a transition the state does not have is refused (rclpy alone raised, ending the process)
+    assert not change(Transition.TRANSITION_ACTIVATE) and get() == 'unconfigured', why()
+    print(f'{node}: activate refused while unconfigured')
+    quiet_for(1.0, 'inputs while unconfigured')
+    for transition, expected in (('configure', 'inactive'), ('activate', 'active')):
+        assert change(transition), why()
+        assert get() == expected
+        print(f'{node}: {expected}')
+        if expected == 'inactive':
+            quiet_for(1.0, 'inputs while inactive')
+    ros.spin_until(lambda: estimates and commands, 20, 'an estimate and a command', every=publish)
+    print(f'  active: {len(estimates)} estimates, {len(commands)} pressure commands')
+
+    assert change('deactivate') and get() == 'inactive'
+    deactivated = ros.now().nanoseconds
+    print(f'{node}: inactive')
+    end = time.monotonic() + 1.0
+    ros.spin_until(lambda: time.monotonic() > end, 10, 'inputs while inactive', every=publish)
+    late = [e for e in estimates if stamp_key(e) >= deactivated]
+    late += [c for c in commands if stamp_key(c) >= deactivated]
+    assert late == [], 'answers to inputs sent after the deactivation'
+    print('  inputs for 1 s after deactivate: 0 estimates, 0 pressure commands')
+
+    assert change('activate') and get() == 'active'
+    count = len(estimates)
+    ros.spin_until(lambda: len(estimates) > count, 20, 'estimates again', every=publish)
+    print(f'{node}: active again, estimates resume')
+    for transition, expected in (
+        ('deactivate', 'inactive'),
+        ('cleanup', 'unconfigured'),
+        ('shutdown', 'finalized'),
+    ):
+        assert change(transition), why()
+        assert get() == expected
+        print(f'{node}: {expected}')
+    assert proc.poll() is None, why()
+    assert [State.PRIMARY_STATE_FINALIZED] == [
+        ros.call(GetState, f'{node}/get_state', GetState.Request()).current_state.id
+    ]
+
+
+def test_the_readme_names_the_lifecycle_services():
+    """The README's "Managed nodes" section gives the service calls of ``ros2 lifecycle set``."""
+    text = (REPO / 'README.md').read_text()
+    section = text.split('### Managed nodes\n', 1)[1].split('\n### ', 1)[0]
+    for transition in ('configure', 'activate', 'deactivate', 'cleanup', 'shutdown'):
+        assert f'ros2 lifecycle set /left_biceps/model_node {transition}' in section
+    assert 'lifecycle_msgs/srv/ChangeState' in section
