@@ -1,24 +1,27 @@
 """Offline estimation throughput: ``pma-model bag estimate`` against a bare rosbags
 read-and-deserialize pass.
 
-Usage: ``.venv/bin/python bench/bag_estimate.py [--quick] [--bag PATH] [--repeat N]`` (or
-``bench/run bag_estimate``).  Not a test: it prints a table.  For each storage (mcap, sqlite3) it
-writes a recording of the simulator (``--duration`` s at 1 kHz, with sensor noise: pressure,
-muscle_state and force, 3000 messages/s of bag time) without DDS, then alternates, ``--repeat``
-times, the bare pass (rosbags ``Reader`` + ``deserialize_cdr`` of every message), ``estimate_bag``
-with the shipped DMSP-10-250 config (as ``pma-model bag estimate``, without the progress bar)
-writing only the outputs (``--outputs-only``) and copying
-the recording beside them, and the I/O floor: the same read, and one template WrenchStamped written
-per input message with rosbags' writer (what any estimator writing through rosbags pays with
+Usage: ``.venv/bin/python bench/bag_estimate.py [--quick] [--bag PATH] [--repeat N]
+[--profile N]`` (or ``bench/run bag_estimate``).  Not a test: it prints a table.  For each storage
+(mcap, sqlite3) it writes a recording of the simulator (``--duration`` s at 1 kHz, with sensor
+noise: pressure, muscle_state and force, 3000 messages/s of bag time) without DDS, then
+alternates, ``--repeat`` times, the bare pass (rosbags ``Reader`` + ``deserialize_cdr`` of every
+message), ``estimate_bag`` with the shipped DMSP-10-250 config (as ``pma-model bag estimate``,
+without the progress bar) writing only the outputs (``--outputs-only``) and copying the recording
+beside them, and the I/O floor: the same read, and one template WrenchStamped written per input
+message with rosbags' writer (what any estimator writing through rosbags pays with
 ``--outputs-only``).  It prints messages/s of each (best run, in CPU time of this process) and the
 ratios to the bare pass (issue 20's targets: outputs-only >= 1.0, copying >= 0.6).  Absolute rates
 depend on the machine's load; the ratios, taken within one run, are what to compare.
+``--profile N``: then the N entries of most own time of each estimate under cProfile.
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
 from pathlib import Path
+import pstats
 import shutil
 import tempfile
 import time
@@ -86,6 +89,12 @@ def main() -> None:
         '--repeat', type=int, default=3, help='alternating runs of each pass; the best counts'
     )
     parser.add_argument('--bag', type=Path, help='use this bag instead of simulated recordings')
+    parser.add_argument(
+        '--profile',
+        type=int,
+        metavar='N',
+        help='after the table, the N entries of most own time in a cProfile of each estimate',
+    )
     args = parser.parse_args()
     duration, repeat = (10.0, 1) if args.quick else (args.duration, args.repeat)
     settings = node_settings(read_parameters(CONFIG))
@@ -141,6 +150,16 @@ def main() -> None:
                 for what, width in (('outputs', 14), ('copying', 11), ('floor', 11))
             )
             print(f'{name:<9}{n:>10}{n / best["bare"]:>14,.0f}{cells}', flush=True)
+        for name, bag in bags.items() if args.profile else ():
+            for what, only in (('outputs-only', True), ('copying', False)):
+                out = Path(tmp) / f'profile_{name}_{what}'
+                profile = cProfile.Profile()
+                profile.runcall(
+                    estimate_bag, bag, settings, out, progress=False, outputs_only=only
+                )
+                shutil.rmtree(out)
+                print(f'\n{name}, {what}, under cProfile:')
+                pstats.Stats(profile).sort_stats('tottime').print_stats(args.profile)
 
 
 if __name__ == '__main__':

@@ -22,9 +22,11 @@ except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install wi
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+from bag_reference import csv_rows, per_message, raw_messages, same
 from conftest import CONFIGS
 from pma_model_ros.bags.bag_io import (
     BagWriter,
+    DIAGNOSTIC_ARRAY,
     FLUID_PRESSURE,
     JOINT_STATE,
     read,
@@ -32,7 +34,7 @@ from pma_model_ros.bags.bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
-from pma_model_ros.bags.estimate import estimate_bag
+from pma_model_ros.bags.estimate import CHUNK, estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.hysteresis import branches
@@ -375,82 +377,353 @@ def test_multi_muscle_parameter_file(tmp_path, mode):
     assert {s.name for s in statuses[-1]} == {f'model_node: {n}' for n in names}
 
 
-# --- random recordings: the offline estimate is the node's, message for message
+# --- random recordings: the one pass publishes what the node does, message for message
 # ----------------------------------------------------------------------------------
 
-#: One recorded message: topic, log-time step [ms] (0: same time), stamp - log time [ms] (some
-#: stale, some from the future), value (pressure [kPa gauge], length [m] or force [N]; NaN, out of
-#: range), and whether a JointState names another joint.
-messages_strategy = st.lists(
-    st.tuples(
-        st.sampled_from(['pressure', 'muscle_state', 'pressure', 'muscle_state', 'force_command']),
-        st.sampled_from([0, 1, 1, 2, 5, 150, 1300]),
-        st.sampled_from([0, 0, 0, -1, -2, -120, 80]),
-        st.one_of(
-            st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.sampled_from([math.nan, -2.0, 30.0])
-        ),
-        st.sampled_from([False, False, False, False, True]),
+
+def variant_settings(name: str):
+    """Node settings of the single-muscle variants the random recordings use."""
+    if name == 'martens':
+        return SETTINGS
+    if name == 'hildebrandt gauge':  # its float and array coefficients differ in ulps
+        parameters = read_parameters(CONFIGS['DMSP-10-250'])
+        return node_settings(parameters | {'pressure_reference': 'gauge'}, 'hildebrandt')
+    parameters = read_parameters(CONFIGS['DMSP-10-100'])  # sarosi_hysteresis
+    if name == 'hysteresis by pressure':
+        parameters = parameters | {'hysteresis': {'input': 'pressure'}}
+    return node_settings(parameters)
+
+
+VARIANTS = ('martens', 'hildebrandt gauge', 'hysteresis by length', 'hysteresis by pressure')
+
+#: One recorded message: topic (the node's inputs; a load cell's force and another node's
+#: /diagnostics, which are no inputs), log-time step [ms] (0: same time), stamp - log time [ms]
+#: (some stale, some from the future), value (a unit draw mapped into the muscle's ranges, or NaN
+#: and out of range values), and its form: usual, another joint's JointState, a JointState of two
+#: joints, another frame_id (a new layout), big-endian CDR (the deserializer), an infinite rate,
+#: a zero stamp (a command taken as sent now; an input stale).
+step_strategy = st.tuples(
+    st.sampled_from(['pressure', 'muscle_state'] * 4 + ['force_command'] * 2 + ['force', 'other']),
+    st.sampled_from([0, 1, 1, 1, 2, 5, 150, 1300]),
+    st.sampled_from([0] * 6 + [-1, -2, -120, 80]),
+    st.one_of(*[st.floats(0.0, 1.0)] * 7, st.sampled_from([math.nan, -2.0, 30.0])),
+    st.sampled_from(
+        ['usual'] * 12 + ['other', 'two', 'frame', 'big-endian', 'inf rate', 'unstamped']
     ),
-    min_size=1,
-    max_size=40,
 )
 
 
-def random_bag(path, storage, steps):
-    """A recording of the steps (DMSP-10-250 values from unit draws), with its log times."""
+def warm_up(ticks: int) -> list[tuple]:
+    """``ticks`` ms of a usual pressure and length each (lengths moving to and fro)."""
+    return [
+        (topic, 1 if topic == 'pressure' else 0, 0, 0.1 + 0.08 * ((7 * i) % 11), 'usual')
+        for i in range(ticks)
+        for topic in ('pressure', 'muscle_state')
+    ]
+
+
+#: A recording: a warm-up of up to 15 usual ticks (pairs from the start), then random steps.
+messages_strategy = st.tuples(
+    st.integers(0, 15), st.lists(step_strategy, min_size=1, max_size=40)
+).map(lambda drawn: warm_up(drawn[0]) + drawn[1])
+
+
+def random_bag(path, storage, steps, settings=SETTINGS):
+    """A recording of the steps for the muscle of ``settings`` (values from unit draws)."""
     Vector3, Wrench = T['geometry_msgs/msg/Vector3'], T['geometry_msgs/msg/Wrench']
+    model, joint = settings.config.model, settings.joint_name
+    low, high = model.domain.length_min, model.domain.length_max
+    gauge = settings.config.pressure_reference == 'gauge'
     with BagWriter(path, storage) as bag:
-        conns = {
-            'pressure': bag.topic(f'{NS}/pressure', FLUID_PRESSURE, [SENSOR_DATA]),
-            'muscle_state': bag.topic(f'{NS}/muscle_state', JOINT_STATE, [SENSOR_DATA]),
-            'force_command': bag.topic(f'{NS}/force_command', WRENCH_STAMPED),
+        types = {
+            'pressure': (f'{NS}/pressure', FLUID_PRESSURE),
+            'muscle_state': (f'{NS}/muscle_state', JOINT_STATE),
+            'force_command': (f'{NS}/force_command', WRENCH_STAMPED),
+            'force': (f'{NS}/force', WRENCH_STAMPED),
+            'other': ('/diagnostics', DIAGNOSTIC_ARRAY),
         }
+        conns = {key: bag.topic(name, kind, [SENSOR_DATA]) for key, (name, kind) in types.items()}
         t = START_NS
-        for topic, step, offset, unit, other in steps:
+        for topic, step, offset, unit, form in steps:
             t += step * 10**6
-            stamp = t + offset * 10**6
+            stamp = header(0 if form == 'unstamped' else t + offset * 10**6)
+            if form == 'frame':
+                stamp.frame_id = 'another_frame'
+            usual = 0 <= unit <= 1
             if topic == 'pressure':
-                value = 101325.0 + 9e5 * unit - 1e5 if 0 <= unit <= 1 else unit * 1e5
-                msg = T[FLUID_PRESSURE](header(stamp), value, 0.0)
+                value = (1.2 * unit - 0.15) * model.spec.max_pressure if usual else unit * 1e5
+                msg = T[FLUID_PRESSURE](stamp, value + (0.0 if gauge else 101325.0), 0.0)
             elif topic == 'muscle_state':
-                length = 0.19 + 0.07 * unit if 0 <= unit <= 1 else unit
-                rates = np.array([0.01 * (unit - 0.5)]) if unit == unit else np.array([])
+                length = low + (1.3 * unit - 0.15) * (high - low) if usual else unit
+                rate = [math.inf if form == 'inf rate' else 0.01 * (unit - 0.5)]
+                names = {'other': ['elbow'], 'two': ['elbow', joint]}.get(form, [joint])
+                lengths = [0.2, length] if form == 'two' else [length]
                 msg = T[JOINT_STATE](
-                    header(stamp),
-                    ['elbow' if other else JOINT],
-                    np.array([length]),
-                    rates,
+                    stamp,
+                    names,
+                    np.array(lengths),
+                    np.array(rate * len(names) if unit == unit else []),
                     np.array([]),
                 )
+            elif topic == 'other':  # another node's status
+                status = T['diagnostic_msgs/msg/DiagnosticStatus'](1, 'other: x', 'hm', 'x', [])
+                msg = T[DIAGNOSTIC_ARRAY](stamp, [status])
             else:
                 force = 300 * unit if unit == unit else math.nan
                 msg = T[WRENCH_STAMPED](
-                    header(stamp), Wrench(Vector3(force, 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
+                    stamp, Wrench(Vector3(force, 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
                 )
-            bag.write(conns[topic], t, msg)
+            kind = types[topic][1]
+            data = TYPESTORE.serialize_cdr(msg, kind, little_endian=form != 'big-endian')
+            bag.write_raw(conns[topic], t, data)
     return path
 
 
+@pytest.mark.parametrize('outputs_only', [True, False], ids=['outputs-only', 'copying'])
+@pytest.mark.parametrize('pairing', ['every_input', 'approximate_time'])
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
-@given(steps=messages_strategy)
-def test_random_recordings_estimate_as_the_node_message_by_message(tmp_path_factory, steps):
+@given(
+    steps=messages_strategy,
+    storage=st.sampled_from(['mcap', 'sqlite3']),
+    variant=st.sampled_from(VARIANTS),
+    chunk=st.sampled_from([3, 10, CHUNK]),
+)
+def test_random_recordings_published_as_the_node_message_by_message(
+    tmp_path_factory, pairing, outputs_only, steps, storage, variant, chunk
+):
     """Random interleavings of pressure, muscle_state and force_command, with gaps (up to 1.3 s:
-    the 1 Hz status between), stale and future stamps and bad messages (NaN, out of range, another
-    joint): every force estimate and pressure command of ``bag estimate --outputs-only`` is the
-    one the engine gives the rosbags-deserialized messages in log order, and the counters agree.
+    the 1 Hz status between), stale and future stamps, bad messages (NaN, out of range, another
+    joint) and unusual bytes (a new layout, big-endian): ``bag estimate``'s output bag holds what
+    the node's callbacks publish message by message (:mod:`bag_reference`), byte for byte and in
+    the same order: estimates, commands, every /diagnostics status (levels, texts, counters,
+    rates), the copies; the same counters and CSV rows.  Four muscles: martens; hildebrandt with a
+    gauge sensor; a hysteresis model following the length, and one following the pressure.  The
+    recording is decided in stretches of 3, 10 or all messages (the state carries over).
     """
     tmp = tmp_path_factory.mktemp('bag')
-    bag = random_bag(tmp / 'in', 'sqlite3', steps)
-    summary = estimate_bag(bag, SETTINGS, tmp / 'out', progress=False, outputs_only=True)
-    expected, commands, counts = node_reference(bag)
-    got = {'estimates': [], 'commands': []}
-    for topic, time_ns, msg in read(tmp / 'out'):
-        if topic.endswith('force_estimate'):
-            stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
-            got['estimates'].append((time_ns, stamp, msg.wrench.force.x))
-        elif topic.endswith('pressure_command'):
-            got['commands'].append((time_ns, msg.fluid_pressure))
-        else:
-            assert topic == '/diagnostics', topic  # outputs only: no copied inputs
-    assert got == {'estimates': expected, 'commands': commands}
+    chosen = variant_settings(variant)
+    bag = random_bag(tmp / 'in', storage, steps, chosen)
+    slop = 0.0015
+    summary = estimate_bag(
+        bag,
+        chosen,
+        tmp / 'out',
+        csv=tmp / 'est.csv',
+        progress=False,
+        outputs_only=outputs_only,
+        pairing=pairing,
+        slop=slop,
+        chunk=chunk,
+    )
+    want, rows, counts = per_message(
+        bag, [chosen], NS, outputs_only=outputs_only, pairing=pairing, slop=slop
+    )
+    got = raw_messages(tmp / 'out')
+    assert [m[:2] for m in got] == [m[:2] for m in want]  # topics and log times, in order
+    assert got == want  # and every byte
     assert summary.counts == counts
+    assert summary.estimates == len(rows)
+    got_rows = csv_rows(tmp / 'est.csv')
+    assert len(got_rows) == len(rows)
+    for a, b in zip(got_rows, rows):
+        assert a[:2] == b[:2] and a[5:] == b[5:] and all(map(same, a[2:5], b[2:5])), (a, b)
+
+
+#: One message of a four-muscle recording: topic, log-time step [ms], stamp - log time [ms], a
+#: unit draw per muscle, the form (combined JointStates: all muscles in order, some, shuffled, an
+#: extra joint, mismatched arrays, empty; a muscle's own topic: usual, another joint,
+#: big-endian), and which muscle (its own topic; the one a combined 'some' leaves out).
+multi_step_strategy = st.tuples(
+    st.sampled_from(['pressure', 'muscle_state'] * 2 + ['force_command']),
+    st.sampled_from([0, 1, 1, 1, 2, 150, 1300]),
+    st.sampled_from([0] * 6 + [-2, -120, 80]),
+    st.lists(
+        st.one_of(*[st.floats(0.0, 1.0)] * 9, st.sampled_from([math.nan, -2.0, 30.0])),
+        min_size=4,
+        max_size=4,
+    ),
+    st.sampled_from(['all'] * 8 + ['some', 'shuffled', 'extra', 'mismatched', 'empty']),
+    st.integers(0, 3),
+)
+
+
+def multi_warm_up(ticks: int) -> list[tuple]:
+    """``ticks`` ms of usual pressures and lengths of every muscle."""
+    return [
+        (t, 1 if t == 'pressure' else 0, 0, [0.1 + 0.08 * ((7 * i + k) % 11) for k in range(4)])
+        + ('all', i % 4)
+        for i in range(ticks)
+        for t in ('pressure', 'muscle_state')
+    ]
+
+
+def random_multi_bag(path, storage, steps, settings, names, combined):
+    """A recording of the steps for the muscles of ``settings`` (named ``names``)."""
+    Vector3, Wrench = T['geometry_msgs/msg/Vector3'], T['geometry_msgs/msg/Wrench']
+    models = [s.config.model for s in settings]
+    joints = [s.joint_name for s in settings]
+    with BagWriter(path, storage) as bag:
+        if combined:
+            conns = {
+                t: bag.topic(f'{NS}/{name}', JOINT_STATE, [SENSOR_DATA])
+                for t, name in (
+                    ('pressure', 'muscle_pressures'),
+                    ('muscle_state', 'muscle_states'),
+                    ('force_command', 'force_commands'),
+                )
+            }
+        else:
+            conns = {
+                (t, k): bag.topic(f'{NS}/{n}/{t}', kind, [SENSOR_DATA])
+                for k, n in enumerate(names)
+                for t, kind in (
+                    ('pressure', FLUID_PRESSURE),
+                    ('muscle_state', JOINT_STATE),
+                    ('force_command', WRENCH_STAMPED),
+                )
+            }
+        t = START_NS
+        for topic, step, offset, units, form, which in steps:
+            t += step * 10**6
+            values = []
+            for model, unit in zip(models, units):
+                usual = 0 <= unit <= 1
+                if topic == 'pressure':
+                    gauge = (1.2 * unit - 0.15) * model.spec.max_pressure
+                    values.append(101325.0 + gauge if usual else unit * 1e5)
+                elif topic == 'muscle_state':
+                    low, high = model.domain.length_min, model.domain.length_max
+                    values.append(low + (1.3 * unit - 0.15) * (high - low) if usual else unit)
+                else:
+                    values.append(300 * unit if unit == unit else math.nan)
+            rates = [0.01 * (u - 0.5) if u == u else math.inf for u in units]
+            if combined:
+                order = list(range(4))
+                if form == 'some':
+                    order.remove(which)
+                elif form == 'shuffled':
+                    order = order[which:] + order[:which]
+                names_out = [joints[k] for k in order] + (['elbow'] if form == 'extra' else [])
+                numbers = [values[k] for k in order] + ([0.1] if form == 'extra' else [])
+                speeds = [rates[k] for k in order] + ([0.0] if form == 'extra' else [])
+                if form == 'mismatched':
+                    numbers = numbers[:-1]
+                if form == 'empty':
+                    names_out, numbers, speeds = [], [], []
+                empty = np.array([])
+                fields = {
+                    'pressure': (np.array(numbers), empty, empty),
+                    'muscle_state': (np.array(numbers), np.array(speeds), empty),
+                    'force_command': (empty, empty, np.array(numbers)),
+                }[topic]
+                msg = T[JOINT_STATE](header(t + offset * 10**6), names_out, *fields)
+                bag.write(conns[topic], t, msg)
+                continue
+            k = which
+            stamp = header(t + offset * 10**6)
+            if topic == 'pressure':
+                msg = T[FLUID_PRESSURE](stamp, values[k], 0.0)
+            elif topic == 'muscle_state':
+                joint = 'elbow' if form == 'extra' else joints[k]
+                msg = T[JOINT_STATE](
+                    stamp, [joint], np.array([values[k]]), np.array([rates[k]]), np.array([])
+                )
+            else:
+                msg = T[WRENCH_STAMPED](
+                    stamp, Wrench(Vector3(values[k], 0.0, 0.0), Vector3(0.0, 0.0, 0.0))
+                )
+            kind = {'pressure': FLUID_PRESSURE, 'muscle_state': JOINT_STATE}.get(
+                topic, WRENCH_STAMPED
+            )
+            data = TYPESTORE.serialize_cdr(msg, kind, little_endian=form != 'mismatched')
+            bag.write_raw(conns[topic, k], t, data)
+
+
+@pytest.mark.parametrize('pairing', ['every_input', 'approximate_time'])
+@pytest.mark.parametrize('mode', ['combined', 'per_muscle'])
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@given(
+    ticks=st.integers(0, 10),
+    steps=st.lists(multi_step_strategy, min_size=1, max_size=30),
+    storage=st.sampled_from(['mcap', 'sqlite3']),
+    outputs_only=st.booleans(),
+    chunk=st.sampled_from([5, CHUNK]),
+)
+def test_random_multi_muscle_recordings_published_as_the_node_message_by_message(
+    tmp_path_factory, mode, pairing, ticks, steps, storage, outputs_only, chunk
+):
+    """Four muscles of the example file (martens, hildebrandt, and a hysteresis model), in both
+    input modes: random JointStates of every muscle (some missing, shuffled, an extra joint,
+    mismatched or empty arrays) or each muscle's own topics (another joint, big-endian): the
+    output bag is the node's, byte for byte and in order; the same counters and CSV rows.
+    """
+    from pma_model_ros.core.param_file import all_node_settings
+
+    tmp = tmp_path_factory.mktemp('bag')
+    parameters = read_parameters(EXAMPLE)
+    names, combined = parameters['muscles'], mode == 'combined'
+    chosen = all_node_settings(parameters)
+    random_multi_bag(tmp / 'in', storage, multi_warm_up(ticks) + steps, chosen, names, combined)
+    slop = 0.0015
+    summary = estimate_bag(
+        tmp / 'in',
+        chosen,
+        tmp / 'out',
+        names=names,
+        combined=combined,
+        csv=tmp / 'est.csv',
+        progress=False,
+        outputs_only=outputs_only,
+        pairing=pairing,
+        slop=slop,
+        chunk=chunk,
+    )
+    want, rows, counts = per_message(
+        tmp / 'in',
+        chosen,
+        NS,
+        names,
+        combined,
+        outputs_only=outputs_only,
+        pairing=pairing,
+        slop=slop,
+    )
+    got = raw_messages(tmp / 'out')
+    assert [m[:2] for m in got] == [m[:2] for m in want]
+    assert got == want
+    assert summary.counts == counts
+    assert summary.estimates == len(rows)
+    got_rows = csv_rows(tmp / 'est.csv')
+    assert len(got_rows) == len(rows)
+    for a, b in zip(got_rows, rows):
+        assert a[:2] == b[:2] and a[5:] == b[5:] and all(map(same, a[2:5], b[2:5])), (a, b)
+
+
+def test_pairing_comes_from_the_parameter_file(tmp_path):
+    """``pairing: approximate_time`` in the parameter file: bag estimate pairs as that node does
+    (one estimate per tick of the simulator, whose pressure and length share a stamp), not every
+    input.
+    """
+    bag = record_simulation(tmp_path / 'sim.mcap', 1.0, '/m1', rate=100.0)
+    text = CONFIGS['DMSP-10-250'].read_text()
+    config = tmp_path / 'approximate.yaml'
+    config.write_text(
+        text.replace(
+            '    max_input_age: 0.1\n',
+            '    max_input_age: 0.1\n    pairing: approximate_time\n    pairing_slop: 0.001\n',
+        )
+    )
+    assert config.read_text() != text
+    words = {}
+    for name, path in (('every', CONFIGS['DMSP-10-250']), ('approximate', config)):
+        proc = subprocess.run(
+            [sys.executable, '-m', 'pma_model_ros.cli', 'bag', 'estimate', str(bag)]
+            + ['--config', str(path), '--out', str(tmp_path / name), '--outputs-only'],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert proc.returncode == 0, proc.stderr
+        words[name] = proc.stdout
+    assert 'wrote 199 force_estimate' in words['every']
+    assert 'wrote 100 force_estimate' in words['approximate']

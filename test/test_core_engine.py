@@ -424,6 +424,23 @@ def test_status_due_after_a_steady_stretch(martens_10_250):
     assert engine.level(0, ns(now))[1].startswith('stale muscle_state')
 
 
+def test_status_due_when_a_fresh_but_older_stamp_goes_stale(martens_10_250):
+    """Levels reported OK; a pressure arrives fresh but with a stamp older than those seen at the
+    check: when it goes stale the change is due at once, not only at the next 1 Hz report.
+    """
+    engine = Engine([Config(martens_10_250, AMBIENT, 0.1)], hold=1.0)
+    feed_pressure(engine, AMBIENT + P, stamp=10.0, now=10.0)
+    feed_length(engine, L, None, stamp=10.0, now=10.0)
+    assert engine.status_due(ns(10.0))
+    engine.statuses(ns(10.0))
+    assert not engine.status_due(ns(10.001))  # every level reported OK, nothing happened since
+    feed_pressure(engine, AMBIENT + P, stamp=9.952, now=10.002)  # 50 ms old: fresh
+    assert not engine.status_due(ns(10.002))
+    feed_length(engine, L, None, stamp=10.06, now=10.06)  # the pressure is now 108 ms old
+    assert engine.levels(ns(10.06)).tolist() == [Level.ERROR]
+    assert engine.status_due(ns(10.06))
+
+
 def test_on_change_reports_wait_for_the_report_interval(martens_10_250):
     engine = Engine([Config(martens_10_250, AMBIENT, 0.1)], report_interval=0.1)
     feed_length(engine, L, 0.0, stamp=1.0, now=1.0)

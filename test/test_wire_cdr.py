@@ -21,7 +21,9 @@ from pma_model_ros.wire.cdr import (
     stamped_float,
     wrench_stamped,
 )
+from pma_model_ros.wire.columns import joint_columns, stamped_floats
 from pma_model_ros.wire.joint_state import JointIndex, JointStateArrays, JointStateReader
+from pma_model_ros.wire.muscle_inputs import stamped_value
 
 EXAMPLES = 300
 #: Names and frame_ids of every length mod 4 (padding 0..3 bytes), non-ASCII included.
@@ -232,3 +234,150 @@ def test_garbage_in_the_padding_keeps_the_cached_layout(msg, garbage, data):
     got = reader(bytes(dirty))
     same(got, deserialize_message(bytes(dirty), JointState))
     assert (reader.decoded, reader.fast) == (1, 1)
+
+
+# --- many messages at once (bag estimate): what reading each one gives
+# ----------------------------------------------------------------------
+
+
+rate_values = st.one_of(floats, st.sampled_from([math.inf, -math.inf, math.nan]))
+
+
+@st.composite
+def usual_joint_states(draw):
+    """Messages (JointState) whose arrays mostly match the names (velocity sometimes empty)."""
+    names = draw(st.lists(texts, max_size=5, unique=True))
+    n = len(names)
+    sizes = st.sampled_from([n, n, n, 0, n + 1])
+    msg = JointState(
+        name=names,
+        position=draw(st.lists(floats, min_size=(k := draw(sizes)), max_size=k)),
+        velocity=draw(st.lists(rate_values, min_size=(k := draw(sizes)), max_size=k)),
+        effort=draw(st.lists(floats, min_size=(k := draw(sizes)), max_size=k)),
+    )
+    msg.header.frame_id = draw(texts)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = draw(stamps)
+    return msg
+
+
+def big_endian(msg) -> bytes:
+    """``msg`` (an rclpy JointState, FluidPressure or WrenchStamped) as big-endian CDR, which the
+    fast readers leave to the deserializer.
+    """
+    T = TYPESTORE.types
+    header = T['std_msgs/msg/Header'](
+        T['builtin_interfaces/msg/Time'](msg.header.stamp.sec, msg.header.stamp.nanosec),
+        msg.header.frame_id,
+    )
+    if isinstance(msg, JointState):
+        kind = JOINT_STATE
+        arrays = [np.array(getattr(msg, f), float) for f in ('position', 'velocity', 'effort')]
+        ours = T[kind](header, list(msg.name), *arrays)
+    elif isinstance(msg, FluidPressure):
+        kind = 'sensor_msgs/msg/FluidPressure'
+        ours = T[kind](header, msg.fluid_pressure, msg.variance)
+    else:
+        kind = 'geometry_msgs/msg/WrenchStamped'
+        vector = T['geometry_msgs/msg/Vector3']
+        wrench = T['geometry_msgs/msg/Wrench'](
+            vector(msg.wrench.force.x, 0.0, 0.0), vector(0.0, 0.0, 0.0)
+        )
+        ours = T[kind](header, wrench)
+    return bytes(TYPESTORE.serialize_cdr(ours, kind, little_endian=False))
+
+
+@settings(max_examples=EXAMPLES // 2, deadline=None, derandomize=True, database=None)
+@given(
+    first=usual_joint_states(),
+    stream=st.lists(
+        st.tuples(st.sampled_from(['repeat'] * 3 + ['new', 'big-endian']), usual_joint_states()),
+        min_size=2,
+        max_size=12,
+    ),
+    extra=st.lists(texts, max_size=2),
+    field=st.sampled_from(['position', 'effort']),
+    data=st.data(),
+)
+def test_joint_columns_equal_reading_each_message(first, stream, extra, field, data):
+    """Messages (JointState) of repeated layouts (new numbers and stamps), new layouts and
+    big-endian ones, read at once for some joints (named in the messages or not): the same stamps,
+    values, rates, which joints each gives and why not, as the per-message reader and index give
+    each.
+    """
+    messages, previous = [], first
+    for form, msg in [('new', first), *stream]:
+        if form == 'repeat':
+            msg.name, msg.header.frame_id = previous.name, previous.header.frame_id
+            for f in ('position', 'velocity', 'effort'):
+                old = getattr(previous, f)
+                kind = rate_values if f == 'velocity' else floats
+                setattr(msg, f, data.draw(st.lists(kind, min_size=len(old), max_size=len(old))))
+        messages.append(big_endian(msg) if form == 'big-endian' else serialize_message(msg))
+        previous = msg
+    names = sorted({n for msg in [first] + [m for _, m in stream] for n in msg.name})
+    joints = list(
+        dict.fromkeys(
+            data.draw(st.lists(st.sampled_from(names), min_size=1, max_size=3)) if names else []
+        )
+    )
+    joints = list(dict.fromkeys(joints + extra)) or ['j']
+
+    def deserialize(raw):
+        return deserialize_message(raw, JointState)
+
+    got = joint_columns(messages, joints, field, deserialize)
+    reader, index = JointStateReader(deserialize), JointIndex(joints, field)
+    for i, raw in enumerate(messages):
+        msg = reader(raw)
+        take, present, problems = index.of(msg)
+        assert got.stamps[i] == msg.stamp
+        assert got.present[i].tolist() == (
+            present.tolist() if present is not None else [True] * len(joints)
+        )
+        assert got.named[i].tolist() == [j in msg.names for j in joints]
+        assert got.problems[i] == (problems if present is not None else [])
+        here = got.present[i]
+        values = getattr(msg, field)[take][here] if here.any() else []
+        np.testing.assert_array_equal(got.values[i][here], values)
+        if field == 'position' and here.any():
+            rates = msg.velocity[take][here] if len(msg.velocity) else np.full(here.sum(), np.nan)
+            np.testing.assert_array_equal(
+                got.rates[i][here], np.where(np.isfinite(rates), rates, np.nan)
+            )
+
+
+@settings(max_examples=EXAMPLES // 2, deadline=None, derandomize=True, database=None)
+@given(
+    stream=st.lists(
+        st.tuples(texts, floats, stamps, st.sampled_from(['le'] * 4 + ['big-endian'])),
+        min_size=1,
+        max_size=10,
+    ),
+    kind=st.sampled_from(['FluidPressure', 'WrenchStamped']),
+)
+def test_stamped_floats_equal_reading_each_message(stream, kind):
+    """Messages (FluidPressure or WrenchStamped) of any frame_ids (padding), stamps and values,
+    some big-endian: read at once, the stamps and values that reading each gives.
+    """
+    cls, field = {
+        'FluidPressure': (FluidPressure, 'fluid_pressure'),
+        'WrenchStamped': (WrenchStamped, 'force'),
+    }[kind]
+    messages = []
+    for frame, value, stamp, form in stream:
+        msg = cls()
+        msg.header.frame_id = frame
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+        if cls is FluidPressure:
+            msg.fluid_pressure = value
+        else:
+            msg.wrench.force.x = value
+        messages.append(big_endian(msg) if form == 'big-endian' else serialize_message(msg))
+
+    def deserialize(raw):
+        return deserialize_message(raw, cls)
+
+    stamps_got, values_got = stamped_floats(messages, deserialize, field)
+    expected = [stamped_value(raw, deserialize, field) for raw in messages]
+    assert stamps_got.tolist() == [s for s, _ in expected]
+    np.testing.assert_array_equal(values_got, [v for _, v in expected])

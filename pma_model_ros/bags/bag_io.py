@@ -28,7 +28,7 @@ from pathlib import Path
 import shutil
 import struct
 import tempfile
-from typing import Collection, Iterable, Iterator
+from typing import Collection, Iterable, Iterator, Sequence
 
 import apsw  # rosbags' SQLite binding
 from rosbags.interfaces import (
@@ -332,6 +332,16 @@ class BagWriter:
     def write_raw(self, connection: Connection, time_ns: int, data: bytes | memoryview) -> None:
         """Write one already serialized (CDR) message at log time ``time_ns``."""
         self._writer.write(connection, time_ns, data)
+
+    def write_many(
+        self, connections: Sequence[Connection], times: Sequence[int], data: Sequence[bytes]
+    ) -> None:
+        """Write already serialized messages, in this order: ``data[i]`` of ``connections[i]``
+        at log time ``times[i]``.
+        """
+        write = self._writer.write
+        for connection, time_ns, raw in zip(connections, times, data):
+            write(connection, time_ns, raw)
 
     def close(self) -> Path:
         """Finish the bag and move it to ``out``; the path."""

@@ -16,7 +16,7 @@ from typing import Iterator
 
 from ..core.force_map import ForceMap
 from ..core.geometry import MuscleSpec
-from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
+from ..core.node_parameters import PRESSURE_REFERENCES, SPECS, STANDARD_ATMOSPHERE
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
@@ -125,6 +125,10 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
     if args.pressure_reference:
         parameters['pressure_reference'] = args.pressure_reference
     settings = all_node_settings(parameters, args.model)
+    pairing = {  # node-wide, as model_node reads them
+        key: SPECS[name].check(parameters.get(name, SPECS[name].default))
+        for key, name in (('pairing', 'pairing'), ('slop', 'pairing_slop'))
+    }
     with replacing(Path(args.out)) as out:
         summary = estimate_bag(
             args.bag,
@@ -136,6 +140,7 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
             namespace=args.namespace,
             csv=args.csv,
             outputs_only=args.outputs_only,
+            **pairing,
         )
     rejected = sum(n for key, n in summary.counts.items() if key.startswith('rejected'))
     print(

@@ -64,6 +64,28 @@ OK_TEXT = 'estimating'
 REPORT_INTERVAL_PER_STATUS = 0.0015
 
 
+def levels_of(
+    now: np.ndarray | int,
+    rejected_at: np.ndarray,
+    stamps: np.ndarray,
+    warned_at: np.ndarray,
+    hold: int,
+    max_age: int,
+) -> np.ndarray:
+    """Levels (int8) at ``now`` [ns] of entities whose latest rejection was at ``rejected_at``,
+    whose inputs' newest stamps are ``stamps`` (one row per input) and whose latest warning was at
+    ``warned_at`` [ns; NEVER: none] (arrays that broadcast: entities, or one entity at many times).
+    """
+    error = (now - rejected_at < hold) | ~fresh(stamps, now, max_age).all(axis=0)
+    warn = now - warned_at < hold
+    return np.where(error, np.int8(Level.ERROR), warn.view(np.int8))
+
+
+def invalid_text(reason: str) -> str:
+    """``invalid input: <reason>``: what a refused input latches for ``hold``."""
+    return f'invalid input: {reason}'
+
+
 def stale_text(name: str, which: str, age: int, max_age: int) -> str:
     """``stale <name>: <which> is <age> s old (max_input_age <max_age> s)`` (ages [ns]; a negative
     age: ``in the future``).
@@ -149,6 +171,9 @@ class Health:
         delay = (now - stamp) / SECOND
         if abs(now - stamp) > self.max_age:  # a stale input: the levels may have changed
             self._steady = False
+        elif self._steady:  # a fresh one stays fresh while now lies within max_age of it
+            self._checked_at = max(self._checked_at, stamp - self.max_age)
+            self._fresh_until = min(self._fresh_until, stamp + self.max_age)
         if which is None:
             self._arrivals_all[i] += 1
             low_high = self._delay_all[i]
@@ -164,11 +189,7 @@ class Health:
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
-        self._rejected_at[k], self._latched[k], self._steady = (
-            now,
-            f'invalid input: {reason}',
-            False,
-        )
+        self._rejected_at[k], self._latched[k], self._steady = now, invalid_text(reason), False
 
     def stale_command(self, k: int, name: str, stamp: int, now: int) -> bool:
         """Whether a command ``name`` of entity ``k`` stamped ``stamp`` [ns] is stale: its stamp
@@ -204,11 +225,14 @@ class Health:
     # --- levels and reports
     def levels(self, now: int) -> np.ndarray:
         """Every entity's level."""
-        error = (now - self._rejected_at < self.hold) | ~fresh(self.stamps, now, self.max_age).all(
-            axis=0
+        return levels_of(
+            now,
+            self._rejected_at,
+            self.stamps,
+            self._warned_at.max(axis=1),
+            self.hold,
+            self.max_age,
         )
-        warn = now - self._warned_at.max(axis=1) < self.hold
-        return np.where(error, int(Level.ERROR), warn.view(np.int8))
 
     def level(self, k: int, now: int) -> tuple[Level, str]:
         """Entity ``k``'s level and its one-line reason."""
@@ -225,6 +249,29 @@ class Health:
                 sorted({text for text, at in zip(_WARN_TEXTS, warned) if now - at < self.hold})
             )
         return Level.OK, OK_TEXT
+
+    def restore(
+        self,
+        k: int,
+        counts: Sequence[int],
+        arrivals: Sequence[int],
+        delays: Sequence[tuple[float, float]],
+        rejected: tuple[int, str],
+        warned_at: Sequence[int],
+    ) -> None:
+        """Set entity ``k``'s events as counted elsewhere (``bag estimate``'s pass over a whole
+        recording), before :meth:`report`: its ``counts`` (in the order of the labels), valid
+        ``arrivals`` of each input since start-up, the (earliest, latest) delay [s] of each input
+        since the last report ((inf, -inf): none), its latest refused input or command (time [ns],
+        the text it latches: :func:`invalid_text` or :func:`stale_text`) and the latest time [ns]
+        each warning flag was raised (NEVER: never).  :attr:`stamps` is its owner's.
+        """
+        self._counts[k][:] = counts
+        for i, (n, (low, high)) in enumerate(zip(arrivals, delays)):
+            self._arrivals[i][k], self._delay_min[i][k], self._delay_max[i][k] = n, low, high
+        self._rejected_at[k], self._latched[k] = rejected
+        self._warned_at[k] = warned_at
+        self._steady = False
 
     def due(self, now: int) -> bool:
         """Whether a level differs from the last report, and ``report_interval`` has passed since

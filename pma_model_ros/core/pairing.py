@@ -13,7 +13,10 @@ input's header stamp, ``now`` the clock when it is taken.  An input is fresh whi
 A pair with a stale input gives no estimate (``stale``).  The rules are written twice, pinned equal
 by ``test/test_core_engine.py``: over arrays of every muscle (:meth:`Pairing.pair`; an input of
 every muscle at one stamp is kept as one number, so that its freshness is one comparison) and in
-plain integers for one muscle (:meth:`Pairing.pair_one`, the one-muscle fast path).
+plain integers for one muscle (:meth:`Pairing.pair_one`, the one-muscle fast path).  Over a whole
+recording, ``every_input`` is one array expression (:func:`pair_every_input`), pinned to the
+engine by ``test/test_bags_estimate.py``; ``approximate_time`` runs :meth:`Pairing.pair_one`
+along the stream.
 """
 
 from __future__ import annotations
@@ -39,6 +42,18 @@ def nanoseconds(seconds: float) -> int:
 def fresh(stamps: np.ndarray, now: int, max_age: int) -> np.ndarray:
     """Which ``stamps`` [ns] are fresh at ``now`` [ns]: |now - stamp| <= ``max_age`` [ns]."""
     return np.abs(now - stamps) <= max_age
+
+
+def pair_every_input(
+    p: np.ndarray, length: np.ndarray, now: np.ndarray, max_age: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``every_input`` over a stream of one muscle's valid inputs (``bag estimate``'s pass over a
+    whole recording): with ``p`` and ``length`` the newest valid stamps [ns] after each input,
+    taken at ``now`` [ns], (which estimate, which had a stale input).
+    """
+    candidates = (p != NEVER) & (length != NEVER)
+    ok = fresh(p, now, max_age) & fresh(length, now, max_age)
+    return candidates & ok, candidates & ~ok
 
 
 class Pairing:

@@ -115,13 +115,29 @@ class Template:
     """
 
     def __init__(self, writer: CdrWriter, at: int, count: int) -> None:
-        self._buffer = writer.data
+        self._buffer, self._at = writer.data, at
         self.values = np.frombuffer(self._buffer, np.float64, count, at)
 
     def __call__(self, stamp: int) -> bytes:
         """The message bytes stamped ``stamp`` [ns], with the current ``values``."""
         _STAMP.pack_into(self._buffer, 4, *split(stamp))
         return bytes(self._buffer)
+
+    def batch(self, stamps: np.ndarray, values: np.ndarray) -> list[bytes]:
+        """The messages stamped ``stamps`` [ns] (n) with ``values`` (n x len(values)): what n
+        calls give, written at once.
+        """
+        size, at = len(self._buffer), self._at
+        rows = np.empty((len(stamps), size), np.uint8)
+        rows[:] = np.frombuffer(self._buffer, np.uint8)
+        sec, nanosec = np.divmod(np.asarray(stamps, np.int64), _SECOND)
+        rows[:, 4:8] = sec.astype('<i4').view(np.uint8).reshape(-1, 4)
+        rows[:, 8:12] = nanosec.astype('<u4').view(np.uint8).reshape(-1, 4)
+        width = 8 * self.values.size
+        flat = np.ascontiguousarray(values, '<f8').reshape(len(stamps), self.values.size)
+        rows[:, at : at + width] = flat.view(np.uint8).reshape(-1, width)
+        data = rows.tobytes()
+        return [data[i : i + size] for i in range(0, len(data), size)]
 
     def unstamped(self) -> bytes:
         """The bytes of a message without a header, with the current ``values``."""

@@ -90,6 +90,65 @@ class JointStateReader:
         stamp = msg.header.stamp
         return JointStateArrays(stamp_ns(stamp.sec, stamp.nanosec), names, *arrays)
 
+    @property
+    def names(self) -> list[str] | None:
+        """The names of the cached layout (None: none yet)."""
+        return None if self._layout is None else self._layout.names
+
+    def read_many(
+        self, joined: np.ndarray, starts: np.ndarray, sizes: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]] | None:
+        """The messages of ``joined`` (the bytes of many messages, uint8) at ``starts``, of
+        ``sizes`` bytes, read at once where they have the cached layout, as a call each would read
+        them: (which have it, their stamps [ns], their position, velocity and effort rows); None
+        without a layout.
+        """
+        layout = self._layout
+        if layout is None:
+            return None
+        ok = sizes >= layout.end
+        if not ok.any():  # (then ``joined`` may be shorter than the layout)
+            none = np.zeros((0, 0))
+            return ok, np.zeros(0, np.int64), [none, none, none]
+        base = np.where(ok, starts, 0)
+        ok &= (joined[base] == LITTLE_ENDIAN[0]) & (joined[base + 1] == LITTLE_ENDIAN[1])
+        mask = layout.mask.to_bytes(len(layout.key), 'little')
+        ok &= _equal_rows(joined, base + 12, layout.key, mask)
+        for at, raw in layout.counts:
+            ok &= _equal_rows(joined, base + at, raw)
+        rows = base[ok]
+        self.fast += len(rows)
+        sec = gather(joined, rows + 4, 4).view('<i4').ravel()
+        nanosec = gather(joined, rows + 8, 4).view('<u4').ravel()
+        stamps = sec.astype(np.int64) * 1_000_000_000 + nanosec
+        arrays = [gather(joined, rows + at, 8 * n).view('<f8') for at, n in layout.arrays]
+        return ok, stamps, arrays
+
+
+def gather(joined: np.ndarray, at: np.ndarray, width: int) -> np.ndarray:
+    """The ``width`` bytes at each offset ``at`` of ``joined`` (uint8): rows of a new array."""
+    return joined[at[:, None] + np.arange(width)] if width else np.zeros((len(at), 0), np.uint8)
+
+
+#: Bytes compared per step in :func:`_equal_rows` (bounds its temporary arrays).
+_BLOCK_BYTES = 1 << 22
+
+
+def _equal_rows(joined: np.ndarray, at: np.ndarray, expected: bytes, mask: bytes | None = None):
+    """Which of the byte strings at offsets ``at`` of ``joined`` equal ``expected``, on the bytes
+    where ``mask`` (as long, 0 or 0xff each; None: all) is set.
+    """
+    want = np.frombuffer(expected, np.uint8)
+    keep = np.ones(len(want), bool) if mask is None else np.frombuffer(mask, np.uint8) != 0
+    columns = np.arange(len(want))[keep]
+    want = want[keep]
+    out = np.empty(len(at), bool)
+    step = max(1, _BLOCK_BYTES // max(1, len(columns)))
+    for start in range(0, len(at), step):
+        rows = at[start : start + step]
+        out[start : start + step] = (joined[rows[:, None] + columns] == want).all(axis=1)
+    return out
+
 
 def _learn(
     data: bytes, frame_id: str, names: list[str], arrays: list[np.ndarray]
