@@ -92,6 +92,15 @@ def lines_of_failed_start(cmd: list[str]) -> list[str]:
     return (run.stdout + run.stderr).strip().splitlines()
 
 
+def edited_copy(source: Path, tmp_path: Path, old: str, new: str) -> Path:
+    """A copy of ``source`` in ``tmp_path`` with its one ``old`` text replaced by ``new``."""
+    text = source.read_text()
+    assert old in text, (source, old)
+    path = tmp_path / source.name
+    path.write_text(text.replace(old, new))
+    return path
+
+
 def docstring_yaml(module) -> dict:
     """The ``ros__parameters`` of the YAML example in ``module``'s docstring (the block after
     ``::``).
@@ -253,6 +262,35 @@ class Ros:
             period=1.0,
         )
         return next(f for f in futures if f.done()).result()
+
+
+@pytest.fixture
+def private_node():
+    """A factory of in-process nodes, each on its own Context (as rclpy's own tests), destroyed
+    after the test: ``make(cls, *ros_args, overrides=None, **kwargs)`` initialises a Context with
+    ``--ros-args *ros_args`` and returns ``cls(context=..., **kwargs)``, ``overrides`` (a dict)
+    as its ``parameter_overrides``.  A constructor that raises leaves its Context to be shut down.
+    """
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    made = []
+
+    def make(cls, *ros_args, overrides: dict | None = None, **kwargs):
+        context = rclpy.Context()
+        rclpy.init(context=context, args=['--ros-args', *map(str, ros_args)])
+        made.append((context, []))
+        if overrides:
+            kwargs['parameter_overrides'] = [Parameter(k, value=v) for k, v in overrides.items()]
+        node = cls(context=context, **kwargs)
+        made[-1][1].append(node)
+        return node
+
+    yield make
+    for context, nodes in reversed(made):
+        for node in nodes:
+            node.destroy_node()
+        rclpy.shutdown(context=context)
 
 
 @pytest.fixture

@@ -3,7 +3,6 @@ ranges.
 """
 
 import pytest
-import rclpy
 
 from conftest import CONFIGS, REPO
 from pma_model_ros.core.engine import Config
@@ -32,20 +31,14 @@ def test_core_checks_the_table_ranges(martens_10_250, name, inside, outside):
             Config(martens_10_250, **{name: value})
 
 
-def test_node_declares_each_row_with_its_range_and_flags():
+def test_node_declares_each_row_with_its_range_and_flags(private_node):
     from pma_model_ros.nodes.model_node import ModelNode
 
-    context = rclpy.Context()
-    rclpy.init(context=context, args=['--ros-args', '--params-file', str(CONFIGS['DMSP-10-250'])])
-    node = ModelNode(context=context)
-    try:
-        names = [p.name for p in PARAMETERS if '<' not in p.name and p.name != 'executor']
-        for spec, described in zip([SPECS[n] for n in names], node.describe_parameters(names)):
-            ranges = [(r.from_value, r.to_value) for r in described.floating_point_range]
-            assert ranges == ([spec.limits] if spec.limits else []), spec.name
-            assert described.read_only == spec.read_only and described.description.startswith(
-                spec.description
-            )
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
+    node = private_node(ModelNode, '--params-file', CONFIGS['DMSP-10-250'])
+    names = [p.name for p in PARAMETERS if '<' not in p.name and p.name != 'executor']
+    for spec, described in zip([SPECS[n] for n in names], node.describe_parameters(names)):
+        ranges = [(r.from_value, r.to_value) for r in described.floating_point_range]
+        assert ranges == ([spec.limits] if spec.limits else []), spec.name
+        assert described.read_only == spec.read_only and described.description.startswith(
+            spec.description
+        )

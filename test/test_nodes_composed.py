@@ -11,7 +11,7 @@ import pytest
 from sensor_msgs.msg import JointState
 import yaml
 
-from conftest import CONFIGS, lines_of_failed_start, REPO
+from conftest import CONFIGS, edited_copy, lines_of_failed_start, REPO
 from node_messages import RELIABLE_QOS
 
 EXAMPLE = REPO / 'config' / 'example_composed.yaml'
@@ -66,8 +66,15 @@ def test_every_node_comes_up_and_answers_in_one_process(ros, processes, namespac
     for node in ('model_node', 'joint_node'):
         state = ros.call(GetState, f'{namespace}/{node}/get_state', GetState.Request())
         assert state.current_state.label == 'active', why()
-    names = {(ns, n) for n, ns in ros.node.get_node_names_and_namespaces()}
-    assert {(namespace, n) for n in EVERY_NODE} <= names
+    ros.spin_until(  # the graph's node names arrive by discovery, after the services may answer
+        lambda: (
+            {(namespace, n) for n in EVERY_NODE}
+            <= {(ns, n) for n, ns in ros.node.get_node_names_and_namespaces()}
+        ),
+        10,
+        'the four nodes in the graph',
+        diagnose=why,
+    )
     ros.spin_until(
         lambda: (
             {'model_node: DMSP-10-250', 'joint_node: elbow'}
@@ -84,14 +91,6 @@ def test_every_node_comes_up_and_answers_in_one_process(ros, processes, namespac
     )
 
 
-def edited(tmp_path, old: str, new: str):
-    path = tmp_path / 'composed.yaml'
-    text = EXAMPLE.read_text()
-    assert old in text
-    path.write_text(text.replace(old, new))
-    return path
-
-
 @pytest.mark.parametrize(
     'old, new, words',
     [
@@ -106,7 +105,7 @@ def edited(tmp_path, old: str, new: str):
 )
 def test_a_bad_section_ends_the_process_with_one_fatal_line(tmp_path, old, new, words):
     lines = lines_of_failed_start(
-        composed('--ros-args', '--params-file', edited(tmp_path, old, new))
+        composed('--ros-args', '--params-file', edited_copy(EXAMPLE, tmp_path, old, new))
     )
     fatal = [line for line in lines if 'FATAL' in line]
     assert fatal == lines[-1:] and '[pma_composed]: invalid parameters: ' in fatal[0], lines

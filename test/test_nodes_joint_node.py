@@ -12,7 +12,6 @@ import subprocess
 import time
 
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
@@ -33,23 +32,13 @@ RATE = 50.0  # [Hz] of the torque commands to the stand-in forward_command_contr
 
 
 @pytest.fixture
-def make_node():
-    made = []
+def make_node(private_node):
+    """A factory of JointNodes (a joint file and parameter overrides) on their own Contexts."""
 
     def make(params_file=EXAMPLE, **overrides):
-        context = rclpy.Context()
-        rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
-        node = JointNode(
-            context=context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
-        )
-        made.append((node, context))
-        return node
+        return private_node(JointNode, '--params-file', params_file, overrides=overrides)
 
-    yield make
-    for node, context in made:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
+    return make
 
 
 def record(publisher) -> list:

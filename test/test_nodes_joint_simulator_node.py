@@ -14,9 +14,7 @@ import sys
 
 import numpy as np
 import pytest
-import rclpy
 from rclpy.clock import ClockType
-from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import FluidPressure, JointState
 
@@ -36,28 +34,15 @@ with open(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv'
 
 
 @pytest.fixture
-def make_node():
+def make_node(private_node):
     """A factory of JointSimulatorNodes (keyword arguments: parameters), each at ROS time 0 on
     its own Context.
     """
-    made = []
 
     def make(**params):
-        context = rclpy.Context()
-        rclpy.init(context=context)
-        made.append([None, context])
-        params = {'use_sim_time': True} | params
-        made[-1][0] = JointSimulatorNode(
-            context=context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in params.items()],
-        )
-        return made[-1][0]
+        return private_node(JointSimulatorNode, overrides={'use_sim_time': True} | params)
 
-    yield make
-    for node, context in made:
-        if node is not None:
-            node.destroy_node()
-        rclpy.shutdown(context=context)
+    return make
 
 
 def record(publisher) -> list:

@@ -10,7 +10,6 @@ import time
 from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 import pytest
-import rclpy
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.lifecycle import TransitionCallbackReturn
 from rclpy.parameter import Parameter
@@ -18,7 +17,7 @@ from test_nodes_joint_node import command, joint_state
 from test_nodes_joint_node import pressure as joint_pressure
 from test_nodes_model_node import frozen_clock, record
 
-from conftest import CONFIGS, REPO
+from conftest import CONFIGS, edited_copy, REPO
 from node_messages import (
     AMBIENT,
     force_command,
@@ -39,27 +38,13 @@ SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FA
 
 
 @pytest.fixture
-def make():
+def make(private_node):
     """A factory of managed nodes (class, parameter file, overrides) on their own Contexts."""
-    made = []
 
     def make(cls, params_file, **overrides):
-        context = rclpy.Context()
-        rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
-        made.append(context)
-        node = cls(
-            context=context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
-        )
-        made.append(node)
-        return node
+        return private_node(cls, '--params-file', params_file, overrides=overrides)
 
-    yield make
-    for thing in reversed(made):
-        if isinstance(thing, rclpy.Context):
-            rclpy.shutdown(context=thing)
-        else:
-            thing.destroy_node()
+    return make
 
 
 @pytest.fixture
@@ -143,14 +128,6 @@ def test_a_parameter_changed_while_unconfigured_is_read_by_the_next_configure(ma
     assert node.engine.configs[0].model.model.name == 'hildebrandt'
 
 
-def bad_file(tmp_path, old: str, new: str):
-    path = tmp_path / 'bad.yaml'
-    text = CONFIG.read_text()
-    assert old in text
-    path.write_text(text.replace(old, new))
-    return path
-
-
 @pytest.mark.parametrize(
     'old, new, reason',
     [
@@ -161,7 +138,7 @@ def bad_file(tmp_path, old: str, new: str):
 def test_a_bad_file_fails_configure_and_leaves_the_node_unconfigured(
     make, errors, tmp_path, old, new, reason
 ):
-    node = make(ModelNode, bad_file(tmp_path, old, new), autostart=False)
+    node = make(ModelNode, edited_copy(CONFIG, tmp_path, old, new), autostart=False)
     bare = entities(node)
     for _ in range(2):  # and again: nothing of the first attempt is left behind
         assert node.trigger_configure() == FAILURE
@@ -196,7 +173,7 @@ def test_an_unexpected_error_in_configure_is_logged_and_released(make, errors, m
 def test_with_autostart_a_bad_file_raises_at_construction_without_logging(make, errors, tmp_path):
     """run() logs the one FATAL line (test_nodes_startup, test_bad_input_matrix)."""
     with pytest.raises(StartupError, match="unknown model 'foo'"):
-        make(ModelNode, bad_file(tmp_path, '    model: martens', '    model: foo'))
+        make(ModelNode, edited_copy(CONFIG, tmp_path, '    model: martens', '    model: foo'))
     assert errors == []
 
 

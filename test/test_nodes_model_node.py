@@ -12,7 +12,6 @@ import sys
 
 from builtin_interfaces.msg import Time
 import pytest
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -27,26 +26,15 @@ MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 
 
 @pytest.fixture
-def make_node():
+def make_node(private_node):
     """A factory of ModelNodes (a params file and parameter overrides), each on its own Context,
     destroyed after the test.
     """
-    made = []
 
     def make(params_file, **overrides):
-        context = rclpy.Context()
-        rclpy.init(context=context, args=['--ros-args', '--params-file', str(params_file)])
-        node = ModelNode(
-            context=context,
-            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
-        )
-        made.append((node, context))
-        return node
+        return private_node(ModelNode, '--params-file', params_file, overrides=overrides)
 
-    yield make
-    for node, context in made:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
+    return make
 
 
 def frozen_clock(node, back: float = 0.0):

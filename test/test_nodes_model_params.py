@@ -3,7 +3,6 @@
 from geometry_msgs.msg import WrenchStamped
 import pytest
 from rcl_interfaces.srv import SetParameters
-import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
@@ -177,14 +176,9 @@ def test_a_new_parameter_file_at_runtime_never_mixes_old_and_new(ros, processes,
 
 
 @pytest.fixture
-def node():
+def node(private_node):
     """A ModelNode of config/dmsp_10_250.yaml on its own Context (no DDS)."""
-    context = rclpy.Context()
-    rclpy.init(context=context, args=['--ros-args', '--params-file', str(CONFIGS['DMSP-10-250'])])
-    made = ModelNode(context=context)
-    yield made
-    made.destroy_node()
-    rclpy.shutdown(context=context)
+    return private_node(ModelNode, '--params-file', CONFIGS['DMSP-10-250'])
 
 
 def estimate(node) -> float:

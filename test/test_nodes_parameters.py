@@ -3,7 +3,6 @@ private Contexts: what ``ros2 param list`` shows, read-only flags, unknown names
 """
 
 import pytest
-import rclpy
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.parameter import Parameter
 import yaml
@@ -28,27 +27,16 @@ RCLPY = {'use_sim_time', 'start_type_description_service'}
 
 
 @pytest.fixture
-def make():
+def make(private_node):
     """A factory: node class, its parameter file, ``-p`` overrides and constructor keywords."""
-    made = []
 
     def make(cls, params_file=None, overrides=(), **kwargs):
-        context = rclpy.Context()
-        args = ['--ros-args'] + (['--params-file', str(params_file)] if params_file else [])
+        args = ['--params-file', params_file] if params_file else []
         for name, value in overrides:
             args += ['-p', f'{name}:={value}']
-        rclpy.init(context=context, args=args)
-        made.append(context)
-        node = cls(context=context, **kwargs)
-        made.append(node)
-        return node
+        return private_node(cls, *args, **kwargs)
 
-    yield make
-    for thing in reversed(made):
-        if isinstance(thing, rclpy.Context):
-            rclpy.shutdown(context=thing)
-        else:
-            thing.destroy_node()
+    return make
 
 
 @pytest.fixture

@@ -4,7 +4,6 @@ subscription>.<policy>`` changes the QoS of the entity it names, and only that o
 """
 
 import pytest
-import rclpy
 from rclpy.qos import ReliabilityPolicy
 import yaml
 
@@ -19,23 +18,9 @@ RELIABLE, BEST_EFFORT = ReliabilityPolicy.RELIABLE, ReliabilityPolicy.BEST_EFFOR
 
 
 @pytest.fixture
-def make():
+def make(private_node):
     """A factory: node class and its rclpy arguments, on a private Context."""
-    made = []
-
-    def make(cls, *args):
-        context = rclpy.Context()
-        rclpy.init(context=context, args=['--ros-args', *map(str, args)])
-        made.append(context)
-        made.append(cls(context=context))
-        return made[-1]
-
-    yield make
-    for thing in reversed(made):
-        if isinstance(thing, rclpy.Context):
-            rclpy.shutdown(context=thing)
-        else:
-            thing.destroy_node()
+    return private_node
 
 
 def profiles(node) -> dict[str, object]:
