@@ -14,10 +14,10 @@ import numpy as np
 from rosbags.rosbag2 import Reader
 
 from pma_model_ros.bags.bag_io import DIAGNOSTIC_ARRAY, topic, TYPESTORE
-from pma_model_ros.bags.estimate import (
+from pma_model_ros.bags.offline_inputs import DESERIALIZE
+from pma_model_ros.bags.offline_node import (
     COMBINED_INPUTS,
     COMBINED_OUTPUTS,
-    DESERIALIZE,
     DIAGNOSTIC_PERIOD_NS,
     DIAGNOSTICS,
     INPUTS,
