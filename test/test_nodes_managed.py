@@ -172,9 +172,27 @@ def test_an_unexpected_error_in_configure_is_logged_and_released(make, errors, m
 
 def test_with_autostart_a_bad_file_raises_at_construction_without_logging(make, errors, tmp_path):
     """run() logs the one FATAL line (test_nodes_startup, test_bad_input_matrix)."""
-    with pytest.raises(StartupError, match="unknown model 'foo'"):
+    with pytest.raises(StartupError, match="unknown model 'foo'") as refused:
         make(ModelNode, edited_copy(CONFIG, tmp_path, '    model: martens', '    model: foo'))
-    assert errors == []
+    assert errors == [] and refused.value.what == 'invalid parameters'
+
+
+def test_with_autostart_a_bug_in_configure_is_not_called_invalid_parameters(
+    make, errors, monkeypatch
+):
+    """run()'s FATAL line is ``configure failed: configure raised ...``, after the traceback."""
+    built = ModelNode.configure
+
+    def broken(self):
+        built(self)
+        raise RuntimeError('a bug')
+
+    monkeypatch.setattr(ModelNode, 'configure', broken)
+    with pytest.raises(StartupError) as failed:
+        make(ModelNode, CONFIG)
+    assert failed.value.what == 'configure failed'
+    assert str(failed.value) == 'configure raised RuntimeError: a bug (traceback logged)'
+    assert len(errors) == 1 and 'Traceback' in errors[0]
 
 
 def test_autostart_is_read_only_and_defaults_to_true(make):

@@ -72,8 +72,9 @@ class ManagedNode(LifecycleNode):
         if self.autostart:
             self._starting = True
             try:
-                if self.trigger_configure() != SUCCESS:
-                    raise StartupError(self.refusal, self)
+                if (result := self.trigger_configure()) != SUCCESS:
+                    what = 'invalid parameters' if result == FAILURE else 'configure failed'
+                    raise StartupError(self.refusal, self, what)
             finally:
                 self._starting = False
             self.trigger_activate()

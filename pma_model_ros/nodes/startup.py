@@ -44,15 +44,19 @@ EXECUTORS: dict[str, Callable[..., Executor]] = {
 
 
 class StartupError(Exception):
-    """Bad parameters at start-up: logged as one line, then exit code 1.
+    """A node that cannot start: logged as one line ``<what>: <message>``, then exit code 1.
 
+    ``what`` is ``invalid parameters`` for a bad parameter, ``configure failed`` for an
+    unexpected error in a managed node's configure (a bug, its traceback logged before).
     ``node`` is the half-built node (set by :func:`refusing`), which :func:`run` destroys after
     logging the line.
     """
 
-    def __init__(self, message: str, node: Node | None = None) -> None:
+    def __init__(
+        self, message: str, node: Node | None = None, what: str = 'invalid parameters'
+    ) -> None:
         super().__init__(message)
-        self.node = node
+        self.node, self.what = node, what
 
 
 def init(args: list[str] | None) -> None:
@@ -131,7 +135,8 @@ def run(
                 nodes.append(make())
             spinner = executor(nodes)
         except (StartupError, ParameterException) as err:  # also use_sim_time, read by Node()
-            rclpy.logging.get_logger(node_name).fatal(f'invalid parameters: {err}')
+            what = getattr(err, 'what', 'invalid parameters')
+            rclpy.logging.get_logger(node_name).fatal(f'{what}: {err}')
             if getattr(err, 'node', None) is not None:
                 nodes.append(err.node)
             return 1
