@@ -270,8 +270,7 @@ class Engine:
         health.count(Counter.RECEIVED_FORCE_COMMAND, k)
         if not np.isfinite(force):
             return self._invalid(k, 'force_command', f'force command is {force} N', now)
-        if health.stale_command(k, 'force_command', stamp, now):
-            health.count(Counter.STALE_COMMAND, k)
+        if health.stale_command(k, 'force_command', stamp, now, Counter.STALE_COMMAND):
             return None
         if not abs(now - self.pairing.stamps.item(LENGTH, k)) <= self.pairing.max_age:
             health.count(Counter.NO_LENGTH, k)

@@ -54,8 +54,8 @@ WARN_FLAGS = {
 }
 WARN_MASK = int(sum(WARN_FLAGS))
 _WARN_TEXTS = tuple(f'{text} ({flag.name})' for flag, text in WARN_FLAGS.items())
-_WARN_BITS = tuple(int(flag) for flag in WARN_FLAGS)
-_WARN_ARRAY = np.array(_WARN_BITS, np.uint16)
+WARN_BITS = tuple(int(flag) for flag in WARN_FLAGS)  #: the warning flags, in their order
+_WARN_ARRAY = np.array(WARN_BITS, np.uint16)
 OK_TEXT = 'estimating'
 #: [s] Shortest time between two on-change reports of a node (model_node, joint_node and the
 #: offline twin), per status reported: building and publishing the statuses of 64 muscles took
@@ -189,18 +189,22 @@ class Health:
 
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
-        self._rejected_at[k], self._latched[k], self._steady = now, invalid_text(reason), False
+        self._refuse(k, invalid_text(reason), now)
 
-    def stale_command(self, k: int, name: str, stamp: int, now: int) -> bool:
+    def _refuse(self, k: int, text: str, now: int) -> None:
+        """Entity ``k``'s level ERROR for ``hold`` from ``now``, with ``text``."""
+        self._rejected_at[k], self._latched[k], self._steady = now, text, False
+
+    def stale_command(self, k: int, name: str, stamp: int, now: int, counter: int) -> bool:
         """Whether a command ``name`` of entity ``k`` stamped ``stamp`` [ns] is stale: its stamp
         differs from ``now`` by more than ``max_age``, as a stale input's (a zero stamp,
-        :data:`~.pairing.UNSTAMPED`, is taken as ``now``).  A stale command is refused: the caller
-        counts it; its text holds the level at ERROR for ``hold``, as a rejection.
+        :data:`~.pairing.UNSTAMPED`, is taken as ``now``).  A stale command is refused: counted
+        in ``counter``, its text holds the level at ERROR for ``hold``, as a rejection.
         """
         if stamp == UNSTAMPED or abs(now - stamp) <= self.max_age:
             return False
-        text = stale_text(name, 'stamp', now - stamp, self.max_age)
-        self._rejected_at[k], self._latched[k], self._steady = now, text, False
+        self._refuse(k, stale_text(name, 'stamp', now - stamp, self.max_age), now)
+        self.count(counter, k)
         return True
 
     def warn(self, which: np.ndarray | None, flags: np.ndarray, now: int) -> None:
@@ -217,7 +221,7 @@ class Health:
     def warn_one(self, k: int, flags: int, now: int) -> None:
         """:meth:`warn` of entity ``k``'s result with ``flags``."""
         if flags & WARN_MASK:
-            for j, bit in enumerate(_WARN_BITS):
+            for j, bit in enumerate(WARN_BITS):
                 if flags & bit:
                     self._warned_at[k, j] = now
             self._steady = False

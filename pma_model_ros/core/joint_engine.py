@@ -260,7 +260,9 @@ class JointEngine:
             return self._invalid(
                 k, 'command', f'co-contraction {level:g} Pa is no gauge pressure >= 0', now
             )
-        if self._stale(k, 'cocontraction_command', stamp, now):
+        if self.health.stale_command(
+            k, 'cocontraction_command', stamp, now, Counter.STALE_COMMAND
+        ):
             return None
         self.state[k].level, self.state[k].stiffness = level, None
 
@@ -271,7 +273,7 @@ class JointEngine:
         self.health.count(Counter.RECEIVED_COMMAND, k)
         if not (math.isfinite(stiffness) and stiffness >= 0):
             return self._invalid(k, 'command', f'stiffness {stiffness:g} N·m/rad is not >= 0', now)
-        if self._stale(k, 'stiffness_command', stamp, now):
+        if self.health.stale_command(k, 'stiffness_command', stamp, now, Counter.STALE_COMMAND):
             return None
         self.state[k].stiffness = stiffness
 
@@ -287,7 +289,7 @@ class JointEngine:
         self.health.count(Counter.RECEIVED_COMMAND, k)
         if not math.isfinite(torque):
             return self._invalid(k, 'command', f'torque command is {torque} N·m', now)
-        if self._stale(k, 'torque_command', stamp, now):
+        if self.health.stale_command(k, 'torque_command', stamp, now, Counter.STALE_COMMAND):
             return None
         if s.at is None:
             return self._invalid(
@@ -301,13 +303,6 @@ class JointEngine:
         self.health.count(Counter.COMMANDS, k)
         offset = self.ambient - self.reading_offset  # gauge + offset: the command's reference
         return result.pressures[0] + offset, result.pressures[1] + offset
-
-    def _stale(self, k: int, name: str, stamp: int, now: int) -> bool:
-        """Whether command ``name`` of joint ``k`` is stale (then counted and refused)."""
-        if self.health.stale_command(k, name, stamp, now):
-            self.health.count(Counter.STALE_COMMAND, k)
-            return True
-        return False
 
     def _note(self, k: int, flags: int, now: int) -> None:
         self.health.warn_one(k, flags, now)
