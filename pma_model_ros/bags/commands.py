@@ -16,7 +16,7 @@ from typing import Iterator
 
 from ..core.force_map import ForceMap
 from ..core.geometry import MuscleSpec
-from ..core.node_parameters import PRESSURE_REFERENCES, SPECS, STANDARD_ATMOSPHERE
+from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
@@ -119,16 +119,13 @@ def _needs_rosbags() -> None:
 def cmd_bag_estimate(args: argparse.Namespace) -> None:
     _needs_rosbags()
     from .estimate import estimate_bag
-    from ..core.param_file import all_node_settings, read_parameters
+    from ..core.param_file import all_node_settings, node_pairing, read_parameters
 
     parameters = read_parameters(args.config)
     if args.pressure_reference:
         parameters['pressure_reference'] = args.pressure_reference
     settings = all_node_settings(parameters, args.model)
-    pairing = {  # node-wide, as model_node reads them
-        key: SPECS[name].check(parameters.get(name, SPECS[name].default))
-        for key, name in (('pairing', 'pairing'), ('slop', 'pairing_slop'))
-    }
+    pairing = node_pairing(parameters)  # (checked by the engine)
     with replacing(Path(args.out)) as out:
         summary = estimate_bag(
             args.bag,

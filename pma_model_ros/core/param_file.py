@@ -278,6 +278,16 @@ def hysteresis_follow(parameters: dict) -> Follow:
     return Follow(follow, deadband.check(deadband.default if value is None else value))
 
 
+def node_pairing(parameters: dict) -> dict[str, object]:
+    """The engine's pairing arguments (``pairing``, ``slop`` [s]) from a node's parameters (a
+    parameter file's, or the node's own): node-wide, as model_node reads them.
+    """
+    return {
+        'pairing': parameters.get('pairing', SPECS['pairing'].default),
+        'slop': parameters.get('pairing_slop', SPECS['pairing_slop'].default),
+    }
+
+
 def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
     """The model node's settings from ``ros__parameters`` (nested); absent node settings take their
     defaults.

@@ -39,7 +39,7 @@ from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.engine import Engine
 from ..core.health import REPORT_INTERVAL_PER_STATUS
-from ..core.param_file import NodeSettings
+from ..core.param_file import node_pairing, NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
 
@@ -72,7 +72,7 @@ class ModelNode(ManagedNode):
         self.settings = model_params.all_settings(flat, self._names)
         self.identification = model_params.identifications(flat, self._names)
         self.bands = model_params.held_out_bands(flat, self._names)
-        self._pairing = model_params.pairing(flat)
+        self._pairing = node_pairing(flat)
         self.reset()
         self.create_interfaces()
         warn_unknown(self, model_params.expected_undeclared)

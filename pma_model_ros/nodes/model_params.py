@@ -192,14 +192,6 @@ def _check_names(names: list[str], mode: str) -> None:
         raise ValueError(f"parameter 'muscles': duplicate names in {names}")
 
 
-def pairing(flat: dict[str, object]) -> dict[str, object]:
-    """The engine's pairing arguments from the node's parameters."""
-    return {
-        'pairing': flat.get('pairing', SPECS['pairing'].default),
-        'slop': flat.get('pairing_slop', SPECS['pairing_slop'].default),
-    }
-
-
 def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings]:
     """Settings of every muscle of a would-be parameter set (one without ``names``; see
     :func:`~pma_model_ros.core.param_file.all_node_settings`).  ValueError names the muscle and
