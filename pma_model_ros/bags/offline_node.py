@@ -33,8 +33,9 @@ from ..core.flags import describe
 from ..core.health import REPORT_INTERVAL_PER_STATUS
 from ..core.node_parameters import SPECS
 from ..core.param_file import NodeSettings
-from ..core.recording import COMMAND_IN, Estimates, Recording, Report
-from ..wire.cdr import fluid_pressure, joint_state, Template, wrench_stamped
+from ..core.recording import COMMAND_IN, Estimates, Recording
+from ..core.timeline import Report
+from ..wire.cdr import fluid_pressure, joint_state, split, Template, wrench_stamped
 
 #: The node's input topics of one muscle (relative names) and their types, in the order of the
 #: input kinds of :mod:`~pma_model_ros.core.recording` (PRESSURE_IN, LENGTH_IN, COMMAND_IN).
@@ -63,7 +64,7 @@ Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
 
 @dataclass
 class Summary:
-    """What :func:`estimate_bag` read and wrote."""
+    """What :func:`.estimate.estimate_bag` read and wrote."""
 
     namespace: str
     messages: int = 0  #: messages read (all topics)
@@ -349,5 +350,5 @@ class OfflineNode:
             for name, s, status in zip(self._names, self.settings, report.statuses)
         ]
         time_ns = report.now
-        header = Header(Time(time_ns // 10**9, time_ns % 10**9), '')
+        header = Header(Time(*split(time_ns)), '')
         return TYPESTORE.serialize_cdr(T[DIAGNOSTIC_ARRAY](header, entries), DIAGNOSTIC_ARRAY)

@@ -33,14 +33,13 @@ import numpy as np
 from .engine import Counter, Engine
 from .estimation import ABSURD_PRESSURE, length_problem, pressure_problem
 from .flags import describe, Flag
-from .health import invalid_text, stale_text
+from .health import invalid_text, stale_text, WARN_BITS, WARN_MASK
 from .hysteresis import play
 from .muscle_model import force_at, Operating
 from .pairing import fresh, NEVER, pair_every_input, Pairing, UNSTAMPED
-from .timeline import Events, Report, Timeline, WARN_BITS
+from .timeline import Events, Report, Timeline
 
 PRESSURE_IN, LENGTH_IN, COMMAND_IN = 0, 1, 2  #: kinds of input
-_WARN_MASK = sum(WARN_BITS)
 _INVALID = int(Flag.INVALID_INPUT)
 
 
@@ -299,7 +298,7 @@ class Recording:
         why_not = dict(zip(pairs[~has_force].tolist(), result.flags[~has_force].tolist()))
 
         # commands, in one call: a stamp beyond max_age of now is stale (Health.stale_command)
-        stale_c = ok_c & (stamp != UNSTAMPED) & ~(np.abs(now - stamp) <= self.max_age)
+        stale_c = ok_c & (stamp != UNSTAMPED) & ~fresh(stamp, now, self.max_age)
         wanted = np.flatnonzero(ok_c & ~stale_c)
         with_length = fresh(l_stamp[wanted], now[wanted], self.max_age)
         sent = wanted[with_length]
@@ -356,8 +355,8 @@ class Recording:
             (flagged_at[flagged & bit != 0], times[flagged & bit != 0]) for bit in WARN_BITS
         ]
         warned = np.full(len(at), NEVER)
-        warned[np.searchsorted(at, flagged_at[flagged & _WARN_MASK != 0])] = times[
-            flagged & _WARN_MASK != 0
+        warned[np.searchsorted(at, flagged_at[flagged & WARN_MASK != 0])] = times[
+            flagged & WARN_MASK != 0
         ]
         rejected_before, warned_before = self.timeline.latest(k)
         events = Events(
@@ -375,5 +374,3 @@ class Recording:
             np.maximum.accumulate(np.concatenate([[warned_before], warned])),
         )
         return estimates, commands, events
-
-    # --- reports

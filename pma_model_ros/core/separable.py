@@ -109,6 +109,7 @@ class Separable:
         norms[norms == 0] = 1.0
         scaled = columns / norms
         pulling, seen = y > 0, set()
+        zero = _ZERO * np.max(np.abs(y))  # a model force that counts as 0 N
         best = (np.inf, np.zeros(self.linear.size), np.full(y.size, np.inf))
         for _ in range(_ACTIVE_SET_STEPS):
             key = pulling.tobytes()
@@ -122,7 +123,7 @@ class Separable:
             if cost < best[0] * (1 - TIE):  # an equal cost later is not better
                 best = (cost, z / norms, residuals)
             # a force within rounding of 0 N (a fit through a measured zero) does not pull
-            pulling = force > _ZERO * np.max(np.abs(y))
+            pulling = force > zero
         return best[1], best[2]
 
     def fit_least_squares(self, near: Solution | None = None) -> Solution:

@@ -20,10 +20,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .engine import Counter, Engine
-from .health import levels_of, Status, WARN_FLAGS
+from .health import levels_of, Status, WARN_BITS
 from .pairing import NEVER, SECOND
-
-WARN_BITS = tuple(int(flag) for flag in WARN_FLAGS)  #: health's order
 
 
 class Report(NamedTuple):

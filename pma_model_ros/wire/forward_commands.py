@@ -29,8 +29,7 @@ class ForwardCommands:
         self.places = [[place.get(m) for m in names] for names in muscles]
         self._message = float64_multi_array(len(order))
         self.values = self._message.values  #: [Pa] the last command of each muscle of the order
-        self._known = [False] * len(order)
-        self._missing = len(order)  # muscles of the order without a command yet
+        self._missing = set(range(len(order)))  # places of muscles without a command yet
         self._commanded = False
 
     def command(self, k: int, pressures: Sequence[float]) -> None:
@@ -39,13 +38,12 @@ class ForwardCommands:
             if i is not None:
                 self.values[i] = value
                 self._commanded = True
-                if not self._known[i]:
-                    self._known[i] = True
-                    self._missing -= 1
+                self._missing.discard(i)
 
     def message(self) -> bytes | None:
-        """After a torque command's joints: the array's bytes if a value of it changed and every
-        muscle has one, else None.
+        """After a torque command's joints: the array's bytes if a muscle of the order was
+        commanded since the last message (its value repeated or not) and every muscle has a value,
+        else None.
         """
-        changed, self._commanded = self._commanded, False
-        return self._message.unstamped() if changed and not self._missing else None
+        commanded, self._commanded = self._commanded, False
+        return self._message.unstamped() if commanded and not self._missing else None
