@@ -23,7 +23,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from bag_reference import csv_rows, per_message, raw_messages, same
-from conftest import CONFIGS
+from conftest import CONFIGS, edited_copy
 from pma_model_ros.bags.bag_io import (
     BagWriter,
     DIAGNOSTIC_ARRAY,
@@ -705,15 +705,12 @@ def test_pairing_comes_from_the_parameter_file(tmp_path):
     input.
     """
     bag = record_simulation(tmp_path / 'sim.mcap', 1.0, '/m1', rate=100.0)
-    text = CONFIGS['DMSP-10-250'].read_text()
-    config = tmp_path / 'approximate.yaml'
-    config.write_text(
-        text.replace(
-            '    max_input_age: 0.1\n',
-            '    max_input_age: 0.1\n    pairing: approximate_time\n    pairing_slop: 0.001\n',
-        )
+    config = edited_copy(
+        CONFIGS['DMSP-10-250'],
+        tmp_path,
+        '    max_input_age: 0.1\n',
+        '    max_input_age: 0.1\n    pairing: approximate_time\n    pairing_slop: 0.001\n',
     )
-    assert config.read_text() != text
     words = {}
     for name, path in (('every', CONFIGS['DMSP-10-250']), ('approximate', config)):
         proc = subprocess.run(
