@@ -25,7 +25,7 @@ So the output holds, beside every original message (copied as recorded):
 * ``pressure_command`` (FluidPressure, absolute Pa), or ``pressure_commands`` (JointState), for
   each usable force command, stamped with its log time;
 * ``/diagnostics``: the node's status of every muscle every second of bag time and on each level
-  change.
+  change (the engine's: not the identification values and expected error model_node adds).
 
 Topics of these names already in the recording are replaced (``/diagnostics`` is kept and merged).
 """
