@@ -34,6 +34,7 @@ import argparse
 import copy
 import cProfile
 from functools import partial
+import gc
 import os
 from pathlib import Path
 import pstats
@@ -287,6 +288,11 @@ def measure(
     loss, its CPU use and the achieved cycle rate.
     """
     env = None if code is None else os.environ | {'PYTHONPATH': str(code)}
+    # the pinger must not stall either: what the rows before left (the in-process callback cost
+    # builds a 64-muscle node) to the permanent generation, as the nodes do (nodes/startup.py);
+    # else a full collection during a row stalled it ~98 ms, losing ~640 answers of model_node
+    gc.collect()
+    gc.freeze()
     with tempfile.TemporaryFile('w+') as log:
         proc = node_process.start(responder, log, env, code)
         context = rclpy.Context()
