@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS
+from pma_model_ros.core.calibration import shifted
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import domain_of, max_error_percent
 from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
@@ -150,3 +151,25 @@ def test_coefficient_slopes_are_the_length_derivatives(path):
                 assert got == pytest.approx(fd, rel=1e-6, abs=1e-6 * np.abs(fd).max() + 1e-300), (
                     name
                 )
+
+
+@pytest.mark.parametrize('path', sorted(CONFIGS.values()), ids=lambda p: p.stem)
+def test_a_prepared_model_gives_its_coefficients_bit_for_bit(path):
+    """What the nodes evaluate per message (:meth:`Model.prepare`, the braid's constants computed
+    once) is the model's own coefficients, to the last bit: on arrays, on plain floats (the
+    one-muscle path), and with a calibrated pressure offset (:func:`shifted`).
+    """
+    parameters = read_parameters(path)
+    L = np.linspace(0.6, 1.0, 7) * parameters['muscle']['nominal_length']
+    for name in parameters['models']:
+        m = muscle_model(parameters, name)
+        for model, theta in ((m.model, m.theta), (shifted(m.model), np.append(m.theta, 7e3))):
+            for branch in (0.0, 1.0, -1.0):
+                prepared = model.prepare(theta, m.spec, m.domain)
+                want = model.coefficients(theta, m.spec, m.domain, L, branch)
+                assert all(np.array_equal(a, b) for a, b in zip(prepared(L, branch), want)), name
+                one = tuple(theta.tolist())
+                floats = model.prepare(one, m.spec, m.domain)
+                for x in L.tolist():
+                    want = model.coefficients(one, m.spec, m.domain, x, branch)
+                    assert floats(x, branch) == want, name

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import functools
+from typing import Callable
 
 import numpy as np
 
@@ -85,12 +86,17 @@ def shifted(model: Model) -> Model:
     q1' = q1 - 2 q2 o, q0' = q0 - (q1 - q2 o) o.  Cached: one Model object per model (muscle banks
     group by it).
     """
-    base = model.coefficients
+
+    def shift(q: Coefficients, offset) -> Coefficients:
+        q2, q1, q0 = q
+        return q2, q1 - 2 * q2 * offset, q0 - (q1 - q2 * offset) * offset
 
     def coefficients(theta, spec, domain, length, branch) -> Coefficients:
-        q2, q1, q0 = base(theta[:-1], spec, domain, length, branch)
-        offset = theta[-1]
-        return q2, q1 - 2 * q2 * offset, q0 - (q1 - q2 * offset) * offset
+        return shift(model.coefficients(theta[:-1], spec, domain, length, branch), theta[-1])
+
+    def prepared(theta, spec, domain) -> Callable[..., Coefficients]:
+        inner, offset = model.prepare(theta[:-1], spec, domain), theta[-1]
+        return lambda length, branch: shift(inner(length, branch), offset)
 
     return replace(
         model,
@@ -99,6 +105,7 @@ def shifted(model: Model) -> Model:
         lower=(*model.lower, -PRESSURE_BOUND),
         upper=(*model.upper, PRESSURE_BOUND),
         coefficients=coefficients,
+        prepared=prepared,
     )
 
 

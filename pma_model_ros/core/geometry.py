@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 import math
 import sys
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -113,6 +114,14 @@ def _as_float(key: str, value: object) -> float:
         raise ValueError(f'muscle.{key} is too large for a float') from None
 
 
+class BraidConstants(NamedTuple):
+    """The length-independent numbers of :func:`braid` (floats, or arrays of n muscles)."""
+
+    fiber_length_sq: float  #: L_Fiber^2 [m^2]
+    turns_pi: float  #: n pi [-]
+    four_pi_turns_sq: float  #: 4 pi n^2 [-]
+
+
 def fiber_length(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
     """Constant fibre length L_Fiber = L0 / cos(Theta0) [m] (eq. 3)."""
     theta = spec.fiber_angle if fiber_angle is None else fiber_angle
@@ -125,19 +134,29 @@ def turns(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
     return spec.nominal_length * ew.tan(theta) / (math.pi * spec.inner_diameter)
 
 
+def braid_constants(spec: MuscleSpec, fiber_angle: float | None = None) -> BraidConstants:
+    """What :func:`braid` needs of the muscle: L_Fiber^2 [m^2], n pi [-] and 4 pi n^2 [-] (eq. 3),
+    computed once per muscle (a node evaluates the braid at every new length).
+    """
+    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
+    return BraidConstants(lf**2, n * math.pi, 4 * math.pi * n**2)
+
+
+def braid_at(constants: BraidConstants, length: ArrayLike) -> tuple:
+    """:func:`braid` of a muscle's :func:`braid_constants`."""
+    lf_sq, n_pi, four_pi_n_sq = constants
+    length = ew.asarray(length)
+    length_sq = length**2
+    root = ew.sqrt(lf_sq - length_sq)
+    return root / n_pi, -length / (n_pi * root), (lf_sq - 3 * length_sq) / four_pi_n_sq
+
+
 def braid(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> tuple:
     """Inner diameter D(L) = sqrt(L_Fiber^2 - L^2) / (n pi) [m] (eq. 2), its slope dD/dL [-], and
     the volume slope dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2] (derivative of eq. 4), sharing
     one root.
     """
-    lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
-    length = ew.asarray(length)
-    root = ew.sqrt(lf**2 - length**2)
-    return (
-        root / (n * math.pi),
-        -length / (n * math.pi * root),
-        (lf**2 - 3 * length**2) / (4 * math.pi * n**2),
-    )
+    return braid_at(braid_constants(spec, fiber_angle), length)
 
 
 def diameter(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:

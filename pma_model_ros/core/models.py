@@ -15,6 +15,7 @@ muscles" ("Sárosi eq. N").  Start points are the paper's Table 1.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 import math
 from typing import Callable
 
@@ -87,10 +88,22 @@ class Model:
     #: indices of the parameters the force is affine in at fixed others (the separable fit,
     #: :mod:`~pma_model_ros.core.separable`; test_core_models checks each)
     linear: tuple[int, ...] = ()
+    #: ``prepared(theta, spec, domain)`` -> ``f(length, branch)``: ``coefficients`` with what
+    #: does not depend on the length computed once (None: nothing worth it); see :meth:`prepare`
+    prepared: Callable[..., Callable[..., Coefficients]] | None = None
 
     @property
     def n_params(self) -> int:
         return len(self.param_names)
+
+    def prepare(self, theta, spec: MuscleSpec, domain: Domain) -> Callable[..., Coefficients]:
+        """``f(length, branch)`` = ``coefficients(theta, spec, domain, length, branch)``, bit for
+        bit, for a muscle (or a bank's group) evaluated at many lengths in turn: the nodes call it
+        per message.
+        """
+        if self.prepared is not None:
+            return self.prepared(theta, spec, domain)
+        return partial(self.coefficients, theta, spec, domain)
 
     def check_params(self, theta: object) -> np.ndarray:
         """Return ``theta`` as a float array, or raise ValueError naming the model."""
@@ -191,34 +204,44 @@ def _wickramatunge(theta, spec, domain, length, branch) -> Coefficients:
     return c3 * dl, c2 * dl**2, (c1 * dl**2 + c0) * dl
 
 
-def _martens(theta, spec, domain, length, branch) -> Coefficients:
-    """Martens, eqs. 14-16: F = -p dV/dL + F_PE dD/dL - F_L.
+def _martens_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
+    """Martens, eqs. 14-16: F = -p dV/dL + F_PE dD/dL - F_L, as ``f(length, branch)`` with the
+    braid's constants of ``theta`` and ``spec`` computed once (:meth:`Model.prepare`).
 
     E_RU(L) = c3 L^3 + c2 L^2 + c1 L + c0 [Pa] (eq. 15); the braid angle is
     corrected to Theta0 + d0 [rad] (eq. 16); F_PE = E (D - D0)/D0 H0 L pi
     (eqs. 11, 13) and F_L = E (L - L0)/L0 H0 pi D(L) (eqs. 10, 12).
     """
     c0, c1, c2, c3, d0 = theta
-    angle = spec.fiber_angle + d0
-    modulus = ((c3 * length + c2) * length + c1) * length + c0
-    dia, dia_slope, volume_slope = geo.braid(spec, length, angle)
-    f_pe = (
-        modulus
-        * (dia - spec.inner_diameter)
-        / spec.inner_diameter
-        * spec.membrane_thickness
-        * length
-        * math.pi
-    )
-    f_l = (
-        modulus
-        * (length - spec.nominal_length)
-        / spec.nominal_length
-        * spec.membrane_thickness
-        * math.pi
-        * dia
-    )
-    return _zeros(length), -volume_slope, f_pe * dia_slope - f_l
+    braid = geo.braid_constants(spec, spec.fiber_angle + d0)
+
+    def coefficients(length, branch) -> Coefficients:
+        modulus = ((c3 * length + c2) * length + c1) * length + c0
+        dia, dia_slope, volume_slope = geo.braid_at(braid, length)
+        f_pe = (
+            modulus
+            * (dia - spec.inner_diameter)
+            / spec.inner_diameter
+            * spec.membrane_thickness
+            * length
+            * math.pi
+        )
+        f_l = (
+            modulus
+            * (length - spec.nominal_length)
+            / spec.nominal_length
+            * spec.membrane_thickness
+            * math.pi
+            * dia
+        )
+        return _zeros(length), -volume_slope, f_pe * dia_slope - f_l
+
+    return coefficients
+
+
+def _martens(theta, spec, domain, length, branch) -> Coefficients:
+    """Martens, eqs. 14-16 (:func:`_martens_prepared`)."""
+    return _martens_prepared(theta, spec, domain)(length, branch)
 
 
 _BIG = 1e12
@@ -275,6 +298,7 @@ MODELS: dict[str, Model] = {
             (_BIG,) * 4 + (0.35,),
             _martens,
             linear=(0, 1, 2, 3),
+            prepared=_martens_prepared,
         ),
         Model(
             'sarosi_hysteresis',

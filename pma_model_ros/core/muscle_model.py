@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from functools import cached_property
 import math
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from . import geometry as geo
 from .flags import Flag
 from .geometry import MuscleSpec
-from .models import Domain, Model
+from .models import Coefficients, Domain, Model
 
 
 class ForceResult(NamedTuple):
@@ -166,6 +166,13 @@ class Evaluator:
         return limits_of(self.spec, self.domain, geo.shortest_length(self.spec))
 
     @cached_property
+    def _coefficients(self) -> Callable[..., Coefficients]:
+        """The model's coefficients of these muscles as ``f(length, branch)``
+        (:meth:`Model.prepare`).
+        """
+        return self.model.prepare(self.theta, self.spec, self.domain)
+
+    @cached_property
     def _extrapolates(self) -> bool:
         """Whether any of the muscles serves lengths outside its identified ones."""
         return bool(np.any(self.domain.extrapolates))
@@ -204,7 +211,7 @@ class Evaluator:
                 branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
             flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN16, _NONE16)
         with np.errstate(invalid='ignore', over='ignore'):
-            q2, q1, q0 = self.model.coefficients(self.theta, self.spec, self.domain, at, branch)
+            q2, q1, q0 = self._coefficients(at, branch)
         if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
             q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
         return Operating(usable, flags, q2, q1, q0, lim)
@@ -350,9 +357,9 @@ class MuscleModel(Evaluator):
         return Limits(*(float(getattr(lim, f.name)) for f in fields(Limits)))
 
     @cached_property
-    def _theta(self) -> tuple[float, ...]:
-        """The parameters as plain floats (for :meth:`operating_one`)."""
-        return tuple(self.theta.tolist())
+    def _coefficients_one(self) -> Callable[..., Coefficients]:
+        """:attr:`_coefficients` on the parameters as plain floats (for :meth:`operating_one`)."""
+        return self.model.prepare(tuple(self.theta.tolist()), self.spec, self.domain)
 
     def operating_one(self, length: float, branch: float) -> tuple[int, float, float, float]:
         """:meth:`operating` of one valid length [m] (0 < L < max_length) in plain floats: (flags,
@@ -370,7 +377,5 @@ class MuscleModel(Evaluator):
         branch = math.copysign(1.0, branch) if branch and math.isfinite(branch) else 0.0
         if branch == 0.0 and self.model.hysteresis:
             flags |= _BRANCH_UNKNOWN
-        q2, q1, q0 = self.model.coefficients(
-            self._theta, self.spec, self.domain, operating, branch
-        )
+        q2, q1, q0 = self._coefficients_one(operating, branch)
         return flags, float(q2), float(q1), float(q0)
