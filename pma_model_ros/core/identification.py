@@ -47,7 +47,7 @@ from .geometry import MuscleSpec
 from .models import Domain, force_raw, get_model, Model
 from .progress import Meter
 from .separable import Separable, Solution
-from .validation import fit_or_none, HeldOut, length_folds, select
+from .validation import fit_or_none, HeldOut, length_folds, select, within_tie
 
 OBJECTIVES = ('least_squares', 'minimax')
 #: The single-branch model each branch of a hysteresis model is.
@@ -374,13 +374,13 @@ def _absorbs_length(
     model: Model, spec: MuscleSpec, domain: Domain, fmap: ForceMap, longer: float
 ) -> bool:
     """Whether the model fits the map exactly as well at L0 and at ``longer`` (sums of squares
-    equal to 1e-9): its force ignores L0, or its parameters take any L0.
+    equal within a tie): its force ignores L0, or its parameters take any L0.
     """
     costs = [
         Separable(model, cal.with_length(spec, length), domain, fmap).fit_least_squares().cost
         for length in (spec.nominal_length, longer)
     ]
-    return bool(abs(costs[0] - costs[1]) <= 1e-9 * max(costs[0], costs[1], 1e-300))
+    return within_tie(max(costs), min(costs))
 
 
 def _offset(

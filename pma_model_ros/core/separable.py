@@ -38,7 +38,7 @@ from scipy.optimize import least_squares, linprog, minimize_scalar
 from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .models import Domain, Model
-from .validation import TIE
+from .validation import beats, TIE, within_tie
 
 GRID = 41  #: grid points over each model's first nonlinear parameter
 _REFINED = 3  #: best grid points refined by least squares
@@ -120,7 +120,7 @@ class Separable:
             force = base + scaled @ z
             residuals = y - np.maximum(force, 0.0)
             cost = float(residuals @ residuals)
-            if cost < best[0] * (1 - TIE):  # an equal cost later is not better
+            if beats(cost, best[0]):  # an equal cost later is not better
                 best = (cost, z / norms, residuals)
             # a force within rounding of 0 N (a fit through a measured zero) does not pull
             pulling = force > zero
@@ -157,7 +157,7 @@ class Separable:
                 )
             # a refinement counts only where it lowers the cost beyond a tie: on a flat objective
             # it wanders by rounding, and the grid point stays
-            refined = 2 * result.cost < cost - TIE * abs(cost)
+            refined = beats(2 * result.cost, cost)
             found.append((2 * result.cost, result.x) if refined else (cost, phi0))
         if not found:
             raise ValueError(f'model {self.model.name!r} is not finite on this map')
@@ -179,7 +179,7 @@ class Separable:
 
         def key(fit: tuple[float, np.ndarray]) -> tuple[bool, float]:
             cost, phi = fit
-            if cost <= best + TIE * abs(best):
+            if within_tie(cost, best):
                 return False, float(np.linalg.norm((np.asarray(phi) - self.start) / scale))
             return True, cost
 
@@ -241,7 +241,7 @@ class Separable:
                 break
             c = result.x[:k] / norms
             worst = float(np.max(np.abs(y - np.maximum(base + columns @ c, 0.0))))
-            if worst < best[0] * (1 - TIE):
+            if beats(worst, best[0]):
                 best = (worst, c, bounded)
             bounded = y > result.x[-1]
         worst, c, bounded_rows = best
@@ -259,7 +259,7 @@ class Separable:
                     np.hstack([-eye, -eye]),
                 ]
             ),
-            b_ub=np.r_[b_ub + worst * (1 + 1e-9), z_near, -z_near],
+            b_ub=np.r_[b_ub + worst * (1 + TIE), z_near, -z_near],
             bounds=[(None, None)] * k + [(0, None)] * k,
         )
         if result.status == 0:
@@ -293,12 +293,11 @@ class Separable:
                 method='bounded',
                 options={'xatol': 1e-6 * width},
             )
-            level = result.fun + TIE * abs(result.fun)
-            if at_start > level:
+            if not within_tie(at_start, result.fun):
                 worse, good = phi[0], float(result.x)
                 for _ in range(_BISECTIONS):
                     middle = (worse + good) / 2
-                    if worst_at(middle) <= level:
+                    if within_tie(worst_at(middle), result.fun):
                         good = middle
                     else:
                         worse = middle

@@ -28,6 +28,20 @@ _SAME_LENGTH = 1e-3  #: [m] lengths closer than this are one held-out length
 TIE = 1e-9
 
 
+def beats(value: float, best: float) -> bool:
+    """Whether the cost or error ``value`` (>= 0) is lower than ``best`` beyond a :data:`TIE` (any
+    finite value beats an infinite ``best``).
+    """
+    return value < best * (1 - TIE)
+
+
+def within_tie(value: float, best: float) -> bool:
+    """Whether the cost or error ``value`` (>= 0) is at most ``best`` or equal to it within a
+    :data:`TIE`: it does not lose to ``best``.
+    """
+    return value <= best * (1 + TIE)
+
+
 class Predictor(Protocol):
     def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray: ...
 
@@ -169,7 +183,7 @@ def _first_best(names: list[str], score: Callable[[str], float]) -> str:
         return names[0]
     scores = [score(name) for name in names]
     best = min(scores)
-    return next(n for n, s in zip(names, scores) if s <= best + TIE * abs(best))
+    return next(n for n, s in zip(names, scores) if within_tie(s, best))
 
 
 @dataclass(frozen=True)
