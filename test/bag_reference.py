@@ -25,7 +25,7 @@ from pma_model_ros.bags.offline_node import (
 )
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.flags import describe
-from pma_model_ros.core.health import REPORT_INTERVAL_PER_STATUS
+from pma_model_ros.core.health import node_timing
 from pma_model_ros.wire.cdr import fluid_pressure
 from pma_model_ros.wire.muscle_inputs import MuscleInputs
 
@@ -66,8 +66,7 @@ def per_message(
         replaced = {topic(namespace, f'{p}{t}') for p in prefixes for t in OUTPUTS}
     engine = Engine(
         [s.config for s in settings],
-        hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
-        report_interval=REPORT_INTERVAL_PER_STATUS * len(settings),
+        **node_timing(len(settings)),
         pairing=pairing,
         slop=slop,
     )

@@ -30,8 +30,9 @@ from .bag_io import (
 from .offline_inputs import decode, pick
 from ..core.engine import Engine
 from ..core.flags import describe
-from ..core.health import REPORT_INTERVAL_PER_STATUS
+from ..core.health import DIAGNOSTIC_PERIOD, node_timing
 from ..core.node_parameters import SPECS
+from ..core.pairing import nanoseconds
 from ..core.param_file import NodeSettings
 from ..core.recording import COMMAND_IN, Estimates, Recording
 from ..core.timeline import Report
@@ -46,7 +47,7 @@ COMBINED_INPUTS = ('muscle_pressures', 'muscle_states', 'force_commands')
 OUTPUTS = ('force_estimate', 'pressure_command')
 COMBINED_OUTPUTS = ('force_estimates', 'pressure_commands')
 DIAGNOSTICS = '/diagnostics'
-DIAGNOSTIC_PERIOD_NS = 1_000_000_000  # model_node's status timer [ns]
+DIAGNOSTIC_PERIOD_NS = nanoseconds(DIAGNOSTIC_PERIOD)  # model_node's status timer [ns]
 CSV_COLUMNS = (
     'log_time_ns',
     'stamp_s',
@@ -189,8 +190,7 @@ class OfflineNode:
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
         self.engine = Engine(
             [s.config for s in settings],
-            hold=DIAGNOSTIC_PERIOD_NS * 1e-9,
-            report_interval=REPORT_INTERVAL_PER_STATUS * len(settings),
+            **node_timing(len(settings)),
             pairing=pairing,
             slop=slop,
         )

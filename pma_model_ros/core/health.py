@@ -62,6 +62,16 @@ OK_TEXT = 'estimating'
 #: about 3 ms, so on-change reports stay a few percent of a core however many entities flap
 #: (N = 64: at most one every 0.1 s).
 REPORT_INTERVAL_PER_STATUS = 0.0015
+#: [s] Period of the nodes' /diagnostics reports; also how long a bad input or a warning holds the
+#: level.
+DIAGNOSTIC_PERIOD = 1.0
+
+
+def node_timing(statuses: int) -> dict[str, float]:
+    """``hold`` and ``report_interval`` [s] of the :class:`Health` of a node that reports
+    ``statuses`` statuses (model_node, joint_node and the offline twin alike).
+    """
+    return {'hold': DIAGNOSTIC_PERIOD, 'report_interval': REPORT_INTERVAL_PER_STATUS * statuses}
 
 
 def levels_of(

@@ -39,11 +39,11 @@ from std_msgs.msg import Float64MultiArray
 
 from . import model_params, parameters
 from .diagnostics import diagnostic_array
-from .managed import DIAGNOSTIC_PERIOD, ManagedNode
+from .managed import ManagedNode
 from .model_node import DESERIALIZE
 from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
-from ..core.health import REPORT_INTERVAL_PER_STATUS
+from ..core.health import node_timing
 from ..core.joint_engine import JointEngine, Settings
 from ..core.joint_file import (
     forward_order,
@@ -104,8 +104,7 @@ class JointNode(ManagedNode):
             settings,
             float(flat['ambient_pressure']),
             float(flat['max_input_age']),
-            hold=DIAGNOSTIC_PERIOD,
-            report_interval=REPORT_INTERVAL_PER_STATUS * len(found),
+            **node_timing(len(found)),
             pressure_reference=str(flat['pressure_reference']),
         )
         topic = str(flat['forward_command_topic'])

@@ -42,10 +42,9 @@ from rclpy.timer import Timer
 
 from .parameters import declare
 from .startup import refusing, StartupError
+from ..core.health import DIAGNOSTIC_PERIOD
 from ..core.node_parameters import SPECS
 
-#: [s] Period of the /diagnostics reports; also how long a bad input or a warning holds the level.
-DIAGNOSTIC_PERIOD = 1.0
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 
 

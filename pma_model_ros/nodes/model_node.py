@@ -33,12 +33,12 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from . import model_params
 from .diagnostics import diagnostic_array
-from .managed import DIAGNOSTIC_PERIOD, ManagedNode
+from .managed import ManagedNode
 from .parameters import warn_unknown
 from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.engine import Engine
-from ..core.health import REPORT_INTERVAL_PER_STATUS
+from ..core.health import node_timing
 from ..core.param_file import node_pairing, NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
@@ -91,8 +91,7 @@ class ModelNode(ManagedNode):
         """A fresh engine of the current settings (no input known, counters at zero)."""
         self.engine = Engine(
             [s.config for s in self.settings],
-            hold=DIAGNOSTIC_PERIOD,
-            report_interval=REPORT_INTERVAL_PER_STATUS * len(self.settings),
+            **node_timing(len(self.settings)),
             **self._pairing,
         )
         self.use(self.settings)
