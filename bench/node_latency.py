@@ -72,6 +72,7 @@ WARMUP = 1.0  # [s] after the first answer, not measured
 DRAIN = 0.5  # [s] after the last cycle, for late answers
 ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
 ANGLE = 0.2  # [rad] of every joint
+REPORTS = 50  # /diagnostics reports timed per row of the callback costs
 PROFILED = {'model_node': ModelNode, 'joint_node': JointNode}
 
 
@@ -395,10 +396,11 @@ def profiled_node(name: str, out: Path, args: list[str]) -> int:
     return code
 
 
-def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float]:
+def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float, float]:
     """CPU time of model_node's callbacks per cycle (both inputs as bytes, called directly: no
     executor, no wait) and of the engine's share of it (its two calls per cycle) [us]; answers go
-    nowhere.
+    nowhere.  Then the CPU time of one /diagnostics report of every muscle (publish_status, the 1
+    Hz timer's work, a stall of the executor) [ms].
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     rclpy.init(args=['--ros-args', '-r', '__ns:=/cost', '--params-file', str(params)])
@@ -429,11 +431,15 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
                 engine.pressures(pressures, t, t)
                 engine.lengths(lengths[k], rates, t, t)
         own = (time.process_time() - start) / cycles
+        start = time.process_time()
+        for _ in range(REPORTS):
+            model.publish_status(now)
+        report = (time.process_time() - start) / REPORTS
         model.destroy_node()
         node.destroy_node()
     finally:
         rclpy.shutdown()
-    return per_cycle * 1e6, own * 1e6
+    return per_cycle * 1e6, own * 1e6, report * 1e3
 
 
 def print_rows(
@@ -534,7 +540,7 @@ def main() -> int:
                 'inputs):'
             )
         for n in muscles if not args.code else []:
-            cycle, bank = callback_cost(n, Path(tmp))
+            cycle, bank, report = callback_cost(n, Path(tmp))
             print(
                 f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
                 + (
@@ -542,6 +548,7 @@ def main() -> int:
                     if n > 1
                     else ' (its one-muscle float path)'
                 )
+                + f'; a /diagnostics report {report:.2f} ms'
             )
         if muscles:
             print_rows(False, muscles, args, Path(tmp), last)

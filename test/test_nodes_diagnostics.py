@@ -1,9 +1,10 @@
 """The /diagnostics message (nodes/diagnostics.py): one status per entry, named after the node,
-stamped with the node's clock.
+stamped with the node's clock, serialized.
 """
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import pytest
+from rclpy.serialization import deserialize_message
 from rclpy.time import Time
 
 from pma_model_ros.nodes.diagnostics import diagnostic_array
@@ -17,7 +18,7 @@ def test_one_status_per_entry_named_after_the_node_with_its_level_and_values(ros
         ('wrist', 'DMSP-20-300', 2, 'stale pressure', {}),
     ]
     before = ros.node.get_clock().now()
-    msg = diagnostic_array(ros.node, entries)
+    msg = deserialize_message(diagnostic_array(ros.node, entries), DiagnosticArray)
     after = ros.node.get_clock().now()
     full = ros.node.get_name()
     assert [s.name for s in msg.status] == [f'{full}: elbow', f'{full}: wrist']
@@ -34,4 +35,4 @@ def test_one_status_per_entry_named_after_the_node_with_its_level_and_values(ros
 
 
 def test_no_entries_is_an_empty_array(ros):
-    assert diagnostic_array(ros.node, []).status == []
+    assert deserialize_message(diagnostic_array(ros.node, []), DiagnosticArray).status == []

@@ -24,7 +24,6 @@ from .bag_io import (
     JOINT_STATE,
     RELIABLE,
     topic,
-    TYPESTORE,
     WRENCH_STAMPED,
 )
 from .offline_inputs import decode, pick
@@ -36,7 +35,8 @@ from ..core.pairing import nanoseconds
 from ..core.param_file import NodeSettings
 from ..core.recording import COMMAND_IN, Estimates, Recording
 from ..core.timeline import Report
-from ..wire.cdr import fluid_pressure, joint_state, split, Template, wrench_stamped
+from ..wire.cdr import fluid_pressure, joint_state, Template, wrench_stamped
+from ..wire.diagnostics import diagnostic_array
 
 #: The node's input topics of one muscle (relative names) and their types, in the order of the
 #: input kinds of :mod:`~pma_model_ros.core.recording` (PRESSURE_IN, LENGTH_IN, COMMAND_IN).
@@ -58,9 +58,6 @@ CSV_COLUMNS = (
     'flags',
     'joint',
 )
-
-T = TYPESTORE.types
-Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
 
 
 @dataclass
@@ -335,20 +332,10 @@ class OfflineNode:
         )
 
     def _status(self, report: Report) -> bytes:
-        KeyValue, DiagnosticStatus = (
-            T['diagnostic_msgs/msg/KeyValue'],
-            T['diagnostic_msgs/msg/DiagnosticStatus'],
+        return diagnostic_array(
+            report.now,
+            (
+                (name, s.hardware_id, int(status.level), status.message, status.values)
+                for name, s, status in zip(self._names, self.settings, report.statuses)
+            ),
         )
-        entries = [
-            DiagnosticStatus(
-                int(status.level),
-                name,
-                status.message,
-                s.hardware_id,
-                [KeyValue(key, value) for key, value in status.values.items()],
-            )
-            for name, s, status in zip(self._names, self.settings, report.statuses)
-        ]
-        time_ns = report.now
-        header = Header(Time(*split(time_ns)), '')
-        return TYPESTORE.serialize_cdr(T[DIAGNOSTIC_ARRAY](header, entries), DIAGNOSTIC_ARRAY)

@@ -6,30 +6,21 @@ from __future__ import annotations
 
 from typing import Iterable
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
+
+from ..wire import diagnostics
 
 
 def diagnostic_array(
     node: Node, entries: Iterable[tuple[str, str, int, str, dict[str, str]]]
-) -> DiagnosticArray:
-    """A DiagnosticArray stamped with the node clock.
+) -> bytes:
+    """A DiagnosticArray stamped with the node clock, serialized (publish it as it is).
 
     Each entry is (name, hardware_id, level, message, values); its status is named
     ``<node name>: <name>``.
     """
     full = node.get_name()
-    msg = DiagnosticArray(
-        status=[
-            DiagnosticStatus(
-                level=bytes([int(level)]),
-                name=f'{full}: {name}',
-                message=message,
-                hardware_id=hardware_id,
-                values=[KeyValue(key=key, value=value) for key, value in values.items()],
-            )
-            for name, hardware_id, level, message, values in entries
-        ]
+    return diagnostics.diagnostic_array(
+        node.get_clock().now().nanoseconds,
+        ((f'{full}: {name}', *rest) for name, *rest in entries),
     )
-    msg.header.stamp = node.get_clock().now().to_msg()
-    return msg

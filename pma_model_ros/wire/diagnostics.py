@@ -1,0 +1,68 @@
+"""``diagnostic_msgs/DiagnosticArray`` written as plain CDR bytes (little-endian): the bytes of
+rosbags' serializer, and of rclpy's but for what rclpy leaves in the alignment padding.
+
+model_node's 1 Hz report of 64 muscles is 64 statuses of about 35 key-values each, and it stalls
+the executor while it is built: as rclpy messages (2,240 ``KeyValue`` objects converted by
+``publish``) the whole report took about 3.5 ms, written here 1.8 ms (``bench/node_latency.py``
+prints it; docs/performance-nodes.md).  After the header every field is a string, a uint32 count
+or the one-byte level, so the bytes are the strings' lengths, texts and NULs, with zeros that
+align each uint32 to 4 bytes.  A key's bytes at each of the four alignments are kept: the keys
+are the same few dozen texts in every report (values are not kept: counters change).
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Iterable
+
+from .cdr import LITTLE_ENDIAN, split
+
+_HEADER = struct.Struct('<2s2xiI')  # encapsulation, options, stamp; then frame_id ''
+_EMPTY_FRAME = b'\x01\x00\x00\x00\x00'  # frame_id '': length 1, the NUL
+_U32 = struct.Struct('<I')
+_PADDING = (b'', b'\x00', b'\x00\x00', b'\x00\x00\x00')
+_keys: dict[tuple[str, int], bytes] = {}  # (key, padding before it) -> its bytes
+
+
+def _string(text: str, pad: int) -> bytes:
+    """``pad`` zero bytes, then the CDR string ``text``: uint32 length with the NUL, UTF-8, NUL."""
+    raw = text.encode()
+    return _PADDING[pad] + _U32.pack(len(raw) + 1) + raw + b'\x00'
+
+
+def diagnostic_array(
+    stamp_ns: int, entries: Iterable[tuple[str, str, int, str, dict[str, str]]]
+) -> bytes:
+    """A DiagnosticArray stamped ``stamp_ns`` [ns], frame_id empty, with a status per entry
+    (name, hardware_id, level, message, values): the bytes of rclpy's ``serialize_message``.
+    """
+    entries = list(entries)
+    parts = [
+        _HEADER.pack(LITTLE_ENDIAN, *split(stamp_ns)),
+        _EMPTY_FRAME,
+        _PADDING[3],  # to the status count: 8 + 5 bytes after the origin, 3 more to 16
+        _U32.pack(len(entries)),
+    ]
+    at = 20  # bytes after the 4 of the encapsulation (CDR's origin of alignment)
+    append, keys = parts.append, _keys
+    for name, hardware_id, level, message, values in entries:
+        append(bytes((level,)))
+        at += 1
+        for text in (name, message, hardware_id):
+            chunk = _string(text, -at % 4)
+            append(chunk)
+            at += len(chunk)
+        pad = -at % 4
+        append(_PADDING[pad] + _U32.pack(len(values)))
+        at += pad + 4
+        for key, value in values.items():
+            pad = -at % 4
+            chunk = keys.get((key, pad))
+            if chunk is None:
+                chunk = keys[key, pad] = _string(key, pad)
+            append(chunk)
+            at += len(chunk)
+            chunk = _string(value, -at % 4)
+            append(chunk)
+            at += len(chunk)
+    return b''.join(parts)
