@@ -1,8 +1,10 @@
-"""Message builders shared by the node tests."""
+"""Message builders shared by the node tests, and :func:`record` of what a node publishes."""
+
+import copy
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 AMBIENT = 101325.0  # [Pa], the config's ambient_pressure
@@ -11,6 +13,19 @@ JOINT = 'DMSP-10-250'  # the config's joint_name
 #: so at a few hundred messages per second a shallow queue would drop some.
 SENSOR_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
 RELIABLE_QOS = QoSProfile(depth=1000)
+
+
+def record(publisher) -> list:
+    """What ``publisher`` publishes from now on, as messages (the nodes publish most of theirs
+    serialized).
+    """
+    sent = []
+    publisher.publish = lambda msg: sent.append(
+        deserialize_message(msg, publisher.msg_type)
+        if isinstance(msg, bytes)
+        else copy.deepcopy(msg)
+    )
+    return sent
 
 
 def raw(msg) -> bytes:

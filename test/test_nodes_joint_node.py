@@ -13,12 +13,11 @@ import time
 
 import pytest
 from rclpy.parameter import Parameter
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
 from conftest import REPO
-from node_messages import AMBIENT, raw
+from node_messages import AMBIENT, raw, record
 from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
@@ -39,16 +38,6 @@ def make_node(private_node):
         return private_node(JointNode, '--params-file', params_file, overrides=overrides)
 
     return make
-
-
-def record(publisher) -> list:
-    sent = []
-    publisher.publish = lambda msg: sent.append(
-        deserialize_message(msg, publisher.msg_type)
-        if isinstance(msg, bytes)
-        else copy.deepcopy(msg)
-    )
-    return sent
 
 
 def joint_states_at(stamp, angles: dict[str, float]) -> JointState:

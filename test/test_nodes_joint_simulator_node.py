@@ -7,7 +7,6 @@ the work-energy balance of the map torque and a damped oscillator's decay.  Bad 
 start-up with a StartupError naming them (and the process with one line).
 """
 
-import copy
 import csv
 import math
 import sys
@@ -19,7 +18,7 @@ from rclpy.time import Time
 from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import lines_of_failed_start, REPO
-from node_messages import AMBIENT
+from node_messages import AMBIENT, record
 from pma_model_ros.core.shipped_data import shipped_force_map
 from pma_model_ros.core.simulation import GroundTruth
 from pma_model_ros.nodes.joint_simulator_node import JointSimulatorNode
@@ -43,12 +42,6 @@ def make_node(private_node):
         return private_node(JointSimulatorNode, overrides={'use_sim_time': True} | params)
 
     return make
-
-
-def record(publisher) -> list:
-    sent = []
-    publisher.publish = lambda msg: sent.append(copy.deepcopy(msg))
-    return sent
 
 
 def tick(node, t: float) -> None:

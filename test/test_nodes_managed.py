@@ -15,7 +15,7 @@ from rclpy.lifecycle import TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from test_nodes_joint_node import command, joint_state
 from test_nodes_joint_node import pressure as joint_pressure
-from test_nodes_model_node import frozen_clock, record
+from test_nodes_model_node import frozen_clock
 
 from conftest import CONFIGS, edited_copy, REPO
 from node_messages import (
@@ -23,6 +23,7 @@ from node_messages import (
     force_command,
     pressure,
     raw,
+    record,
     RELIABLE_QOS,
     SENSOR_QOS,
     stamp_key,

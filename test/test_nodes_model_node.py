@@ -5,7 +5,6 @@ callbacks and reads what it published (each publisher's ``publish`` replaced by 
 The expected forces come from each muscle's own single-muscle file through the core.
 """
 
-import copy
 import math
 import subprocess
 import sys
@@ -13,11 +12,10 @@ import sys
 from builtin_interfaces.msg import Time
 import pytest
 from rclpy.parameter import Parameter
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from conftest import CONFIGS, REPO
-from node_messages import AMBIENT, force_command, JOINT, pressure, raw, state
+from node_messages import AMBIENT, force_command, JOINT, pressure, raw, record, state
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
 
@@ -52,19 +50,6 @@ def shifted(stamp: Time, seconds: float) -> Time:
     """``stamp`` moved by ``seconds``."""
     t = stamp.sec * 10**9 + stamp.nanosec + round(seconds * 1e9)
     return Time(sec=t // 10**9, nanosec=t % 10**9)
-
-
-def record(publisher) -> list:
-    """What ``publisher`` publishes from now on, as messages (the node publishes some
-    serialized).
-    """
-    sent = []
-    publisher.publish = lambda msg: sent.append(
-        deserialize_message(msg, publisher.msg_type)
-        if isinstance(msg, bytes)
-        else copy.deepcopy(msg)
-    )
-    return sent
 
 
 def test_one_muscle_answers_each_input_with_the_newest_pair(make_node):

@@ -5,11 +5,10 @@ import pytest
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS
-from node_messages import AMBIENT, pressure, raw, state
+from node_messages import AMBIENT, pressure, raw, record, state
 from pma_model_ros.core.node_parameters import IDENTIFICATION
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
@@ -183,12 +182,11 @@ def node(private_node):
 
 def estimate(node) -> float:
     """The node's force estimate at 400 kPa gauge and 0.24 m (in-process)."""
-    sent = []
-    node._estimate_pubs[0].publish = sent.append
+    sent = record(node._estimate_pubs[0])
     now = node.get_clock().now()
     node._on_pressure(0, raw(pressure(now.to_msg(), AMBIENT + 400e3)))
     node._on_state(0, raw(state(now.to_msg(), 0.24, name='DMSP-10-250')))
-    return deserialize_message(sent[-1], WrenchStamped).wrench.force.x
+    return sent[-1].wrench.force.x
 
 
 def test_switching_model_declares_its_block_and_keeps_the_last_values(node):
@@ -219,8 +217,7 @@ def test_identification_results_are_values_of_the_muscle_status(node):
     assert not node.has_parameter('models.martens.err')
     for model in ('martens', 'hildebrandt'):
         assert node.set_parameters([Parameter('model', value=model)])[0].successful
-        sent = []
-        node._diag_pub.publish = sent.append
+        sent = record(node._diag_pub)
         node.publish_status(node.now())
         values = {kv.key: kv.value for kv in sent[0].status[0].values}
         entry = params['models'][model]
