@@ -15,6 +15,7 @@ a whole nested table of c candidates on m lengths costs c (1 + m + m (m - 1) / 2
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable, Protocol
 
 import numpy as np
@@ -212,13 +213,20 @@ class HeldOutBand:
                 f'{self.lengths}, {self.errors}, {self.max_force}'
             )
 
+    @cached_property
+    def _sorted(self) -> tuple[np.ndarray, np.ndarray]:
+        """The held-out lengths [m] in increasing order, and their errors [%] (model_node asks
+        :meth:`at` for every muscle at each status report).
+        """
+        order = np.argsort(self.lengths)
+        return np.asarray(self.lengths)[order], np.asarray(self.errors)[order]
+
     def at(self, length: float) -> tuple[float, bool]:
         """(expected worst error [%] at ``length`` [m], whether it lies within the held-out
         lengths): the larger error of the two held-out lengths around it; outside them, the
         nearest one's (an extrapolation, which the figure does not cover).
         """
-        order = np.argsort(self.lengths)
-        lengths, errors = np.asarray(self.lengths)[order], np.asarray(self.errors)[order]
+        lengths, errors = self._sorted
         if length < lengths[0] or length > lengths[-1]:
             return float(errors[0] if length < lengths[0] else errors[-1]), False
         i = int(np.searchsorted(lengths, length))

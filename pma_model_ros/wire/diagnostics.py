@@ -6,8 +6,8 @@ the executor while it is built: as rclpy messages (2,240 ``KeyValue`` objects co
 ``publish``) the whole report took about 3.5 ms, written here 1.8 ms (``bench/node_latency.py``
 prints it; docs/performance-nodes.md).  After the header every field is a string, a uint32 count
 or the one-byte level, so the bytes are the strings' lengths, texts and NULs, with zeros that
-align each uint32 to 4 bytes.  A key's bytes at each of the four alignments are kept: the keys
-are the same few dozen texts in every report (values are not kept: counters change).
+align each uint32 to 4 bytes.  A text's bytes at each of the four alignments are kept: most texts
+repeat from report to report.
 """
 
 from __future__ import annotations
@@ -21,22 +21,30 @@ _HEADER = struct.Struct('<2s2xiI')  # encapsulation, options, stamp; then frame_
 _EMPTY_FRAME = b'\x01\x00\x00\x00\x00'  # frame_id '': length 1, the NUL
 _U32 = struct.Struct('<I')
 _PADDING = (b'', b'\x00', b'\x00\x00', b'\x00\x00\x00')
-_keys: dict[tuple[str, int], bytes] = {}  # (key, padding before it) -> its bytes
+#: (text, padding before it) -> its bytes: the keys and most values (the levels' texts, settings,
+#: identification results, counters at 0) repeat from report to report; cleared when full
+_chunks: dict[tuple[str, int], bytes] = {}
+_CHUNKS_MAX = 20_000
 
 
-def _string(text: str, pad: int) -> bytes:
-    """``pad`` zero bytes, then the CDR string ``text``: uint32 length with the NUL, UTF-8, NUL."""
+def _chunk(text: str, pad: int) -> bytes:
+    """``pad`` zero bytes, then the CDR string ``text``: uint32 length with the NUL, UTF-8, NUL
+    (kept in :data:`_chunks`).
+    """
     raw = text.encode()
-    return _PADDING[pad] + _U32.pack(len(raw) + 1) + raw + b'\x00'
+    chunk = _chunks[text, pad] = _PADDING[pad] + _U32.pack(len(raw) + 1) + raw + b'\x00'
+    return chunk
 
 
 def diagnostic_array(
     stamp_ns: int, entries: Iterable[tuple[str, str, int, str, dict[str, str]]]
 ) -> bytes:
     """A DiagnosticArray stamped ``stamp_ns`` [ns], frame_id empty, with a status per entry
-    (name, hardware_id, level, message, values): the bytes of rclpy's ``serialize_message``.
+    (name, hardware_id, level, message, values).
     """
     entries = list(entries)
+    if len(_chunks) > _CHUNKS_MAX:
+        _chunks.clear()
     parts = [
         _HEADER.pack(LITTLE_ENDIAN, *split(stamp_ns)),
         _EMPTY_FRAME,
@@ -44,25 +52,22 @@ def diagnostic_array(
         _U32.pack(len(entries)),
     ]
     at = 20  # bytes after the 4 of the encapsulation (CDR's origin of alignment)
-    append, keys = parts.append, _keys
+    append, cached = parts.append, _chunks.get
     for name, hardware_id, level, message, values in entries:
         append(bytes((level,)))
         at += 1
         for text in (name, message, hardware_id):
-            chunk = _string(text, -at % 4)
+            pad = -at % 4
+            chunk = cached((text, pad)) or _chunk(text, pad)
             append(chunk)
             at += len(chunk)
         pad = -at % 4
         append(_PADDING[pad] + _U32.pack(len(values)))
         at += pad + 4
-        for key, value in values.items():
-            pad = -at % 4
-            chunk = keys.get((key, pad))
-            if chunk is None:
-                chunk = keys[key, pad] = _string(key, pad)
-            append(chunk)
-            at += len(chunk)
-            chunk = _string(value, -at % 4)
-            append(chunk)
-            at += len(chunk)
+        for item in values.items():
+            for text in item:
+                pad = -at % 4
+                chunk = cached((text, pad)) or _chunk(text, pad)
+                append(chunk)
+                at += len(chunk)
     return b''.join(parts)
