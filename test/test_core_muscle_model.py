@@ -7,6 +7,7 @@ clamping is.
 """
 
 from dataclasses import replace
+import itertools
 
 import numpy as np
 import pytest
@@ -120,3 +121,30 @@ def test_envelope_ends_at_the_braids_shortest_length_and_l0(martens_10_250):
     assert below.flags & Flag.LENGTH_OUT_OF_RANGE
     assert float(below.raw) == float(m.force(3e5, shortest).raw)
     assert m.force(3e5, 0.26).flags & Flag.LENGTH_OUT_OF_RANGE
+
+
+@pytest.mark.parametrize('path', sorted(CONFIGS.values()), ids=lambda p: p.stem)
+def test_lengths_served_as_identified_take_the_same_values_as_the_clamping_path(path):
+    """operating() of lengths that all lie in every muscle's identified and served lengths skips
+    the clamping and flagging (the usual message): it gives what the full path gives for the same
+    lengths, reached by adding one length outside (flags, usable and coefficients bit for bit).
+    Lengths drawn in the identified range take the short path; drawn in the whole range served
+    (EXTRAPOLATED outside the identified one, where the model extrapolates), mostly not.
+    """
+    parameters = read_parameters(path)
+    rng = np.random.default_rng(7)
+    for name in parameters['models']:
+        m = muscle_model(parameters, name)
+        lim = m.limits
+        ranges = ((m.domain.length_min, m.domain.length_max), (lim.length_low, lim.length_high))
+        for (low, high), valid in itertools.product(ranges, (True, False)):
+            inside = rng.uniform(low, high, 12)
+            for rate in (None, np.sign(rng.normal(size=13))):
+                alone = m.operating(inside, None if rate is None else rate[:12], valid)
+                beside = m.operating(np.r_[inside, lim.length_high + 0.001], rate, valid)
+                assert not beside.flags[-1] == 0  # the full path: the last length is flagged
+                for field in ('flags', 'q2', 'q1', 'q0'):
+                    want = np.broadcast_to(getattr(beside, field), (13,))[:12]
+                    got = np.broadcast_to(getattr(alone, field), (12,))
+                    assert np.array_equal(got, want), (name, field)
+                assert np.all(np.broadcast_to(beside.usable, (13,))[:12]) and np.all(alone.usable)

@@ -62,7 +62,7 @@ class PressureResult:
 )
 
 
-_EVERY = np.bool_(True)  #: ``usable`` of lengths checked by the caller
+_EVERY = np.bool_(True)  #: ``usable`` of lengths known to be lengths of the muscle
 _LENGTH_OUT16, _EXTRAPOLATED16, _INVALID16, _BRANCH_UNKNOWN16, _NONE16 = (
     np.uint16(f) for f in (_LENGTH_OUT, _EXTRAPOLATED, _INVALID, _BRANCH_UNKNOWN, 0)
 )
@@ -173,6 +173,17 @@ class Evaluator:
         return self.model.prepare(self.theta, self.spec, self.domain)
 
     @cached_property
+    def _unflagged(self) -> tuple[float, float]:
+        """[m] The lengths that every one of these muscles serves as identified, with no flag:
+        within its lengths served and its identified ones.
+        """
+        lim, domain = self.limits, self.domain
+        return (
+            float(max(np.max(lim.length_low), np.max(domain.length_min))),
+            float(min(np.min(lim.length_high), np.min(domain.length_max))),
+        )
+
+    @cached_property
     def _extrapolates(self) -> bool:
         """Whether any of the muscles serves lengths outside its identified ones."""
         return bool(np.any(self.domain.extrapolates))
@@ -192,18 +203,23 @@ class Evaluator:
         reused for every pressure at it (:func:`force_at`).  ``valid``: the caller checked that
         the geometry takes every length.
         """
-        L = np.asarray(length, float)
-        lim = self.limits
+        L, lim = np.asarray(length, float), self.limits
         # written for few numpy calls: the engines call it per message of every muscle
-        at = np.minimum(np.maximum(L, lim.length_low), lim.length_high)  # NaN stays NaN
-        flags = (at != L) * _LENGTH_OUT16
-        if self._extrapolates:  # else the lengths served lie inside the identified ones
-            domain = self.domain
-            flags |= ((at < domain.length_min) | (at > domain.length_max)) * _EXTRAPOLATED16
-        usable = _EVERY if valid else (L > 0) & (L < self.max_length)  # False for NaN
-        if not valid and np.count_nonzero(usable) < usable.size:
-            at = np.where(usable, at, lim.length_high)
-            flags = np.where(usable, flags, _INVALID16)
+        low, high = self._unflagged
+        if L.size and L.min() >= low and L.max() <= high:  # (False for NaN)
+            # the usual message: every length served as it is, none flagged (two reductions
+            # instead of the nine operations below; test_core_muscle_model pins it to them)
+            at, flags, usable = L, np.zeros(L.shape, np.uint16), _EVERY
+        else:
+            at = np.minimum(np.maximum(L, lim.length_low), lim.length_high)  # NaN stays NaN
+            flags = (at != L) * _LENGTH_OUT16
+            if self._extrapolates:  # else the lengths served lie inside the identified ones
+                domain = self.domain
+                flags |= ((at < domain.length_min) | (at > domain.length_max)) * _EXTRAPOLATED16
+            usable = _EVERY if valid else (L > 0) & (L < self.max_length)  # False for NaN
+            if not valid and np.count_nonzero(usable) < usable.size:
+                at = np.where(usable, at, lim.length_high)
+                flags = np.where(usable, flags, _INVALID16)
         branch = 0.0
         if self.model.hysteresis:
             if length_rate is not None:
