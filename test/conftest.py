@@ -269,7 +269,11 @@ def private_node():
     """A factory of in-process nodes, each on its own Context (as rclpy's own tests), destroyed
     after the test: ``make(cls, *ros_args, overrides=None, **kwargs)`` initialises a Context with
     ``--ros-args *ros_args`` and returns ``cls(context=..., **kwargs)``, ``overrides`` (a dict)
-    as its ``parameter_overrides``.  A constructor that raises leaves its Context to be shut down.
+    as its ``parameter_overrides``.  A constructor that raises leaves its Context to be shut down,
+    and the half-built node it carries (``StartupError.node``) to be destroyed first, not left to
+    the garbage collector after its Context has gone (a fresh clone's ``.ci/run`` once hung in a
+    garbage collection inside the constructor of the test after one that left such a node:
+    faulthandler ``Garbage-collecting``, 97 % CPU for minutes).
     """
     import rclpy
     from rclpy.parameter import Parameter
@@ -282,7 +286,12 @@ def private_node():
         made.append((context, []))
         if overrides:
             kwargs['parameter_overrides'] = [Parameter(k, value=v) for k, v in overrides.items()]
-        node = cls(context=context, **kwargs)
+        try:
+            node = cls(context=context, **kwargs)
+        except Exception as err:
+            if getattr(err, 'node', None) is not None:
+                made[-1][1].append(err.node)
+            raise
         made[-1][1].append(node)
         return node
 
