@@ -54,7 +54,9 @@ from joint_node_cost import arm  # noqa: E402  (bench/, this script's folder, is
 import rclpy  # noqa: E402
 from rclpy.experimental import EventsExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
 from pma_model_ros.core.node_parameters import STANDARD_ATMOSPHERE  # noqa: E402
@@ -396,11 +398,15 @@ def profiled_node(name: str, out: Path, args: list[str]) -> int:
     return code
 
 
-def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float, float, float]:
+def callback_cost(
+    muscles: int, folder: Path, cycles: int = 2000
+) -> tuple[float, float, float, float]:
     """CPU time of model_node's callbacks per cycle (both inputs as bytes, called directly: no
     executor, no wait) and of the engine's share of it (its two calls per cycle) [us]; answers go
     nowhere.  Then the CPU time of one /diagnostics report of every muscle (publish_status, the 1
-    Hz timer's work, a stall of the executor) [ms].
+    Hz timer's work, a stall of the executor), each after 20 new cycles [ms], and the baseline:
+    the bare relay's callbacks per cycle of the same inputs, each deserialized by rclpy first as
+    its executor does [us].
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     rclpy.init(args=['--ros-args', '-r', '__ns:=/cost', '--params-file', str(params)])
@@ -431,15 +437,27 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> tuple[float
                 engine.pressures(pressures, t, t)
                 engine.lengths(lengths[k], rates, t, t)
         own = (time.process_time() - start) / cycles
-        start = time.process_time()
+        report = 0.0  # each report after new inputs: new counters, rates and delays to write
         for _ in range(REPORTS):
-            model.publish_status(now)
-        report = (time.process_time() - start) / REPORTS
-        model.destroy_node()
-        node.destroy_node()
+            for k in range(20):
+                first, second = node.messages(k, model.now())
+                handlers[0](first)
+                handlers[1](second)
+            start = time.process_time()
+            model.publish_status(model.now())
+            report += (time.process_time() - start) / REPORTS
+        relay = Relay(parameter_overrides=[Parameter('muscles', value=muscles)])
+        subscriptions = list(relay.subscriptions)  # the pressure's, then the length's
+        start = time.process_time()
+        for cycle in inputs:
+            for subscription, data in zip(subscriptions, cycle):
+                subscription.callback(deserialize_message(data, subscription.msg_type))
+        relayed = (time.process_time() - start) / cycles
+        for made in (relay, model, node):
+            made.destroy_node()
     finally:
         rclpy.shutdown()
-    return per_cycle * 1e6, own * 1e6, report * 1e3
+    return per_cycle * 1e6, own * 1e6, report * 1e3, relayed * 1e6
 
 
 def print_rows(
@@ -540,7 +558,7 @@ def main() -> int:
                 'inputs):'
             )
         for n in muscles if not args.code else []:
-            cycle, bank, report = callback_cost(n, Path(tmp))
+            cycle, bank, report, relayed = callback_cost(n, Path(tmp))
             print(
                 f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
                 + (
@@ -548,7 +566,7 @@ def main() -> int:
                     if n > 1
                     else ' (its one-muscle float path)'
                 )
-                + f'; a /diagnostics report {report:.2f} ms'
+                + f'; a /diagnostics report {report:.2f} ms; the bare relay {relayed:.0f} us'
             )
         if muscles:
             print_rows(False, muscles, args, Path(tmp), last)

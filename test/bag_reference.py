@@ -18,14 +18,13 @@ from pma_model_ros.bags.offline_inputs import DESERIALIZE
 from pma_model_ros.bags.offline_node import (
     COMBINED_INPUTS,
     COMBINED_OUTPUTS,
-    DIAGNOSTIC_PERIOD_NS,
     DIAGNOSTICS,
     INPUTS,
     OUTPUTS,
 )
 from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.flags import describe
-from pma_model_ros.core.health import node_timing
+from pma_model_ros.core.health import DIAGNOSTIC_PERIOD_NS, node_timing
 from pma_model_ros.wire.cdr import fluid_pressure
 from pma_model_ros.wire.muscle_inputs import MuscleInputs
 

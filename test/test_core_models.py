@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS
+from pma_model_ros.core import elementwise as ew
+from pma_model_ros.core import geometry as geo
 from pma_model_ros.core.calibration import shifted
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import domain_of, max_error_percent
@@ -153,11 +155,29 @@ def test_coefficient_slopes_are_the_length_derivatives(path):
                 )
 
 
+def martens_per_call(theta, spec, length):
+    """Martens' eq. 14 coefficients as written before the prepared form (every constant of the
+    braid, eqs. 2-4, recomputed at each call): the reference of the prepared form, bit for bit.
+    """
+    c0, c1, c2, c3, d0 = theta
+    angle = spec.fiber_angle + d0
+    lf, n = geo.fiber_length(spec, angle), geo.turns(spec, angle)
+    modulus = ((c3 * length + c2) * length + c1) * length + c0
+    root = ew.sqrt(lf**2 - length**2)
+    dia, dia_slope = root / (n * math.pi), -length / (n * math.pi * root)
+    volume_slope = (lf**2 - 3 * length**2) / (4 * math.pi * n**2)
+    d0_, h0, l0 = spec.inner_diameter, spec.membrane_thickness, spec.nominal_length
+    f_pe = modulus * (dia - d0_) / d0_ * h0 * length * math.pi
+    f_l = modulus * (length - l0) / l0 * h0 * math.pi * dia
+    return 0.0 * length, -volume_slope, f_pe * dia_slope - f_l
+
+
 @pytest.mark.parametrize('path', sorted(CONFIGS.values()), ids=lambda p: p.stem)
 def test_a_prepared_model_gives_its_coefficients_bit_for_bit(path):
     """What the nodes evaluate per message (:meth:`Model.prepare`, the braid's constants computed
-    once) is the model's own coefficients, to the last bit: on arrays, on plain floats (the
-    one-muscle path), and with a calibrated pressure offset (:func:`shifted`).
+    once) is, to the last bit, Martens' coefficients with every constant recomputed per call (as
+    before the prepared form), and every other model's own coefficients: on arrays, on plain floats
+    (the one-muscle path), and with a calibrated pressure offset (:func:`shifted`).
     """
     parameters = read_parameters(path)
     L = np.linspace(0.6, 1.0, 7) * parameters['muscle']['nominal_length']
@@ -165,11 +185,17 @@ def test_a_prepared_model_gives_its_coefficients_bit_for_bit(path):
         m = muscle_model(parameters, name)
         for model, theta in ((m.model, m.theta), (shifted(m.model), np.append(m.theta, 7e3))):
             for branch in (0.0, 1.0, -1.0):
-                prepared = model.prepare(theta, m.spec, m.domain)
+                one = tuple(theta.tolist())
+                prepared, floats = (model.prepare(t, m.spec, m.domain) for t in (theta, one))
                 want = model.coefficients(theta, m.spec, m.domain, L, branch)
                 assert all(np.array_equal(a, b) for a, b in zip(prepared(L, branch), want)), name
-                one = tuple(theta.tolist())
-                floats = model.prepare(one, m.spec, m.domain)
                 for x in L.tolist():
-                    want = model.coefficients(one, m.spec, m.domain, x, branch)
-                    assert floats(x, branch) == want, name
+                    assert floats(x, branch) == model.coefficients(
+                        one, m.spec, m.domain, x, branch
+                    )
+        if name == 'martens':
+            for t, lengths in ((m.theta, L), (tuple(m.theta.tolist()), L.tolist())):
+                f = m.model.prepare(t, m.spec, m.domain)
+                for x in lengths if isinstance(lengths, list) else [lengths]:
+                    got, want = f(x, 0.0), martens_per_call(t, m.spec, x)
+                    assert all(np.array_equal(a, b) for a, b in zip(got, want))

@@ -132,6 +132,18 @@ def arrays_of(msg) -> JointStateArrays:
     )
 
 
+def stamped(kind, frame: str, stamp: tuple[int, int], value: float):
+    """A FluidPressure or WrenchStamped (``kind``) with ``frame``, ``stamp`` and its float."""
+    msg = kind()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+    if kind is FluidPressure:
+        msg.fluid_pressure = value
+    else:
+        msg.wrench.force.x = value
+    return msg
+
+
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
 @given(frame=texts, value=floats, stamp=stamps)
 def test_stamped_float_reads_and_writes_like_rclpy(frame, value, stamp):
@@ -139,13 +151,7 @@ def test_stamped_float_reads_and_writes_like_rclpy(frame, value, stamp):
         (FluidPressure, fluid_pressure, 'fluid_pressure'),
         (WrenchStamped, wrench_stamped, 'wrench.force.x'),
     ):
-        msg = kind()
-        msg.header.frame_id = frame
-        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
-        if kind is FluidPressure:
-            msg.fluid_pressure = value
-        else:
-            msg.wrench.force.x = value
+        msg = stamped(kind, frame, stamp, value)
         ns = stamp[0] * 10**9 + stamp[1]
         got_stamp, got = stamped_float(serialize_message(msg))
         assert got_stamp == ns and (got == value or math.isnan(got) and math.isnan(value))
@@ -365,13 +371,7 @@ def test_stamped_floats_equal_reading_each_message(stream, kind):
     }[kind]
     messages = []
     for frame, value, stamp, form in stream:
-        msg = cls()
-        msg.header.frame_id = frame
-        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
-        if cls is FluidPressure:
-            msg.fluid_pressure = value
-        else:
-            msg.wrench.force.x = value
+        msg = stamped(cls, frame, stamp, value)
         messages.append(big_endian(msg) if form == 'big-endian' else serialize_message(msg))
 
     def deserialize(raw):

@@ -32,7 +32,7 @@ def rclpy_message(stamp_ns: int, entries: list) -> DiagnosticArray:
         status=[
             DiagnosticStatus(
                 level=bytes([level]),
-                name=name,
+                name=f'model_node: {name}',
                 hardware_id=hardware_id,
                 message=message,
                 values=[KeyValue(key=k, value=v) for k, v in values.items()],
@@ -52,12 +52,12 @@ def test_the_bytes_are_rclpys_and_rosbags(stamp, first, second):
     """
     t = TYPESTORE.types
     for entries in (first, second):
-        got = diagnostic_array(stamp, entries)
+        got = diagnostic_array(stamp, 'model_node', entries)
         header = t['std_msgs/msg/Header'](t['builtin_interfaces/msg/Time'](*split(stamp)), '')
         statuses = [
             t['diagnostic_msgs/msg/DiagnosticStatus'](
                 level,
-                name,
+                f'model_node: {name}',
                 message,
                 hardware_id,
                 [t['diagnostic_msgs/msg/KeyValue'](k, v) for k, v in values.items()],
@@ -73,7 +73,7 @@ def test_an_empty_array_by_hand():
     """No status: encapsulation, stamp (sec, nanosec), frame_id '' (length 1, NUL), padding to
     the count 0.
     """
-    assert diagnostic_array(5 * 10**9 + 7, []) == (
+    assert diagnostic_array(5 * 10**9 + 7, 'model_node', []) == (
         b'\x00\x01\x00\x00' + b'\x05\x00\x00\x00\x07\x00\x00\x00' + b'\x01\x00\x00\x00\x00'
         b'\x00\x00\x00' + b'\x00\x00\x00\x00'
     )

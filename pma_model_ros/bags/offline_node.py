@@ -29,9 +29,8 @@ from .bag_io import (
 from .offline_inputs import decode, pick
 from ..core.engine import Engine
 from ..core.flags import describe
-from ..core.health import DIAGNOSTIC_PERIOD, node_timing
+from ..core.health import node_timing
 from ..core.node_parameters import SPECS
-from ..core.pairing import nanoseconds
 from ..core.param_file import NodeSettings
 from ..core.recording import COMMAND_IN, Estimates, Recording
 from ..core.timeline import Report
@@ -47,7 +46,6 @@ COMBINED_INPUTS = ('muscle_pressures', 'muscle_states', 'force_commands')
 OUTPUTS = ('force_estimate', 'pressure_command')
 COMBINED_OUTPUTS = ('force_estimates', 'pressure_commands')
 DIAGNOSTICS = '/diagnostics'
-DIAGNOSTIC_PERIOD_NS = nanoseconds(DIAGNOSTIC_PERIOD)  # model_node's status timer [ns]
 CSV_COLUMNS = (
     'log_time_ns',
     'stamp_s',
@@ -197,7 +195,6 @@ class OfflineNode:
         self._pressures = [fluid_pressure(s.frame_id) for s in settings]
         self._joint_states: dict[tuple, Template] = {}  # by (names, field)
         self.summary = Summary(namespace)
-        self._names = [f'model_node: {joint}' for joint in self.joints]
         ids = max(self.roles, default=0) + 1
         self._role = np.full(ids, -1)
         self._muscle = np.full(ids, -1)
@@ -334,8 +331,9 @@ class OfflineNode:
     def _status(self, report: Report) -> bytes:
         return diagnostic_array(
             report.now,
+            'model_node',
             (
-                (name, s.hardware_id, int(status.level), status.message, status.values)
-                for name, s, status in zip(self._names, self.settings, report.statuses)
+                (joint, s.hardware_id, int(status.level), status.message, status.values)
+                for joint, s, status in zip(self.joints, self.settings, report.statuses)
             ),
         )

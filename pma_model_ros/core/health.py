@@ -28,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .flags import Flag
-from .pairing import fresh, NEVER, SECOND, UNSTAMPED
+from .pairing import fresh, nanoseconds, NEVER, SECOND, UNSTAMPED
 
 Which = np.ndarray | int | None  #: every entity (None), a mask, or one entity
 
@@ -65,6 +65,7 @@ REPORT_INTERVAL_PER_STATUS = 0.0015
 #: [s] Period of the nodes' /diagnostics reports; also how long a bad input or a warning holds the
 #: level.
 DIAGNOSTIC_PERIOD = 1.0
+DIAGNOSTIC_PERIOD_NS = nanoseconds(DIAGNOSTIC_PERIOD)  #: the same [ns] (the offline twin's timer)
 
 
 def node_timing(statuses: int) -> dict[str, float]:

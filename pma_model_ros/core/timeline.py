@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .engine import Counter, Engine
-from .health import levels_of, Status, WARN_BITS
+from .health import DIAGNOSTIC_PERIOD_NS, levels_of, Status, WARN_BITS
 from .pairing import NEVER, SECOND
 
 
@@ -91,7 +91,7 @@ class Timeline:
         log times ``times``, the node's inputs at ``input_at``), in order.
         """
         if self._next_status is None and len(times):
-            self._next_status = int(times[0]) + SECOND  # the node's 1 Hz status timer
+            self._next_status = int(times[0]) + DIAGNOSTIC_PERIOD_NS  # the node's status timer
         out = self._reports(events, first, times, input_at)
         for k, h in enumerate(events):
             self._carry(k, h)
@@ -125,7 +125,7 @@ class Timeline:
         timers = []
         while len(times) and self._next_status <= times[-1]:
             timers.append(self._next_status)
-            self._next_status += SECOND
+            self._next_status += DIAGNOSTIC_PERIOD_NS
         timer_at = first + np.searchsorted(times, timers, 'left')
         windows = [[0, 0] for _ in events]  # per muscle and input: first arrival in the window
         reports: list[Report] = []

@@ -14,13 +14,12 @@ from ..wire import diagnostics
 def diagnostic_array(
     node: Node, entries: Iterable[tuple[str, str, int, str, dict[str, str]]]
 ) -> bytes:
-    """A DiagnosticArray stamped with the node clock, serialized (publish it as it is).
+    """A DiagnosticArray of ``node`` stamped with its clock, serialized (publish it as it is;
+    :func:`~pma_model_ros.wire.diagnostics.diagnostic_array`).
 
     Each entry is (name, hardware_id, level, message, values); its status is named
     ``<node name>: <name>``.
     """
-    full = node.get_name()
     return diagnostics.diagnostic_array(
-        node.get_clock().now().nanoseconds,
-        ((f'{full}: {name}', *rest) for name, *rest in entries),
+        node.get_clock().now().nanoseconds, node.get_name(), entries
     )

@@ -37,10 +37,11 @@ def _chunk(text: str, pad: int) -> bytes:
 
 
 def diagnostic_array(
-    stamp_ns: int, entries: Iterable[tuple[str, str, int, str, dict[str, str]]]
+    stamp_ns: int, node: str, entries: Iterable[tuple[str, str, int, str, dict[str, str]]]
 ) -> bytes:
     """A DiagnosticArray stamped ``stamp_ns`` [ns], frame_id empty, with a status per entry
-    (name, hardware_id, level, message, values).
+    (name, hardware_id, level, message, values) of the node named ``node``: each status named
+    ``<node>: <name>``, as diagnostic_updater names its tasks' statuses.
     """
     entries = list(entries)
     if len(_chunks) > _CHUNKS_MAX:
@@ -56,7 +57,7 @@ def diagnostic_array(
     for name, hardware_id, level, message, values in entries:
         append(bytes((level,)))
         at += 1
-        for text in (name, message, hardware_id):
+        for text in (f'{node}: {name}', message, hardware_id):
             pad = -at % 4
             chunk = cached((text, pad)) or _chunk(text, pad)
             append(chunk)
