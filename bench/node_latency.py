@@ -88,8 +88,8 @@ class Relay(Node):
     no model.
     """
 
-    def __init__(self) -> None:
-        super().__init__('relay')
+    def __init__(self, **kwargs) -> None:
+        super().__init__('relay', **kwargs)
         muscles = self.declare_parameter('muscles', 1).value
         joints = self.declare_parameter('joints', 0).value
         if joints:
