@@ -59,8 +59,9 @@ _WARN_ARRAY = np.array(WARN_BITS, np.uint16)
 OK_TEXT = 'estimating'
 #: [s] Shortest time between two on-change reports of a node (model_node, joint_node and the
 #: offline twin), per status reported: building and publishing the statuses of 64 muscles took
-#: about 3 ms (1.5 ms with the bytes writer, wire/diagnostics.py), so on-change reports stay a few
-#: percent of a core however many entities flap (N = 64: at most one every 0.1 s).
+#: 5.3 ms as rclpy messages, 1.7-2.0 ms with the bytes writer (wire/diagnostics.py;
+#: bench/node_latency.py), so on-change reports stay a few percent of a core however many entities
+#: flap (N = 64: at most one every 0.1 s).
 REPORT_INTERVAL_PER_STATUS = 0.0015
 #: [s] Period of the nodes' /diagnostics reports; also how long a bad input or a warning holds the
 #: level.
