@@ -18,11 +18,19 @@ from typing import Sequence
 
 import numpy as np
 
-from .estimation import ABSURD_PRESSURE, Config, length_problem, Muscles, pressure_problem
-from .flags import describe
+from .estimation import (
+    command_problem,
+    commands_ok,
+    Config,
+    length_problem,
+    Muscles,
+    no_force_problem,
+    pressure_problem,
+    pressures_ok,
+)
 from .health import Health, Level, Status, WARN_MASK
 from .node_parameters import SPECS
-from .pairing import LENGTH, nanoseconds, Pairing, PRESSURE, UNSTAMPED
+from .pairing import fresh, LENGTH, nanoseconds, Pairing, PRESSURE, UNSTAMPED
 
 __all__ = ['Config', 'Counter', 'Engine', 'Level', 'Status']
 
@@ -189,10 +197,7 @@ class Engine:
         if ok is not None:
             asked = self._all if pairs is None else pairs
             for k in np.flatnonzero(asked & ~ok).tolist():
-                reason = (
-                    f'no force at length {muscles.length.item(k):g} m '
-                    f'({describe(self.flags.item(k))})'
-                )
+                reason = no_force_problem(muscles.length.item(k), self.flags.item(k))
                 self._invalid(k, 'muscle_state', reason, now)
             pairs = None if ok.all() else ok
         health.count(Counter.ESTIMATES, pairs)
@@ -216,7 +221,7 @@ class Engine:
         """:meth:`pressures` of muscle ``k``'s reading [Pa] alone; whether it got an estimate."""
         self.health.count(Counter.RECEIVED_PRESSURE, k)
         absolute = self.muscles.pressure_one(k, reading)
-        if not 0 <= absolute <= ABSURD_PRESSURE:  # False for NaN
+        if not pressures_ok(absolute):
             self._invalid(k, 'pressure', pressure_problem(absolute), now)
             return self._one(False)
         self.muscles.store_pressure_one(k, absolute)
@@ -246,7 +251,7 @@ class Engine:
         force, flags, ok = self.muscles.force_one(k)
         self._force[0], self._flag[0] = force, flags
         if not ok:
-            reason = f'no force at length {self.muscles.length.item(k):g} m ({describe(flags)})'
+            reason = no_force_problem(self.muscles.length.item(k), flags)
             self._invalid(k, 'muscle_state', reason, now)
             return self._one(False)
         health.count(Counter.ESTIMATES, k)
@@ -268,11 +273,11 @@ class Engine:
         """
         health = self.health
         health.count(Counter.RECEIVED_FORCE_COMMAND, k)
-        if not np.isfinite(force):
-            return self._invalid(k, 'force_command', f'force command is {force} N', now)
+        if not commands_ok(force):
+            return self._invalid(k, 'force_command', command_problem(force), now)
         if health.stale_command(k, 'force_command', stamp, now, Counter.STALE_COMMAND):
             return None
-        if not abs(now - self.pairing.stamps.item(LENGTH, k)) <= self.pairing.max_age:
+        if not fresh(self.pairing.stamps.item(LENGTH, k), now, self.pairing.max_age):
             health.count(Counter.NO_LENGTH, k)
             return None
         pressure, flags = self.muscles.command(k, force)

@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .flags import Flag
+from .flags import describe, Flag
 from .health import WARN_MASK
 from .hysteresis import Follow, play
 from .muscle_bank import MuscleBank
@@ -34,6 +34,13 @@ _INVALID, _CLIPPED = int(Flag.INVALID_INPUT), int(Flag.CLIPPED)
 _CLIPPED16 = np.uint16(_CLIPPED)
 
 
+def pressures_ok(absolute):
+    """Which absolute pressures [Pa] (a float or an array) are readings: in [0,
+    :data:`ABSURD_PRESSURE`] (not NaN).
+    """
+    return (absolute >= 0) & (absolute <= ABSURD_PRESSURE)
+
+
 def pressure_problem(absolute: float) -> str:
     """Why an absolute pressure [Pa] is no reading ('' if it is one)."""
     if not math.isfinite(absolute):
@@ -45,13 +52,37 @@ def pressure_problem(absolute: float) -> str:
     return ''
 
 
+def lengths_ok(lengths, limit):
+    """Which lengths [m] (a float or an array) a geometry allowing (0, ``limit``) m takes (not
+    NaN).
+    """
+    return (lengths > 0) & (lengths < limit)
+
+
 def length_problem(length: float, limit: float) -> str:
     """Why a length [m] is no reading of a muscle whose geometry allows (0, ``limit``) m ('' if it
     is one).
     """
-    if math.isfinite(length) and 0 < length < limit:
+    if lengths_ok(length, limit):
         return ''
     return f'length {length:g} m outside the geometry (0, {limit:.4g}) m'
+
+
+def no_force_problem(length: float, flags: int) -> str:
+    """Why a valid pair of inputs gave no force: the model has none at ``length`` [m]
+    (``flags``: the result's).
+    """
+    return f'no force at length {length:g} m ({describe(flags)})'
+
+
+def commands_ok(force):
+    """Which wanted tensions [N] (a float or an array) are commands: the finite ones."""
+    return np.isfinite(force)
+
+
+def command_problem(force: float) -> str:
+    """Why a wanted tension [N] is no command ('' if it is one)."""
+    return '' if commands_ok(force) else f'force command is {force} N'
 
 
 @dataclass(frozen=True)
@@ -132,15 +163,13 @@ class Muscles:
         all).
         """
         absolute = readings + self.offset if self._offsets else readings
-        if absolute.min() >= 0 and absolute.max() <= ABSURD_PRESSURE:  # False if a NaN
-            return absolute, None
-        return absolute, (absolute >= 0) & (absolute <= ABSURD_PRESSURE)
+        ok = pressures_ok(absolute)
+        return absolute, None if np.count_nonzero(ok) == ok.size else ok
 
     def take_lengths(self, lengths: np.ndarray) -> np.ndarray | None:
         """Which ``lengths`` [m] of every muscle the geometry can take (None: all)."""
-        if lengths.min() > 0 and not np.count_nonzero(lengths >= self.max_length):
-            return None
-        return (lengths > 0) & (lengths < self.max_length)
+        ok = lengths_ok(lengths, self.max_length)
+        return None if np.count_nonzero(ok) == ok.size else ok
 
     def store_pressures(self, valid: np.ndarray | None, absolute: np.ndarray) -> None:
         """The ``valid`` absolute pressures [Pa]; a branch that follows the pressure and turns
@@ -248,7 +277,7 @@ class Muscles:
 
     def length_valid_one(self, k: int, length: float) -> bool:
         """Whether muscle ``k``'s geometry can take ``length`` [m]."""
-        return 0 < length < self._floats[k][2]
+        return lengths_ok(length, self._floats[k][2])
 
     def store_length_one(self, k: int, length: float, rate: float) -> None:
         """:meth:`store_lengths` of muscle ``k``'s valid length [m] and rate [m/s]."""

@@ -28,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .flags import Flag
-from .pairing import fresh, nanoseconds, NEVER, SECOND, UNSTAMPED
+from .pairing import fresh, nanoseconds, NEVER, SECOND, stale_command_stamps
 
 Which = np.ndarray | int | None  #: every entity (None), a mask, or one entity
 
@@ -181,7 +181,7 @@ class Health:
         :attr:`stamps`).
         """
         delay = (now - stamp) / SECOND
-        if abs(now - stamp) > self.max_age:  # a stale input: the levels may have changed
+        if not fresh(stamp, now, self.max_age):  # a stale input: the levels may have changed
             self._steady = False
         elif self._steady:  # a fresh one stays fresh while now lies within max_age of it
             self._checked_at = max(self._checked_at, stamp - self.max_age)
@@ -213,7 +213,7 @@ class Health:
         :data:`~.pairing.UNSTAMPED`, is taken as ``now``).  A stale command is refused: counted
         in ``counter``, its text holds the level at ERROR for ``hold``, as a rejection.
         """
-        if stamp == UNSTAMPED or abs(now - stamp) <= self.max_age:
+        if not stale_command_stamps(stamp, now, self.max_age):
             return False
         self._refuse(k, stale_text(name, 'stamp', now - stamp, self.max_age), now)
         self.count(counter, k)
@@ -257,7 +257,7 @@ class Health:
         for name, stamp in zip(self.inputs[k], self.stamps[:, k].tolist()):
             if stamp == NEVER:
                 return Level.ERROR, f'no {name} received yet'
-            if abs(now - stamp) > self.max_age:
+            if not fresh(stamp, now, self.max_age):
                 return Level.ERROR, stale_text(name, 'newest stamp', now - stamp, self.max_age)
         warned = self._warned_at[k].tolist()
         if now - max(warned) < self.hold:

@@ -31,7 +31,7 @@ from .hysteresis import play
 from .joint import COCONTRACTION_MODES, Joint, MuscleAt
 from .muscle_model import served_pressure
 from .node_parameters import SPECS
-from .pairing import nanoseconds, NEVER, UNSTAMPED
+from .pairing import fresh, nanoseconds, NEVER, UNSTAMPED
 
 
 class Counter(enum.IntEnum):
@@ -212,9 +212,9 @@ class JointEngine:
         stamps[ANGLE, k] = stamp
         health.arrived(ANGLE, k, stamp, now)
         if not (
-            abs(now - stamp) <= max_age
-            and abs(now - stamps.item(0, k)) <= max_age
-            and abs(now - stamps.item(1, k)) <= max_age
+            fresh(stamp, now, max_age)
+            and fresh(stamps.item(0, k), now, max_age)
+            and fresh(stamps.item(1, k), now, max_age)
         ):  # (a pressure never received is NEVER: never fresh)
             health.count(Counter.STALE, k)
             return None

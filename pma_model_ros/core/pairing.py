@@ -14,9 +14,10 @@ A pair with a stale input gives no estimate (``stale``).  The rules are written 
 by ``test/test_core_engine.py``: over arrays of every muscle (:meth:`Pairing.pair`; an input of
 every muscle at one stamp is kept as one number, so that its freshness is one comparison) and in
 plain integers for one muscle (:meth:`Pairing.pair_one`, the one-muscle fast path).  Over a whole
-recording, ``every_input`` is one array expression (:func:`pair_every_input`), pinned to the
-engine by ``test/test_bags_estimate.py``; ``approximate_time`` runs :meth:`Pairing.pair_one`
-along the stream.
+recording, ``every_input`` is :meth:`Pairing.pair`'s array rule over the stream
+(:func:`pair_every_input`), pinned to the engine by ``test/test_bags_estimate.py``;
+``approximate_time`` runs :meth:`Pairing.pair_one` along it.  Freshness is :func:`fresh`
+everywhere, on integers and on arrays.
 """
 
 from __future__ import annotations
@@ -39,9 +40,29 @@ def nanoseconds(seconds: float) -> int:
     return round(seconds * SECOND)
 
 
-def fresh(stamps: np.ndarray, now: int, max_age: int) -> np.ndarray:
-    """Which ``stamps`` [ns] are fresh at ``now`` [ns]: |now - stamp| <= ``max_age`` [ns]."""
-    return np.abs(now - stamps) <= max_age
+def fresh(stamps, now, max_age: int):
+    """Whether ``stamps`` [ns] (an int or an array) are fresh at ``now`` [ns]: |now - stamp| <=
+    ``max_age`` [ns].
+    """
+    return abs(now - stamps) <= max_age
+
+
+def stale_command_stamps(stamps, now, max_age: int):
+    """Whether command ``stamps`` [ns] (an int or an array) are stale at ``now`` [ns]: stamped
+    (not :data:`UNSTAMPED`, taken as ``now``) and not :func:`fresh`.
+    """
+    return (stamps != UNSTAMPED) & np.logical_not(fresh(stamps, now, max_age))
+
+
+def _fresh_pairs(
+    candidates: np.ndarray, p: np.ndarray, length: np.ndarray, now, max_age: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Of the ``candidates`` with both stamps [ns], (which estimate: both fresh at ``now`` [ns],
+    which had a stale input).
+    """
+    candidates = candidates & (p != NEVER) & (length != NEVER)
+    ok = fresh(p, now, max_age) & fresh(length, now, max_age)
+    return candidates & ok, candidates & ~ok
 
 
 def pair_every_input(
@@ -51,9 +72,7 @@ def pair_every_input(
     whole recording): with ``p`` and ``length`` the newest valid stamps [ns] after each input,
     taken at ``now`` [ns], (which estimate, which had a stale input).
     """
-    candidates = (p != NEVER) & (length != NEVER)
-    ok = fresh(p, now, max_age) & fresh(length, now, max_age)
-    return candidates & ok, candidates & ~ok
+    return _fresh_pairs(np.ones(len(p), bool), p, length, now, max_age)
 
 
 class Pairing:
@@ -101,24 +120,23 @@ class Pairing:
         if p is not None and length is not None and not self.approximate:
             if p == NEVER or length == NEVER:
                 return self.none, self.none, self.none
-            if abs(now - p) <= self.max_age and abs(now - length) <= self.max_age:
+            if fresh(p, now, self.max_age) and fresh(length, now, self.max_age):
                 return which, self.none, self.none
             return self.none, (self._all if which is None else which), self.none
         candidates = self._all if which is None else which
         p, length = self.stamps
-        candidates = candidates & (p != NEVER) & (length != NEVER)
         unpaired = self.none
         if self.approximate:
             p_new, l_new = self._new
-            candidates &= p_new & l_new
+            candidates = candidates & p_new & l_new  # (a new stamp is a stamp, not NEVER)
             unpaired = candidates & (np.abs(p - length) > self.slop)
             older_p = unpaired & (p < length)
             p_new[older_p] = False
             l_new[unpaired & ~older_p] = False
             candidates &= ~unpaired
             p_new[candidates] = l_new[candidates] = False
-        ok = fresh(p, now, self.max_age) & fresh(length, now, self.max_age)
-        return candidates & ok, candidates & ~ok, unpaired
+        pairs, stale = _fresh_pairs(candidates, p, length, now, self.max_age)
+        return pairs, stale, unpaired
 
     def common(self) -> int | None:
         """The newest stamp [ns] of the last pressure and length if each was one input of every
@@ -149,5 +167,5 @@ class Pairing:
                 new[PRESSURE if p < length else LENGTH, k] = False
                 return False, False, True
             new[PRESSURE, k] = new[LENGTH, k] = False
-        ok = abs(now - p) <= self.max_age and abs(now - length) <= self.max_age
+        ok = fresh(p, now, self.max_age) and fresh(length, now, self.max_age)
         return ok, not ok, False

@@ -31,12 +31,20 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from .engine import Counter, Engine
-from .estimation import ABSURD_PRESSURE, length_problem, pressure_problem
-from .flags import describe, Flag
+from .estimation import (
+    command_problem,
+    commands_ok,
+    length_problem,
+    lengths_ok,
+    no_force_problem,
+    pressure_problem,
+    pressures_ok,
+)
+from .flags import Flag
 from .health import invalid_text, stale_text, WARN_BITS, WARN_MASK
 from .hysteresis import play
 from .muscle_model import force_at, Operating
-from .pairing import fresh, NEVER, pair_every_input, Pairing, UNSTAMPED
+from .pairing import fresh, NEVER, pair_every_input, Pairing, stale_command_stamps
 from .timeline import Events, Report, Timeline
 
 PRESSURE_IN, LENGTH_IN, COMMAND_IN = 0, 1, 2  #: kinds of input
@@ -155,9 +163,9 @@ class Recording:
         refused = np.zeros(len(kind), bool)
         refused[list(ev.refused)] = True
         absolute = value + config.reading_offset
-        ok_p = (kind == PRESSURE_IN) & ~refused & (absolute >= 0) & (absolute <= ABSURD_PRESSURE)
-        ok_l = (kind == LENGTH_IN) & ~refused & (value > 0) & (value < model.max_length)
-        ok_c = (kind == COMMAND_IN) & ~refused & np.isfinite(value)
+        ok_p = (kind == PRESSURE_IN) & ~refused & pressures_ok(absolute)
+        ok_l = (kind == LENGTH_IN) & ~refused & lengths_ok(value, model.max_length)
+        ok_c = (kind == COMMAND_IN) & ~refused & commands_ok(value)
         lengths = np.flatnonzero(ok_l)
         branch = np.full(len(kind), math.nan)
         b, anchor, deadband = carry.branch, carry.anchor, config.follow.deadband
@@ -297,8 +305,8 @@ class Recording:
         no_force[pairs[~has_force]] = True
         why_not = dict(zip(pairs[~has_force].tolist(), result.flags[~has_force].tolist()))
 
-        # commands, in one call: a stamp beyond max_age of now is stale (Health.stale_command)
-        stale_c = ok_c & (stamp != UNSTAMPED) & ~fresh(stamp, now, self.max_age)
+        # commands, in one call
+        stale_c = ok_c & stale_command_stamps(stamp, now, self.max_age)
         wanted = np.flatnonzero(ok_c & ~stale_c)
         with_length = fresh(l_stamp[wanted], now[wanted], self.max_age)
         sent = wanted[with_length]
@@ -338,13 +346,13 @@ class Recording:
             if i in ev.refused:
                 reason = ev.refused[i]
             elif i in why_not:
-                reason = f'no force at length {length.item(i):g} m ({describe(why_not[i])})'
+                reason = no_force_problem(length.item(i), why_not[i])
             elif is_p[i]:
                 reason = pressure_problem(prep.absolute.item(i))
             elif is_l[i]:
                 reason = length_problem(value.item(i), model.max_length)
             else:
-                reason = f'force command is {value.item(i)} N'
+                reason = command_problem(value.item(i))
             texts.append(invalid_text(reason))
         flagged_at = np.concatenate([estimates.at, commands.at])
         flagged = np.concatenate([estimates.flags, commands.flags]).astype(np.int64)
