@@ -11,8 +11,10 @@ import pytest
 
 from conftest import CONFIGS
 from pma_model_ros.core.engine import Config, Engine, Level
+from pma_model_ros.core.estimation import command_problem, commands_ok, lengths_ok, pressures_ok
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.hysteresis import Follow
+from pma_model_ros.core.pairing import fresh, NEVER, SECOND, stale_command_stamps, UNSTAMPED
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 
@@ -450,3 +452,31 @@ def test_on_change_reports_wait_for_the_report_interval(martens_10_250):
     assert not engine.status_due(ns(1.05))
     feed_length(engine, L, 0.0, stamp=1.12, now=1.12)
     assert engine.status_due(ns(1.12))  # reported with the next input after 0.1 s
+
+
+def test_each_input_rule_answers_alike_for_a_float_and_an_array():
+    """The bounds the node, its float path and bag estimate share (one function each): absolute
+    pressure in [0, 50 bar], a length in (0, max_length), a finite command, a stamp within
+    max_input_age (exactly max_age is fresh), and a command stamp of 0 never stale.
+    """
+    bar = 1e5
+    pressures = [-1.0, -0.0, 0.0, 3 * bar, 50 * bar, 50 * bar + 1, math.nan, math.inf]
+    expected = [False, True, True, True, True, False, False, False]
+    assert [bool(pressures_ok(p)) for p in pressures] == expected
+    assert pressures_ok(np.array(pressures)).tolist() == expected
+    lengths, limit = [0.0, 1e-9, 0.2, 0.3 - 1e-12, 0.3, math.nan, -math.inf], 0.3
+    expected = [False, True, True, True, False, False, False]
+    assert [bool(lengths_ok(x, limit)) for x in lengths] == expected
+    assert lengths_ok(np.array(lengths), limit).tolist() == expected
+    forces = [0.0, -5.0, 1e9, math.nan, math.inf, -math.inf]
+    expected = [True, True, True, False, False, False]
+    assert [bool(commands_ok(f)) for f in forces] == expected
+    assert [command_problem(f) == '' for f in forces] == expected
+    assert command_problem(math.nan) == 'force command is nan N'
+    now, age = 10 * SECOND, SECOND // 10
+    stamps = [now, now - age, now + age, now - age - 1, now + age + 1, NEVER, UNSTAMPED]
+    assert [bool(fresh(s, now, age)) for s in stamps] == [True, True, True] + [False] * 4
+    assert fresh(np.array(stamps), now, age).tolist() == [True, True, True] + [False] * 4
+    stale = [False, False, False, True, True, True, False]
+    assert [bool(stale_command_stamps(s, now, age)) for s in stamps] == stale
+    assert stale_command_stamps(np.array(stamps), now, age).tolist() == stale
