@@ -19,14 +19,16 @@ import numpy as np
 
 LITTLE_ENDIAN = b'\x00\x01'  #: encapsulation: plain CDR, little-endian (options 0)
 _ORIGIN = 4  # alignment origin: after the encapsulation header
-_STAMP = struct.Struct('<iI')
+STAMP = struct.Struct('<iI')  #: a header's builtin_interfaces/Time (sec, nanosec), little-endian
 _U32 = struct.Struct('<I')
 _F64 = struct.Struct('<d')
 _SECOND = 10**9
 
 
-def aligned(offset: int, size: int) -> int:
-    """``offset`` [bytes] moved up to the next multiple of ``size`` counted from the CDR origin."""
+def aligned(offset, size: int):
+    """``offset`` [bytes] (an int or an int array) moved up to the next multiple of ``size``
+    counted from the CDR origin.
+    """
     return offset + (-(offset - _ORIGIN)) % size
 
 
@@ -35,8 +37,8 @@ def split(stamp_ns: int) -> tuple[int, int]:
     return stamp_ns // _SECOND, stamp_ns % _SECOND
 
 
-def stamp_ns(sec: int, nanosec: int) -> int:
-    """A ``builtin_interfaces/Time`` in integer nanoseconds."""
+def stamp_ns(sec, nanosec):
+    """A ``builtin_interfaces/Time`` in integer nanoseconds (ints, or int64 arrays)."""
     return sec * _SECOND + nanosec
 
 
@@ -59,7 +61,7 @@ def stamped_float(data: bytes) -> tuple[int, float] | None:
     at = aligned(end, 8)
     if at + 8 > len(data):
         return None
-    sec, nanosec = _STAMP.unpack_from(data, 4)
+    sec, nanosec = STAMP.unpack_from(data, 4)
     return sec * _SECOND + nanosec, _F64.unpack_from(data, at)[0]
 
 
@@ -120,7 +122,7 @@ class Template:
 
     def __call__(self, stamp: int) -> bytes:
         """The message bytes stamped ``stamp`` [ns], with the current ``values``."""
-        _STAMP.pack_into(self._buffer, 4, *split(stamp))
+        STAMP.pack_into(self._buffer, 4, *split(stamp))
         return bytes(self._buffer)
 
     def batch(self, stamps: np.ndarray, values: np.ndarray) -> list[bytes]:

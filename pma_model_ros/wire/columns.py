@@ -16,11 +16,10 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from .cdr import LITTLE_ENDIAN
+from .cdr import aligned, LITTLE_ENDIAN, stamp_ns
 from .joint_state import gather, JointIndex, JointStateArrays, JointStateReader
 from .muscle_inputs import stamped_value
 
-_SECOND = 1_000_000_000
 _PAD = bytes(16)  # after the last message: offsets of a refused message stay in the buffer
 
 
@@ -45,11 +44,11 @@ def stamped_floats(
     base = np.where(ok, starts, 0)
     ok &= (buf[base] == LITTLE_ENDIAN[0]) & (buf[base + 1] == LITTLE_ENDIAN[1])
     end = 16 + gather(buf, base + 12, 4).view('<u4').ravel().astype(np.int64)
-    at = end + (-(end - 4)) % 8  # the first float64 after the header (cdr.aligned)
+    at = aligned(end, 8)  # the first float64 after the header
     ok &= at + 8 <= sizes
     base = np.where(ok, base, 0)
     sec = gather(buf, base + 4, 4).view('<i4').ravel().astype(np.int64)
-    stamps = sec * _SECOND + gather(buf, base + 8, 4).view('<u4').ravel()
+    stamps = stamp_ns(sec, gather(buf, base + 8, 4).view('<u4').ravel())
     values = gather(buf, np.where(ok, base + at, 0), 8).view('<f8').ravel().copy()
     for i in np.flatnonzero(~ok).tolist():
         stamps[i], values[i] = stamped_value(datas[i], deserialize, field)

@@ -13,14 +13,12 @@ the reason for each one it does not (once per layout).
 from __future__ import annotations
 
 from dataclasses import dataclass
-import struct
 from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from .cdr import CdrWriter, LITTLE_ENDIAN, stamp_ns
+from .cdr import CdrWriter, LITTLE_ENDIAN, STAMP, stamp_ns
 
-_STAMP = struct.Struct('<iI')
 _FIELDS = ('position', 'velocity', 'effort')
 
 
@@ -71,10 +69,10 @@ class JointStateReader:
             and all(data[at : at + 4] == raw for at, raw in layout.counts)
         ):
             self.fast += 1
-            sec, nanosec = _STAMP.unpack_from(data, 4)
+            sec, nanosec = STAMP.unpack_from(data, 4)
             (p_at, p_n), (v_at, v_n), (e_at, e_n) = layout.arrays
             return JointStateArrays(
-                sec * 1_000_000_000 + nanosec,
+                stamp_ns(sec, nanosec),
                 layout.names,
                 np.frombuffer(data, np.float64, p_n, p_at),
                 np.frombuffer(data, np.float64, v_n, v_at),
@@ -120,7 +118,7 @@ class JointStateReader:
         self.fast += len(rows)
         sec = gather(joined, rows + 4, 4).view('<i4').ravel()
         nanosec = gather(joined, rows + 8, 4).view('<u4').ravel()
-        stamps = sec.astype(np.int64) * 1_000_000_000 + nanosec
+        stamps = stamp_ns(sec.astype(np.int64), nanosec)
         arrays = [gather(joined, rows + at, 8 * n).view('<f8') for at, n in layout.arrays]
         return ok, stamps, arrays
 
