@@ -30,7 +30,7 @@ from .offline_inputs import decode, pick
 from ..core.engine import Engine
 from ..core.flags import describe
 from ..core.health import node_timing
-from ..core.node_parameters import SPECS
+from ..core.node_parameters import SPECS, topic_prefixes
 from ..core.param_file import NodeSettings
 from ..core.recording import COMMAND_IN, Estimates, Recording
 from ..core.timeline import Report
@@ -123,12 +123,13 @@ class OfflineNode:
         pairing: str = SPECS['pairing'].default,
         slop: float = SPECS['pairing_slop'].default,
     ) -> None:
+        prefixes = topic_prefixes(names)
         inputs = (
             {topic(namespace, name): (role, -1) for role, name in enumerate(COMBINED_INPUTS)}
             if combined
             else {
                 topic(namespace, f'{prefix}{name}'): (role, k)
-                for k, prefix in enumerate([f'{n}/' for n in names] or [''])
+                for k, prefix in enumerate(prefixes)
                 for role, name in enumerate(INPUTS)
             }
         )
@@ -142,11 +143,7 @@ class OfflineNode:
         replaced = (
             {topic(namespace, name) for name in COMBINED_OUTPUTS}
             if combined
-            else {
-                topic(namespace, f'{prefix}{name}')
-                for prefix in [f'{n}/' for n in names] or ['']
-                for name in OUTPUTS
-            }
+            else {topic(namespace, f'{prefix}{name}') for prefix in prefixes for name in OUTPUTS}
         )
         self.copies: dict[int, Connection] = {}
         self._diagnostics = None
@@ -167,7 +164,6 @@ class OfflineNode:
                 writer.topic(topic(namespace, 'pressure_commands'), JOINT_STATE, [RELIABLE])
             ]
         else:
-            prefixes = [f'{n}/' for n in names] or ['']
             self._estimates = [
                 writer.topic(topic(namespace, f'{p}force_estimate'), WRENCH_STAMPED, [RELIABLE])
                 for p in prefixes

@@ -324,6 +324,13 @@ _INPUT = SPECS['hysteresis.input'].default
 DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)
 
 
+def topic_prefixes(names: list[str]) -> list[str]:
+    """The topic namespace of each muscle of model_node (per_muscle mode): ``<name>/``, or '' for
+    the one muscle.
+    """
+    return [f'{name}/' for name in names] or ['']
+
+
 def markdown_table() -> str:
     """The README's table of :data:`PARAMETERS`."""
     rows = [

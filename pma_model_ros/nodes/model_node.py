@@ -39,6 +39,7 @@ from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.engine import Engine
 from ..core.health import node_timing
+from ..core.node_parameters import topic_prefixes
 from ..core.param_file import node_pairing, NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
@@ -115,7 +116,7 @@ class ModelNode(ManagedNode):
             ):
                 subscription(self, JointState, topic, callback, qos, raw=True)
             return
-        prefixes = [f'{name}/' for name in self._names] or ['']
+        prefixes = topic_prefixes(self._names)
         self._estimate_pubs = [
             publisher(self, WrenchStamped, f'{p}force_estimate', RELIABLE) for p in prefixes
         ]
