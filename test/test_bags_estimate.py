@@ -157,27 +157,20 @@ def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
     ]
 
 
-def test_storage_conversion_and_cli(tmp_path):
-    bag = record_simulation(tmp_path / 'sim.mcap', 1.0, '/m1', rate=100.0)
-    proc = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'pma_model_ros.cli',
-            'bag',
-            'estimate',
-            str(bag),
-            '--config',
-            str(CONFIGS['DMSP-10-250']),
-            '--out',
-            str(tmp_path / 'out'),
-            '--storage',
-            'sqlite3',
-        ],
+def bag_estimate(bag, *args: str, config=CONFIGS['DMSP-10-250']) -> subprocess.CompletedProcess:
+    """``pma-model bag estimate <bag> --config <config> <args>`` as a user runs it."""
+    return subprocess.run(
+        [sys.executable, '-m', 'pma_model_ros.cli', 'bag', 'estimate', str(bag)]
+        + ['--config', str(config), *args],
         capture_output=True,
         text=True,
         timeout=120,
     )
+
+
+def test_storage_conversion_and_cli(tmp_path):
+    bag = record_simulation(tmp_path / 'sim.mcap', 1.0, '/m1', rate=100.0)
+    proc = bag_estimate(bag, '--out', str(tmp_path / 'out'), '--storage', 'sqlite3')
     assert proc.returncode == 0, proc.stderr
     assert '/m1: 300 messages read; wrote 199 force_estimate' in proc.stdout
     assert (tmp_path / 'out' / 'out.db3').is_file()
@@ -239,25 +232,7 @@ def test_bad_bags_one_line_exit_2_no_output(tmp_path, make, words):
         make(bag)
     out_dir = tmp_path / 'results'
     out_dir.mkdir()
-    proc = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'pma_model_ros.cli',
-            'bag',
-            'estimate',
-            str(bag),
-            '--config',
-            str(CONFIGS['DMSP-10-250']),
-            '--out',
-            str(out_dir / 'out'),
-            '--csv',
-            str(out_dir / 'e.csv'),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    proc = bag_estimate(bag, '--out', str(out_dir / 'out'), '--csv', str(out_dir / 'e.csv'))
     assert proc.returncode == 2 and proc.stdout == ''
     assert (
         proc.stderr.count('\n') == 1 and words in proc.stderr and 'Traceback' not in proc.stderr
@@ -713,13 +688,7 @@ def test_pairing_comes_from_the_parameter_file(tmp_path):
     )
     words = {}
     for name, path in (('every', CONFIGS['DMSP-10-250']), ('approximate', config)):
-        proc = subprocess.run(
-            [sys.executable, '-m', 'pma_model_ros.cli', 'bag', 'estimate', str(bag)]
-            + ['--config', str(path), '--out', str(tmp_path / name), '--outputs-only'],
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+        proc = bag_estimate(bag, '--out', str(tmp_path / name), '--outputs-only', config=path)
         assert proc.returncode == 0, proc.stderr
         words[name] = proc.stdout
     assert 'wrote 199 force_estimate' in words['every']
