@@ -168,12 +168,14 @@ def test_inverse_of_random_parameter_sets(shape, factors, u_length, u_pressure, 
     elif target > 0:
         assert served == pytest.approx(target, abs=1e-9 * scale)
     # The float twin of the joints' inverse gives the same pressures (its q's differ from the
-    # vector's in the last bits: 1e-6 of p_max, and the same force to round-off).
+    # vector's in the last bits: 1e-6 of p_max, and the same force to round-off; on a flat line a
+    # last-bit difference of the force moves the pressure anywhere, so there only the force).
     _, q2, q1, q0 = muscle.operating_one(L, rate)
     for force in (wanted, target):
         twin = pressure_for_one(q2, q1, q0, force, 0.0, muscle.limits.command_top)
         vector = float(muscle.pressure(force, L, rate).pressure)
-        assert twin == pytest.approx(vector, abs=1e-6 * p_max)
+        if np.ptp(grid.raw) > 1e-3 * scale:
+            assert twin == pytest.approx(vector, abs=1e-6 * p_max)
         assert float(muscle.force(twin, L, rate).force) == pytest.approx(
             float(muscle.force(vector, L, rate).force), abs=1e-9 * scale
         )
