@@ -28,6 +28,17 @@ def martens_10_250():
     return muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 
 
+def with_martens_end(parameters: dict, end_factor: float = 1.09) -> dict:
+    """``parameters`` of a shipped config with a ``martens_end`` block (which ``make-config`` does
+    not write): its Martens block with the end factor ``end_factor`` appended.
+    """
+    models = parameters['models']
+    if 'martens' in models:
+        martens = models['martens']
+        models['martens_end'] = {**martens, 'params': [*martens['params'], end_factor]}
+    return parameters
+
+
 #: What the lint tests check (test_lint.py: ruff; test_flake8.py, test_pep257.py: ament's).
 LINT_PATHS = ['pma_model_ros', 'test', 'bench', 'setup.py']
 

@@ -5,17 +5,19 @@ MuscleModel.
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
+from conftest import CONFIGS, with_martens_end
 from pma_model_ros.core.models import MODELS
 from pma_model_ros.core.muscle_bank import MuscleBank
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 
 def shipped_muscles() -> list:
-    """Every (muscle, model) pair the shipped configs identify: 3 specs, all 7 models."""
+    """Every (muscle, model) pair the shipped configs identify (3 specs, 7 models), and Martens
+    with an end factor (:func:`with_martens_end`).
+    """
     muscles = []
     for path in CONFIGS.values():
-        params = read_parameters(path)
+        params = with_martens_end(read_parameters(path))
         muscles += [muscle_model(params, name) for name in params['models']]
     assert {m.model.name for m in muscles} == set(MODELS)
     return muscles

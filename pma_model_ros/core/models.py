@@ -244,6 +244,36 @@ def _martens(theta, spec, domain, length, branch) -> Coefficients:
     return _martens_prepared(theta, spec, domain)(length, branch)
 
 
+def _end_length(spec: MuscleSpec, end_factor, length):
+    """The braid length [m] of the pressure term with an end factor a: L0 - a (L0 - L), the
+    contraction scaled by a (Tondu & Lopez's end-effect correction of a braid whose ends are held
+    at their rest diameter).
+    """
+    return spec.nominal_length - end_factor * (spec.nominal_length - length)
+
+
+def _martens_end_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
+    """Martens, eqs. 14-16, with the pressure term -p dV/dL of the braid at
+    :func:`_end_length` (end factor ``a`` = theta[5]; a = 1 is eq. 14); the elastic terms as in
+    :func:`_martens_prepared`.
+    """
+    martens = _martens_prepared(theta[:5], spec, domain)
+    end_factor = theta[5]
+    braid = geo.braid_constants(spec, spec.fiber_angle + theta[4])
+
+    def coefficients(length, branch) -> Coefficients:
+        q2, _, q0 = martens(length, branch)
+        volume_slope = geo.braid_at(braid, _end_length(spec, end_factor, length))[2]
+        return q2, -volume_slope, q0
+
+    return coefficients
+
+
+def _martens_end(theta, spec, domain, length, branch) -> Coefficients:
+    """Martens with an end factor (:func:`_martens_end_prepared`)."""
+    return _martens_end_prepared(theta, spec, domain)(length, branch)
+
+
 _BIG = 1e12
 MODELS: dict[str, Model] = {
     m.name: m
@@ -299,6 +329,17 @@ MODELS: dict[str, Model] = {
             _martens,
             linear=(0, 1, 2, 3),
             prepared=_martens_prepared,
+        ),
+        Model(
+            'martens_end',
+            'eqs. 14-16, end factor',
+            ('c0', 'c1', 'c2', 'c3', 'd0', 'a'),
+            (1e6, 1e6, 1e6, 1e6, 0.0, 1.0),
+            (-_BIG,) * 4 + (-0.35, 1.0),
+            (_BIG,) * 4 + (0.35, 1.5),
+            _martens_end,
+            linear=(0, 1, 2, 3),
+            prepared=_martens_end_prepared,
         ),
         Model(
             'sarosi_hysteresis',
@@ -448,6 +489,14 @@ def _martens_slopes(theta, spec, domain, length, branch) -> Coefficients:
     )
 
 
+def _martens_end_slopes(theta, spec, domain, length, branch) -> Coefficients:
+    """Martens' slopes, with dq1/dL = a q1'(L0 - a (L0 - L)) (chain rule)."""
+    end_factor = theta[5]
+    q2, _, q0 = _martens_slopes(theta[:5], spec, domain, length, branch)
+    end = _end_length(spec, end_factor, length)
+    return q2, end_factor * _martens_slopes(theta[:5], spec, domain, end, branch)[1], q0
+
+
 #: model name -> analytic (dq2/dL, dq1/dL, dq0/dL), same arguments as ``Model.coefficients``.
 SLOPES: dict[str, Callable[..., Coefficients]] = {
     'mckibben': _mckibben_slopes,
@@ -456,6 +505,7 @@ SLOPES: dict[str, Callable[..., Coefficients]] = {
     'hildebrandt': _hildebrandt_slopes,
     'sarosi': _sarosi_slopes,
     'martens': _martens_slopes,
+    'martens_end': _martens_end_slopes,
     'sarosi_hysteresis': _sarosi_hysteresis_slopes,
 }
 
