@@ -297,6 +297,8 @@ def test_lifecycle_services_from_another_process(ros, processes, namespace, exec
     assert not change(Transition.TRANSITION_ACTIVATE) and get() == 'unconfigured', why()
     print(f'{node}: activate refused while unconfigured')
     quiet_for(1.0, 'inputs while unconfigured')
+    # (the node answered get_state: it is discovered; the same count sees its entities once
+    # configured, and sees them go at cleanup, below)
     assert entities() == (0, 0), 'entities of an unconfigured node'
     for transition, expected in (('configure', 'inactive'), ('activate', 'active')):
         assert change(transition), why()
@@ -330,6 +332,8 @@ def test_lifecycle_services_from_another_process(ros, processes, namespace, exec
         assert change(transition), why()
         assert get() == expected
         print(f'{node}: {expected}')
+        if expected == 'unconfigured':  # its entities are gone again, as discovered
+            ros.spin_until(lambda: entities() == (0, 0), 20, 'the cleaned-up node', diagnose=why)
     assert proc.poll() is None, why()
 
 
