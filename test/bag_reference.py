@@ -22,9 +22,10 @@ from pma_model_ros.bags.offline_node import (
     INPUTS,
     OUTPUTS,
 )
-from pma_model_ros.core.engine import Engine
 from pma_model_ros.core.flags import describe
-from pma_model_ros.core.health import DIAGNOSTIC_PERIOD_NS, node_timing
+from pma_model_ros.core.health import DIAGNOSTIC_PERIOD_NS
+from pma_model_ros.core.node_parameters import topic_prefixes
+from pma_model_ros.core.param_file import node_engine
 from pma_model_ros.wire.cdr import fluid_pressure
 from pma_model_ros.wire.muscle_inputs import MuscleInputs
 
@@ -52,7 +53,7 @@ def per_message(
     ``namespace``): (messages as (topic, log time, bytes) in publish order, with the copies of the
     recorded ones bag estimate keeps; CSV rows; the counters summed over muscles).
     """
-    prefixes = [f'{n}/' for n in names] or ['']
+    prefixes = topic_prefixes(names)
     if combined:
         roles = {topic(namespace, t): (role, -1) for role, t in enumerate(COMBINED_INPUTS)}
         replaced = {topic(namespace, t) for t in COMBINED_OUTPUTS}
@@ -63,12 +64,7 @@ def per_message(
             for role, t in enumerate(INPUTS)
         }
         replaced = {topic(namespace, f'{p}{t}') for p in prefixes for t in OUTPUTS}
-    engine = Engine(
-        [s.config for s in settings],
-        **node_timing(len(settings)),
-        pairing=pairing,
-        slop=slop,
-    )
+    engine = node_engine(settings, pairing, slop)
     joints = [s.joint_name for s in settings]
     inputs = MuscleInputs(engine, joints, [s.frame_id for s in settings], DESERIALIZE)
     commands = [fluid_pressure(s.frame_id) for s in settings]

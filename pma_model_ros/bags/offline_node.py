@@ -27,11 +27,9 @@ from .bag_io import (
     WRENCH_STAMPED,
 )
 from .offline_inputs import decode, pick
-from ..core.engine import Engine
 from ..core.flags import describe
-from ..core.health import node_timing
 from ..core.node_parameters import SPECS, topic_prefixes
-from ..core.param_file import NodeSettings
+from ..core.param_file import node_engine, NodeSettings
 from ..core.recording import COMMAND_IN, Estimates, Recording
 from ..core.timeline import Report
 from ..wire.cdr import fluid_pressure, joint_state, Template, wrench_stamped
@@ -179,12 +177,7 @@ class OfflineNode:
                 else []
             )
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
-        self.engine = Engine(
-            [s.config for s in settings],
-            **node_timing(len(settings)),
-            pairing=pairing,
-            slop=slop,
-        )
+        self.engine = node_engine(settings, pairing, slop)
         self.recording = Recording(self.engine, arrays=combined)
         self.joints = [s.joint_name for s in settings]
         self._wrenches = [wrench_stamped(s.frame_id) for s in settings]

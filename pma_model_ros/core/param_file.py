@@ -39,10 +39,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 from pathlib import Path
+from typing import Sequence
 
 from . import calibration
+from .engine import Engine
 from .estimation import Config
 from .geometry import MuscleSpec
+from .health import node_timing
 from .hysteresis import Follow
 from .models import ALIASES, Domain, get_model, MODELS
 from .muscle_model import MuscleModel
@@ -286,6 +289,19 @@ def node_pairing(parameters: dict) -> dict[str, object]:
         'pairing': parameters.get('pairing', SPECS['pairing'].default),
         'slop': parameters.get('pairing_slop', SPECS['pairing_slop'].default),
     }
+
+
+def node_engine(
+    settings: Sequence[NodeSettings],
+    pairing: str = SPECS['pairing'].default,
+    slop: float = SPECS['pairing_slop'].default,
+) -> Engine:
+    """The engine model_node runs for ``settings`` (one per muscle): their configs, the node's
+    report timing (:func:`~.health.node_timing`) and its ``pairing`` (``slop`` [s]).
+    """
+    return Engine(
+        [s.config for s in settings], **node_timing(len(settings)), pairing=pairing, slop=slop
+    )
 
 
 def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:

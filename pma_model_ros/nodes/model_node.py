@@ -38,9 +38,8 @@ from .parameters import warn_unknown
 from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.engine import Engine
-from ..core.health import node_timing
 from ..core.node_parameters import topic_prefixes
-from ..core.param_file import node_pairing, NodeSettings
+from ..core.param_file import node_engine, node_pairing, NodeSettings
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
 
@@ -90,11 +89,7 @@ class ModelNode(ManagedNode):
 
     def reset(self) -> None:
         """A fresh engine of the current settings (no input known, counters at zero)."""
-        self.engine = Engine(
-            [s.config for s in self.settings],
-            **node_timing(len(self.settings)),
-            **self._pairing,
-        )
+        self.engine = node_engine(self.settings, **self._pairing)
         self.use(self.settings)
 
     def release(self) -> None:
