@@ -33,7 +33,7 @@ from pathlib import Path
 from .hysteresis import Follow
 from .joint import Joint, Transmission
 from .muscle_model import MuscleModel
-from .node_parameters import ParameterSpec, read_only, SPECS
+from .node_parameters import ParameterSpec, PROCESS_PARAMETERS, read_only, SPECS
 from .param_file import (
     hysteresis_follow,
     muscle_model,
@@ -247,8 +247,7 @@ def unknown_joint_parameters(parameters: dict) -> list[str]:
     """
     names = parameters.get('joints')
     names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
-    # nodes/startup.py declares executor, nodes/managed.py autostart
-    every_node = (SPECS['executor'].name, SPECS['autostart'].name, *ROS_PARAMETERS)
+    every_node = (*PROCESS_PARAMETERS, *ROS_PARAMETERS)
     problems = unknown_keys(parameters, (*_names(NODE_PARAMETERS), *every_node, *names))
     for name in names:
         block = parameters.get(name)

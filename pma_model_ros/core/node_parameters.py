@@ -314,6 +314,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
+#: Declared by every node's process, not by its parameter code: ``executor`` (nodes/startup.py)
+#: and ``autostart`` (nodes/managed.py).
+PROCESS_PARAMETERS = ('executor', 'autostart')
 #: The entries of a model's block ``models.<model>.``: its ROS parameters (the selected model's)...
 MODEL_BLOCK = ('params', 'extrapolates', 'nominal_length', 'pressure_offset')
 #: ... and its identification results, read from the parameter file into each muscle's

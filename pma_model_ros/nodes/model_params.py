@@ -25,7 +25,13 @@ from rclpy.parameter import Parameter
 from .parameters import declare as declare_spec
 from .parameters import descriptor, nest, overrides, plain, TYPES, values
 from ..core.models import get_model, MODELS
-from ..core.node_parameters import IDENTIFICATION, MODEL_BLOCK, PARAMETERS, SPECS
+from ..core.node_parameters import (
+    IDENTIFICATION,
+    MODEL_BLOCK,
+    PARAMETERS,
+    PROCESS_PARAMETERS,
+    SPECS,
+)
 from ..core.param_file import all_node_settings, held_out_band, identification, NodeSettings
 from ..core.validation import HeldOutBand
 
@@ -59,8 +65,7 @@ def declare(node: Node) -> tuple[list[str], str]:
         if not spec.per_muscle and spec.name not in (
             'muscles',
             'input_mode',
-            'executor',
-            'autostart',
+            *PROCESS_PARAMETERS,
         ):
             declare_spec(node, spec)
     for prefix in prefixes(names):

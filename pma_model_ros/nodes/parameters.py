@@ -18,7 +18,7 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..core.node_parameters import ParameterSpec
+from ..core.node_parameters import ParameterSpec, PROCESS_PARAMETERS
 
 TYPES = {
     'double': Parameter.Type.DOUBLE,
@@ -87,10 +87,10 @@ def overrides(node: Node) -> dict[str, object]:
 def warn_unknown(node: Node, expected: Callable[[str], bool] = lambda name: False) -> list[str]:
     """Log one warning per name the node's parameter files and ``-p`` set that the node neither
     declared nor ``expected`` accepts (a file's entry it reads undeclared), with the nearest
-    declared name (difflib); the warnings.  ``executor`` is known: :func:`.startup.run` declares
-    it once the node is built.
+    declared name (difflib); the warnings.  The process's parameters are known:
+    :func:`.startup.run` declares ``executor`` once the node is built.
     """
-    declared = [*node.get_parameters_by_prefix(''), 'executor']
+    declared = [*node.get_parameters_by_prefix(''), *PROCESS_PARAMETERS]
     warnings = []
     for name in sorted(overrides(node)):
         if name in declared or node.has_parameter(name) or expected(name):
