@@ -77,9 +77,14 @@ def per_message(
                 f'model_node: {joint}',
                 s.message,
                 setting.hardware_id,
-                [T['diagnostic_msgs/msg/KeyValue'](key, v) for key, v in s.values.items()],
+                [
+                    T['diagnostic_msgs/msg/KeyValue'](key, v)
+                    for key, v in (s.values | setting.status_values(engine.inputs(k)[1])).items()
+                ],
             )
-            for joint, setting, s in zip(joints, settings, engine.statuses(time_ns))
+            for k, (joint, setting, s) in enumerate(
+                zip(joints, settings, engine.statuses(time_ns))
+            )
         ]
         header = T['std_msgs/msg/Header'](
             T['builtin_interfaces/msg/Time'](time_ns // 10**9, time_ns % 10**9), ''

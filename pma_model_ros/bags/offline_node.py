@@ -322,7 +322,15 @@ class OfflineNode:
             report.now,
             'model_node',
             (
-                (joint, s.hardware_id, int(status.level), status.message, status.values)
-                for joint, s, status in zip(self.joints, self.settings, report.statuses)
+                (
+                    joint,
+                    s.hardware_id,
+                    int(status.level),
+                    status.message,
+                    status.values | s.status_values(length),
+                )
+                for joint, s, status, length in zip(
+                    self.joints, self.settings, report.statuses, report.lengths
+                )
             ),
         )

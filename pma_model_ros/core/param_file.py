@@ -82,6 +82,18 @@ class NodeSettings:
     joint_name: str  #: JointState entry of the muscle
     frame_id: str  #: header.frame_id of the estimates
     hardware_id: str  #: the device: hardware_id of the muscle's diagnostic status
+    #: the model's identification results, as diagnostic key-values (:func:`identification`)
+    identification: dict[str, str]
+    #: the model's nested held-out error per identified length (None: the file has none)
+    band: HeldOutBand | None
+
+    def status_values(self, length: float) -> dict[str, str]:
+        """What the muscle's /diagnostics status adds to the engine's values: the identification
+        results and the expected error at ``length`` [m], its newest valid length (NaN: none).
+        """
+        if self.band is None:
+            return self.identification
+        return self.identification | self.band.values_at(length)
 
 
 def read_parameters(path: str | Path) -> dict:
@@ -322,6 +334,8 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
         joint,
         str(parameters.get('frame_id') or joint),
         str(parameters.get('hardware_id') or joint),
+        identification(parameters, model),
+        held_out_band(parameters, model),
     )
 
 

@@ -246,6 +246,7 @@ class Recording:
             last = np.maximum.accumulate(np.where(valid, index, -1)) if len(index) else index
             return [np.append(column, held)[last] for column, held in columns]
 
+        length_before = carry.length
         p_stamp, pressure = newest(ok_p, (stamp, before[0]), (prep.absolute, carry.pressure))
         l_stamp, length, rate = newest(
             ok_l, (stamp, before[1]), (value, carry.length), (ev.rate, carry.rate)
@@ -380,5 +381,6 @@ class Recording:
                 np.concatenate([[rejected_before], np.where(rejected, now, NEVER)])
             ),
             np.maximum.accumulate(np.concatenate([[warned_before], warned])),
+            np.concatenate([[length_before], length]),
         )
         return estimates, commands, events

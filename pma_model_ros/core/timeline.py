@@ -31,6 +31,7 @@ class Report(NamedTuple):
     after: bool
     now: int  #: [ns]
     statuses: list[Status]
+    lengths: list[float]  #: each muscle's newest valid length [m] (NaN: none), as the node's
 
 
 class Events(NamedTuple):
@@ -43,10 +44,11 @@ class Events(NamedTuple):
     rejections: tuple[np.ndarray, np.ndarray, list[str]]
     warnings: list[tuple[np.ndarray, np.ndarray]]  #: per warning flag: (positions, times)
     #: before the stretch (column 0) and after each input: the newest stamps (2 x E+1), the
-    #: latest rejection and warning times (E+1)
+    #: latest rejection and warning times (E+1), the newest valid length [m] (E+1, NaN: none)
     stamps: np.ndarray
     rejected_at: np.ndarray
     warned_at: np.ndarray
+    lengths: np.ndarray
 
 
 @dataclass
@@ -131,9 +133,11 @@ class Timeline:
         reports: list[Report] = []
 
         def report(at: int, after: bool, now: int) -> None:
-            self._restore(events, windows, at, 'right' if after else 'left')
+            side = 'right' if after else 'left'
+            self._restore(events, windows, at, side)
             statuses = self.engine.statuses(now)
-            reports.append(Report(at, after, now, statuses))
+            lengths = [h.lengths.item(np.searchsorted(h.at, at, side)) for h in events]
+            reports.append(Report(at, after, now, statuses, lengths))
             self._reported = bytes(int(s.level) for s in statuses)
             self._last_report = now
 

@@ -70,8 +70,6 @@ class ModelNode(ManagedNode):
             self.add_post_set_parameters_callback(self._apply)
         flat = self._blocks.would_be([])
         self.settings = model_params.all_settings(flat, self._names)
-        self.identification = model_params.identifications(flat, self._names)
-        self.bands = model_params.held_out_bands(flat, self._names)
         self._pairing = node_pairing(flat)
         self.reset()
         self.create_interfaces()
@@ -155,8 +153,6 @@ class ModelNode(ManagedNode):
         settings = model_params.all_settings(flat, self._names)
         self.engine.configure([s.config for s in settings])
         self.settings = settings
-        self.identification = model_params.identifications(flat, self._names)
-        self.bands = model_params.held_out_bands(flat, self._names)
         self.use(settings)
 
     # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
@@ -223,13 +219,9 @@ class ModelNode(ManagedNode):
                 s.hardware_id,
                 status.level,
                 status.message,
-                status.values
-                | ident
-                | (band.values_at(self.engine.inputs(k)[1]) if band is not None else {}),
+                status.values | s.status_values(self.engine.inputs(k)[1]),
             )
-            for k, (s, status, ident, band) in enumerate(
-                zip(self.settings, self.engine.statuses(now), self.identification, self.bands)
-            )
+            for k, (s, status) in enumerate(zip(self.settings, self.engine.statuses(now)))
         ]
         self._diag_pub.publish(diagnostic_array(self, entries))
 

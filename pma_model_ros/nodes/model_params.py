@@ -32,8 +32,7 @@ from ..core.node_parameters import (
     PROCESS_PARAMETERS,
     SPECS,
 )
-from ..core.param_file import all_node_settings, held_out_band, identification, NodeSettings
-from ..core.validation import HeldOutBand
+from ..core.param_file import all_node_settings, NodeSettings
 
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
 REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith('models.')]
@@ -214,17 +213,3 @@ def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings
         except ValueError as err:
             raise ValueError(f"{where}parameter 'model': {err}") from None
     return all_node_settings(nest(flat))
-
-
-def identifications(flat: dict[str, object], names: list[str]) -> list[dict[str, str]]:
-    """Each muscle's identification results (diagnostic key-values) of its selected model."""
-    nested = nest(flat)
-    return [identification(nested[name] if name else nested) for name in names or ['']]
-
-
-def held_out_bands(flat: dict[str, object], names: list[str]) -> list[HeldOutBand | None]:
-    """Each muscle's nested held-out error per identified length of its selected model (None:
-    the file has none).
-    """
-    nested = nest(flat)
-    return [held_out_band(nested[name] if name else nested) for name in names or ['']]
