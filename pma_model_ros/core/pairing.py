@@ -51,7 +51,8 @@ def stale_command_stamps(stamps, now, max_age: int):
     """Whether command ``stamps`` [ns] (an int or an array) are stale at ``now`` [ns]: stamped
     (not :data:`UNSTAMPED`, taken as ``now``) and not :func:`fresh`.
     """
-    return (stamps != UNSTAMPED) & np.logical_not(fresh(stamps, now, max_age))
+    # (^ True: not, for a bool and an array alike; np.logical_not costs 0.8 us on one stamp)
+    return (stamps != UNSTAMPED) & (fresh(stamps, now, max_age) ^ True)
 
 
 def _fresh_pairs(

@@ -31,7 +31,8 @@ class Report(NamedTuple):
     after: bool
     now: int  #: [ns]
     statuses: list[Status]
-    lengths: list[float]  #: each muscle's newest valid length [m] (NaN: none), as the node's
+    #: each muscle's newest valid length [m] (NaN: none): the node's ``engine.inputs(k)[1]``
+    lengths: list[float]
 
 
 class Events(NamedTuple):
@@ -133,10 +134,8 @@ class Timeline:
         reports: list[Report] = []
 
         def report(at: int, after: bool, now: int) -> None:
-            side = 'right' if after else 'left'
-            self._restore(events, windows, at, side)
+            lengths = self._restore(events, windows, at, 'right' if after else 'left')
             statuses = self.engine.statuses(now)
-            lengths = [h.lengths.item(np.searchsorted(h.at, at, side)) for h in events]
             reports.append(Report(at, after, now, statuses, lengths))
             self._reported = bytes(int(s.level) for s in statuses)
             self._last_report = now
@@ -163,12 +162,12 @@ class Timeline:
         self._windows = windows
         return reports
 
-    def _restore(self, events: list[Events], windows: list, at: int, side: str) -> None:
+    def _restore(self, events: list[Events], windows: list, at: int, side: str) -> list[float]:
         """Set the engine's health to each muscle's state at position ``at`` (``side`` 'right':
         after the message there, 'left': before it), for a report; the report starts a new window
-        of arrivals.
+        of arrivals.  Each muscle's newest valid length [m] there (NaN: none).
         """
-        health = self.engine.health
+        health, lengths = self.engine.health, []
         for k, h in enumerate(events):
             carry = self._held[k]
             counts = [
@@ -200,7 +199,10 @@ class Timeline:
                 w = int(np.searchsorted(positions, at, side)) - 1
                 warned.append(int(when[w]) if w >= 0 else held)
             health.restore(k, counts, arrivals, delays, rejected, warned)
-            health.stamps[:, k] = h.stamps[:, np.searchsorted(h.at, at, side)]
+            j = np.searchsorted(h.at, at, side)
+            health.stamps[:, k] = h.stamps[:, j]
+            lengths.append(h.lengths.item(j))
+        return lengths
 
     def _carry(self, k: int, h: Events) -> None:
         """Muscle ``k``'s health state after the stretch."""

@@ -61,8 +61,7 @@ def stamped_float(data: bytes) -> tuple[int, float] | None:
     at = aligned(end, 8)
     if at + 8 > len(data):
         return None
-    sec, nanosec = STAMP.unpack_from(data, 4)
-    return sec * _SECOND + nanosec, _F64.unpack_from(data, at)[0]
+    return stamp_ns(*STAMP.unpack_from(data, 4)), _F64.unpack_from(data, at)[0]
 
 
 class CdrWriter:
