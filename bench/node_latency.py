@@ -75,6 +75,7 @@ DRAIN = 0.5  # [s] after the last cycle, for late answers
 ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
 ANGLE = 0.2  # [rad] of every joint
 REPORTS = 50  # /diagnostics reports timed per row of the callback costs
+STALE_NEVER = 3600.0  # [s] max_input_age of the callback costs
 PROFILED = {'model_node': ModelNode, 'joint_node': JointNode}
 
 
@@ -409,7 +410,19 @@ def callback_cost(
     its executor does [us].
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
-    rclpy.init(args=['--ros-args', '-r', '__ns:=/cost', '--params-file', str(params)])
+    # the inputs are built first, stamped then, and taken over up to ~0.2 s: an input age of an
+    # hour keeps them fresh (else the later ones are stale, and their cost is a stale input's)
+    rclpy.init(
+        args=[
+            '--ros-args',
+            '-r',
+            '__ns:=/cost',
+            '--params-file',
+            str(params),
+            '-p',
+            f'max_input_age:={STALE_NEVER}',
+        ]
+    )
     try:
         node = Pinger('/unused', muscles, rclpy.get_default_context())  # builds the input messages
         model = ModelNode()
@@ -424,6 +437,8 @@ def callback_cost(
             handlers[0](first)
             handlers[1](second)
         per_cycle = (time.process_time() - start) / cycles
+        if model.engine.counts(0).get('estimates', 0) < 2 * cycles - 1:  # every input but one
+            raise SystemExit(f'callback cost: inputs refused: {model.engine.counts(0)}')
         engine, now = model.engine, model.now()
         pressures, rates = np.full(muscles, AMBIENT + 300e3), np.zeros(muscles)
         lengths = [0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * rates) for k in range(cycles)]

@@ -55,3 +55,15 @@ def zeros_like(x):
 
 def clip(x, low, high):
     return min(max(x, low), high) if type(x) is float else np.clip(x, low, high)
+
+
+def lowest(x: np.ndarray):
+    """``x.min()`` of an array (NaN if any is NaN), without ndarray.min's Python layer (a
+    third of its cost on a message's 64 values).
+    """
+    return np.minimum.reduce(x, axis=None)
+
+
+def highest(x: np.ndarray):
+    """``x.max()`` of an array (NaN if any is NaN); see :func:`lowest`."""
+    return np.maximum.reduce(x, axis=None)

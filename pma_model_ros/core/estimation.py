@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from . import elementwise as ew
 from .flags import describe, Flag
 from .health import WARN_MASK
 from .hysteresis import Follow, play
@@ -140,6 +141,7 @@ class Muscles:
         self._offsets = bool(self.offset.any())
         self.max_length = self.bank.max_length
         self._known = self.bank.limits.pressure_known
+        self._gauge: tuple[np.ndarray, bool] | None = None  # forces' view of the pressures
         # what the play operator follows, per muscle: (length?, deadband) or None
         self._follows = [
             (c.follow.input == 'length', c.follow.deadband) if m.model.hysteresis else None
@@ -179,6 +181,7 @@ class Muscles:
             self.pressure[:] = absolute
         else:
             self.pressure[valid] = absolute[valid]
+        self._gauge = None
         if self._any_pressure:
             follows = self._by_pressure if valid is None else self._by_pressure & valid
             before = self.branch.copy()
@@ -223,6 +226,7 @@ class Muscles:
                 )
             )
         self._plain = plain or not np.count_nonzero(self.lflags & _INVALID)  # each kept is one
+        self._linear = not np.count_nonzero(self.q2)  # (Martens, Sarosi, ...: q2 = 0)
         #: whether the length flags alone make a result WARN
         self.length_warns = bool(np.count_nonzero(self.lflags & WARN_MASK))
 
@@ -230,17 +234,19 @@ class Muscles:
         """(force [N], flags, which have a force: None if all) of every muscle at its newest
         inputs, where ``which`` (a mask; None: all).
         """
-        gauge = self.pressure - self.ambient
-        if (
-            which is None
-            and self._plain
-            and gauge.min() >= 0
-            and not np.count_nonzero(gauge > self._known)
-        ):
+        if self._gauge is None:  # new pressures (a length message reuses the pressures')
+            gauge = self.pressure - self.ambient
+            served = ew.lowest(gauge) >= 0 and not np.count_nonzero(gauge > self._known)
+            self._gauge = gauge, served
+        gauge, served = self._gauge
+        if which is None and self._plain and served:
             # force_at's rule where no pressure is moved or flagged
-            raw = (self.q2 * gauge + self.q1) * gauge + self.q0
-            low = raw.min()
-            if low == low and raw.max() < math.inf:  # no force NaN or inf
+            if self._linear:  # q2 = 0: the same numbers, two operations fewer
+                raw = self.q1 * gauge + self.q0
+            else:
+                raw = (self.q2 * gauge + self.q1) * gauge + self.q0
+            low = ew.lowest(raw)
+            if low == low and ew.highest(raw) < math.inf:  # no force NaN or inf
                 if low >= 0:
                     return raw, self.lflags, None
                 return np.maximum(raw, 0.0), self.lflags | (raw < 0) * _CLIPPED16, None
@@ -265,6 +271,7 @@ class Muscles:
     def store_pressure_one(self, k: int, absolute: float) -> None:
         """:meth:`store_pressures` of muscle ``k``'s valid absolute pressure [Pa]."""
         self.pressure[k] = absolute
+        self._gauge = None
         follow = self._follows[k]
         if follow is not None and not follow[0]:
             before = self.branch.item(k)
@@ -291,6 +298,8 @@ class Muscles:
     def _operate_one(self, k: int, length: float) -> None:
         flags, q2, q1, q0 = self.models[k].operating_one(length, self.branch.item(k))
         self.lflags[k], self.q2[k], self.q1[k], self.q0[k] = flags, q2, q1, q0
+        if q2:
+            self._linear = False
 
     def force_one(self, k: int) -> tuple[float, int, bool]:
         """:meth:`forces` of muscle ``k``: (force [N], flags, has a force)."""

@@ -88,8 +88,9 @@ class Model:
     #: indices of the parameters the force is affine in at fixed others (the separable fit,
     #: :mod:`~pma_model_ros.core.separable`; test_core_models checks each)
     linear: tuple[int, ...] = ()
-    #: ``prepared(theta, spec, domain)`` -> ``f(length, branch)``: ``coefficients`` with what
-    #: does not depend on the length computed once (None: nothing worth it); see :meth:`prepare`
+    #: ``prepared(theta, spec, domain)`` -> ``f(length, branch)``: ``coefficients`` within
+    #: rounding, with what does not depend on the length computed once and written for few array
+    #: operations (None: nothing worth it; test_core_models pins each); see :meth:`prepare`
     prepared: Callable[..., Callable[..., Coefficients]] | None = None
 
     @property
@@ -97,9 +98,9 @@ class Model:
         return len(self.param_names)
 
     def prepare(self, theta, spec: MuscleSpec, domain: Domain) -> Callable[..., Coefficients]:
-        """``f(length, branch)`` = ``coefficients(theta, spec, domain, length, branch)``, bit for
-        bit, for a muscle (or a bank's group) evaluated at many lengths in turn: the nodes call it
-        per message.
+        """``f(length, branch)`` = ``coefficients(theta, spec, domain, length, branch)`` (bit for
+        bit, or within rounding where a model has a :attr:`prepared` form), for a muscle (or a
+        bank's group) evaluated at many lengths in turn: the nodes call it per message.
         """
         if self.prepared is not None:
             return self.prepared(theta, spec, domain)
@@ -204,44 +205,65 @@ def _wickramatunge(theta, spec, domain, length, branch) -> Coefficients:
     return c3 * dl, c2 * dl**2, (c1 * dl**2 + c0) * dl
 
 
-def _martens_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
-    """Martens, eqs. 14-16: F = -p dV/dL + F_PE dD/dL - F_L, as ``f(length, branch)`` with the
-    braid's constants of ``theta`` and ``spec`` computed once (:meth:`Model.prepare`).
+def _martens(theta, spec, domain, length, branch) -> Coefficients:
+    """Martens, eqs. 14-16: F = -p dV/dL + F_PE dD/dL - F_L, written as the paper writes it (the
+    identification evaluates it; the nodes evaluate :func:`_martens_prepared`).
 
     E_RU(L) = c3 L^3 + c2 L^2 + c1 L + c0 [Pa] (eq. 15); the braid angle is
     corrected to Theta0 + d0 [rad] (eq. 16); F_PE = E (D - D0)/D0 H0 L pi
     (eqs. 11, 13) and F_L = E (L - L0)/L0 H0 pi D(L) (eqs. 10, 12).
     """
     c0, c1, c2, c3, d0 = theta
-    braid = geo.braid_constants(spec, spec.fiber_angle + d0)
+    modulus = ((c3 * length + c2) * length + c1) * length + c0
+    dia, dia_slope, volume_slope = geo.braid(spec, length, spec.fiber_angle + d0)
+    f_pe = (
+        modulus
+        * (dia - spec.inner_diameter)
+        / spec.inner_diameter
+        * spec.membrane_thickness
+        * length
+        * math.pi
+    )
+    f_l = (
+        modulus
+        * (length - spec.nominal_length)
+        / spec.nominal_length
+        * spec.membrane_thickness
+        * math.pi
+        * dia
+    )
+    return _zeros(length), -volume_slope, f_pe * dia_slope - f_l
+
+
+def _martens_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
+    """:func:`_martens` as ``f(length, branch)`` for the nodes (:meth:`Model.prepare`), equal to
+    it within rounding: what does not depend on the length computed once, and the length terms
+    rearranged for 21 array operations per call instead of 32.  With D = r / (n pi),
+    dD/dL = -L / (n pi r), r = sqrt(L_F^2 - L^2) (eq. 2) and -dV/dL = (3 L^2 - L_F^2) /
+    (4 pi n^2) (eq. 4): q0 = (E H0 / n) (L^2 / r - L^2 / (n pi D0) - (L - L0) r / L0).
+    """
+    c0, c1, c2, c3, d0 = theta
+    lf_sq, n_pi, four_pi_n_sq = geo.braid_constants(spec, spec.fiber_angle + d0)
+    scale = math.pi * spec.membrane_thickness / n_pi  # H0 / n
+    k0, k1, k2, k3 = c0 * scale, c1 * scale, c2 * scale, c3 * scale
+    inverse_d0, l0 = 1 / (n_pi * spec.inner_diameter), spec.nominal_length
+    inverse_l0 = 1 / l0
+    volume_sq, volume_0 = _volume_terms(lf_sq, four_pi_n_sq)
 
     def coefficients(length, branch) -> Coefficients:
-        modulus = ((c3 * length + c2) * length + c1) * length + c0
-        dia, dia_slope, volume_slope = geo.braid_at(braid, length)
-        f_pe = (
-            modulus
-            * (dia - spec.inner_diameter)
-            / spec.inner_diameter
-            * spec.membrane_thickness
-            * length
-            * math.pi
-        )
-        f_l = (
-            modulus
-            * (length - spec.nominal_length)
-            / spec.nominal_length
-            * spec.membrane_thickness
-            * math.pi
-            * dia
-        )
-        return _zeros(length), -volume_slope, f_pe * dia_slope - f_l
+        # (no Python number meets an array here: that costs more than an array's operation)
+        length_sq = length * length
+        root = ew.sqrt(lf_sq - length_sq)
+        modulus = ((k3 * length + k2) * length + k1) * length + k0
+        shape = length_sq / root - inverse_d0 * length_sq - (length - l0) * root * inverse_l0
+        return _zeros(length), volume_sq * length_sq - volume_0, modulus * shape
 
     return coefficients
 
 
-def _martens(theta, spec, domain, length, branch) -> Coefficients:
-    """Martens, eqs. 14-16 (:func:`_martens_prepared`)."""
-    return _martens_prepared(theta, spec, domain)(length, branch)
+def _volume_terms(lf_sq, four_pi_n_sq) -> tuple:
+    """(a, b) of the pressure term -dV/dL = a L^2 - b [m^2] (eq. 4)."""
+    return 3 / four_pi_n_sq, lf_sq / four_pi_n_sq
 
 
 def _end_length(spec: MuscleSpec, end_factor, length):
@@ -252,26 +274,28 @@ def _end_length(spec: MuscleSpec, end_factor, length):
     return spec.nominal_length - end_factor * (spec.nominal_length - length)
 
 
-def _martens_end_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
-    """Martens, eqs. 14-16, with the pressure term -p dV/dL of the braid at
-    :func:`_end_length` (end factor ``a`` = theta[5]; a = 1 is eq. 14); the elastic terms as in
-    :func:`_martens_prepared`.
+def _martens_end(theta, spec, domain, length, branch) -> Coefficients:
+    """Martens, eqs. 14-16, with the pressure term -p dV/dL of the braid at :func:`_end_length`
+    (end factor ``a`` = theta[5]; a = 1 is eq. 14); the elastic terms as in :func:`_martens`.
     """
+    q2, _, q0 = _martens(theta[:5], spec, domain, length, branch)
+    end = _end_length(spec, theta[5], length)
+    return q2, -geo.braid(spec, end, spec.fiber_angle + theta[4])[2], q0
+
+
+def _martens_end_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
+    """:func:`_martens_end` for the nodes, as :func:`_martens_prepared` for :func:`_martens`."""
     martens = _martens_prepared(theta[:5], spec, domain)
     end_factor = theta[5]
-    braid = geo.braid_constants(spec, spec.fiber_angle + theta[4])
+    lf_sq, _, four_pi_n_sq = geo.braid_constants(spec, spec.fiber_angle + theta[4])
+    volume_sq, volume_0 = _volume_terms(lf_sq, four_pi_n_sq)
 
     def coefficients(length, branch) -> Coefficients:
         q2, _, q0 = martens(length, branch)
-        volume_slope = geo.braid_at(braid, _end_length(spec, end_factor, length))[2]
-        return q2, -volume_slope, q0
+        end = _end_length(spec, end_factor, length)
+        return q2, volume_sq * (end * end) - volume_0, q0
 
     return coefficients
-
-
-def _martens_end(theta, spec, domain, length, branch) -> Coefficients:
-    """Martens with an end factor (:func:`_martens_end_prepared`)."""
-    return _martens_end_prepared(theta, spec, domain)(length, branch)
 
 
 _BIG = 1e12

@@ -20,6 +20,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from . import elementwise as ew
 from . import geometry as geo
 from .flags import Flag
 from .geometry import MuscleSpec
@@ -206,7 +207,8 @@ class Evaluator:
         L, lim = np.asarray(length, float), self.limits
         # written for few numpy calls: the engines call it per message of every muscle
         low, high = self._unflagged
-        if L.size and L.min() >= low and L.max() <= high:  # (False for NaN)
+        inside = L.size and ew.lowest(L) >= low and ew.highest(L) <= high
+        if inside:  # (False for NaN)
             # the usual message: every length served as it is, none flagged (two reductions
             # instead of the nine operations below; test_core_muscle_model pins it to them)
             at, flags, usable = L, np.zeros(L.shape, np.uint16), _EVERY
@@ -226,9 +228,16 @@ class Evaluator:
                 rate = np.asarray(length_rate, float)
                 branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
             flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN16, _NONE16)
-        with np.errstate(invalid='ignore', over='ignore'):
+        if inside:  # identified lengths: no NaN, no overflow to silence
             q2, q1, q0 = self._coefficients(at, branch)
-        if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
+        else:
+            with np.errstate(invalid='ignore', over='ignore'):
+                q2, q1, q0 = self._coefficients(at, branch)
+        try:
+            same = q2.shape == q1.shape == q0.shape == flags.shape
+        except AttributeError:  # a model's constant coefficient, a float
+            same = False
+        if not same:
             q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
         return Operating(usable, flags, q2, q1, q0, lim)
 
