@@ -322,15 +322,7 @@ class OfflineNode:
             report.now,
             'model_node',
             (
-                (
-                    joint,
-                    s.hardware_id,
-                    int(status.level),
-                    status.message,
-                    status.values | s.status_values(length),
-                )
-                for joint, s, status, length in zip(
-                    self.joints, self.settings, report.statuses, report.lengths
-                )
+                s.status_entry(status, length)
+                for s, status, length in zip(self.settings, report.statuses, report.lengths)
             ),
         )

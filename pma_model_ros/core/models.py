@@ -508,9 +508,14 @@ def _martens_slopes(theta, spec, domain, length, branch) -> Coefficients:
     )
     return (
         _zeros(length),
-        6 * length / (4 * math.pi * n**2),
+        _pressure_term_slope(n, length),
         f_pe_slope * dia_slope + f_pe * dia_curve - f_l_slope,
     )
+
+
+def _pressure_term_slope(turns: float, length):
+    """d(-dV/dL)/dL = 6 L / (4 pi n^2) [m] of a braid of ``turns`` n at ``length`` [m] (eq. 4)."""
+    return 6 * length / (4 * math.pi * turns**2)
 
 
 def _martens_end_slopes(theta, spec, domain, length, branch) -> Coefficients:
@@ -518,7 +523,8 @@ def _martens_end_slopes(theta, spec, domain, length, branch) -> Coefficients:
     end_factor = theta[5]
     q2, _, q0 = _martens_slopes(theta[:5], spec, domain, length, branch)
     end = _end_length(spec, end_factor, length)
-    return q2, end_factor * _martens_slopes(theta[:5], spec, domain, end, branch)[1], q0
+    turns = geo.turns(spec, spec.fiber_angle + theta[4])
+    return q2, end_factor * _pressure_term_slope(turns, end), q0
 
 
 #: model name -> analytic (dq2/dL, dq1/dL, dq0/dL), same arguments as ``Model.coefficients``.

@@ -45,7 +45,7 @@ from . import calibration
 from .engine import Engine
 from .estimation import Config
 from .geometry import MuscleSpec
-from .health import node_timing
+from .health import node_timing, Status
 from .hysteresis import Follow
 from .models import ALIASES, Domain, get_model, MODELS
 from .muscle_model import MuscleModel
@@ -94,6 +94,19 @@ class NodeSettings:
         if self.band is None:
             return self.identification
         return self.identification | self.band.values_at(length)
+
+    def status_entry(self, status: Status, length: float) -> tuple[str, str, int, str, dict]:
+        """The muscle's /diagnostics entry (name, hardware_id, level, message, values) of the
+        engine's ``status``, with :meth:`status_values` at ``length`` [m] (model_node and
+        ``bag estimate`` alike; :func:`~pma_model_ros.wire.diagnostics.diagnostic_array`).
+        """
+        return (
+            self.joint_name,
+            self.hardware_id,
+            int(status.level),
+            status.message,
+            status.values | self.status_values(length),
+        )
 
 
 def read_parameters(path: str | Path) -> dict:

@@ -214,13 +214,7 @@ class ModelNode(ManagedNode):
         identification results and the expected error at the muscle's newest length.
         """
         entries = [
-            (
-                s.joint_name,
-                s.hardware_id,
-                status.level,
-                status.message,
-                status.values | s.status_values(self.engine.inputs(k)[1]),
-            )
+            s.status_entry(status, self.engine.inputs(k)[1])
             for k, (s, status) in enumerate(zip(self.settings, self.engine.statuses(now)))
         ]
         self._diag_pub.publish(diagnostic_array(self, entries))
