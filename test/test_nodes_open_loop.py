@@ -3,7 +3,8 @@ force.
 
 Both nodes are separate processes talking over DDS.  An estimate is matched to the
 measured force of the same stamp (the last estimate of a stamp: the one computed once
-both inputs of that instant were in).
+both inputs of that instant were in).  The test collects until a full sweep is in and the
+matched samples reach both pressure ends and every measured length.
 
 Bounds, in % of the map's max force (542.5 N):
 
@@ -48,6 +49,45 @@ def model_gap_to_truth(model, truth) -> float:
     )
 
 
+def matched(forces, estimates, states, pressures) -> np.ndarray:
+    """Rows (length [m], gauge [Pa], measured force [N], estimate [N]) of the stamps all four
+    topics carry, up to 0.2 s before the last estimate (the last estimate of each stamp: the one
+    computed once both inputs of that instant were in).
+    """
+    if not estimates:
+        return np.empty((0, 4))
+    estimate = {stamp_key(e): e.wrench.force.x for e in estimates}
+    length = {stamp_key(s): s.position[0] for s in states}
+    gauge = {stamp_key(p): p.fluid_pressure - AMBIENT for p in pressures}
+    last = stamp_key(estimates[-1]) - 0.2e9
+    return np.array(
+        [
+            (length[k], gauge[k], f.wrench.force.x, estimate[k])
+            for f in forces
+            if (k := stamp_key(f)) in estimate and k in length and k in gauge and k <= last
+        ]
+    ).reshape(-1, 4)
+
+
+def coverage_gaps(rows: np.ndarray, lengths: np.ndarray) -> list[str]:
+    """What the matched samples still lack of the map: its pressure ends and a sample within
+    LENGTH_WINDOW of each measured length (empty when they cover it).
+
+    The length triangle turns at the shortest and the longest measured length; at 100 Hz the sample
+    nearest a turn can lie 0.26 mm off it, and a dropped best-effort sample leaves the next one
+    0.5 mm off, so one sweep need not cover them (CI once found none within 0.25 mm of 0.198 m).
+    """
+    L, p = rows[:, 0], rows[:, 1]
+    gaps = [] if len(rows) and p.min() < 100e3 else ['a gauge pressure below 100 kPa']
+    gaps += [] if len(rows) and p.max() > 550e3 else ['a gauge pressure above 550 kPa']
+    return gaps + [
+        f'a sample within {LENGTH_WINDOW * 1e3} mm of {g} m (nearest '
+        f'{np.abs(L - g).min() * 1e3 if len(rows) else np.inf:.3f} mm off)'
+        for g in lengths
+        if not (len(rows) and (np.abs(L - g) <= LENGTH_WINDOW).any())
+    ]
+
+
 def test_estimate_follows_measured_force_over_the_map(ros, processes, namespace):
     params = read_parameters(CONFIGS['DMSP-10-250'])
     model = muscle_model(params)
@@ -63,37 +103,37 @@ def test_estimate_follows_measured_force_over_the_map(ros, processes, namespace)
         **{k.replace('.', '__'): v for k, v in NOISE.items()},
     )
     node = processes.node('model_node', namespace, CONFIGS['DMSP-10-250'])
-    forces = ros.collect(WrenchStamped, f'{namespace}/force', SENSOR_QOS)
-    estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
-    states = ros.collect(JointState, f'{namespace}/muscle_state', SENSOR_QOS)
-    pressures = ros.collect(FluidPressure, f'{namespace}/pressure', SENSOR_QOS)
+    topics = (
+        ros.collect(WrenchStamped, f'{namespace}/force', SENSOR_QOS),
+        ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS),
+        ros.collect(JointState, f'{namespace}/muscle_state', SENSOR_QOS),
+        ros.collect(FluidPressure, f'{namespace}/pressure', SENSOR_QOS),
+    )
+    forces, estimates = topics[:2]
     why = lambda: processes.output(sim) + processes.output(node)  # noqa: E731
     ros.spin_until(lambda: estimates, 30, 'a first force estimate', diagnose=why)
     first = stamp_key(estimates[0])
+    gaps = ['a full sweep']
+
+    def check() -> None:
+        swept = stamp_key(estimates[-1]) - first > (SWEEP_PERIOD + 0.5) * 1e9
+        gaps[:] = ([] if swept else ['a full sweep']) + coverage_gaps(
+            matched(*topics), truth.lengths
+        )
+
     ros.spin_until(
-        lambda: forces and stamp_key(forces[-1]) - first > (SWEEP_PERIOD + 0.5) * 1e9,
-        30,
-        'a full sweep',
-        diagnose=why,
+        lambda: not gaps,
+        60,
+        'samples over the whole map',
+        every=check,
+        period=0.5,
+        diagnose=lambda: f'still lacking: {gaps}\n{why()}',
     )
 
     assert all(np.isfinite(e.wrench.force.x) for e in estimates)
-    estimate = {stamp_key(e): e.wrench.force.x for e in estimates}  # the last one per stamp
-    length = {stamp_key(s): s.position[0] for s in states}
-    gauge = {stamp_key(p): p.fluid_pressure - AMBIENT for p in pressures}
-    last = stamp_key(estimates[-1]) - 0.2e9
-    rows = np.array(
-        [
-            (length[k], gauge[k], f.wrench.force.x, estimate[k])
-            for f in forces
-            if (k := stamp_key(f)) in estimate and k in length and k in gauge and k <= last
-        ]
-    )
+    rows = matched(*topics)
     assert len(rows) > 200, f'only {len(rows)} matched samples'
     L, p, measured, estimated = rows.T
-    assert p.min() < 100e3 and p.max() > 550e3 and L.min() < 0.2 and L.max() > 0.249, (
-        'sweep did not cover the map'
-    )
     error = np.abs(estimated - measured) / truth.max_force * 100
 
     gap = model_gap_to_truth(model, truth)
@@ -106,9 +146,6 @@ def test_estimate_follows_measured_force_over_the_map(ros, processes, namespace)
     bound = identified + NOISE_MARGIN + LENGTH_WINDOW_MARGIN
     for grid_length in truth.lengths:
         near = np.abs(L - grid_length) <= LENGTH_WINDOW
-        assert near.any(), (
-            f'no sample within {LENGTH_WINDOW * 1e3} mm of the measured length {grid_length} m'
-        )
         assert error[near].max() <= bound, (
             f'at L={grid_length} m: max error {error[near].max():.2f} % > {bound:.2f} %'
         )
