@@ -153,10 +153,11 @@ class Health:
         # when each entity last refused an input or command, and the text of it
         self._rejected_at, self._latched = np.full(count, NEVER, np.int64), [''] * count
         self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
-        self._reported = np.full(count, -1, np.int64)  # level of the last report (-1: none)
+        #: each entity's level in the last report (-1: none), and its time [ns] (NEVER: none)
+        self.reported = np.full(count, -1, np.int64)
         self._window_start = np.full(count, NEVER, np.int64)
         self._window_arrivals = np.zeros(shape, np.int64)
-        self._last_report = NEVER
+        self.last_report = NEVER
         #: every level was reported OK and no event changed one since (rejections, warnings and
         #: stale inputs clear it): then only time raises one, after _fresh_until [ns], when an
         #: input is older than max_age (or if the clock went back before _checked_at [ns])
@@ -295,12 +296,12 @@ class Health:
         it (a node that falls behind, its inputs flapping between fresh and stale, must not spend
         its time reporting).
         """
-        if 0 <= now - self._last_report < self.report_interval:
+        if 0 <= now - self.last_report < self.report_interval:
             return False
         if self._steady and self._checked_at <= now <= self._fresh_until:
             return False  # every level was reported OK and nothing happened since
         levels = self.levels(now)
-        due = bool((levels != self._reported).any())
+        due = bool((levels != self.reported).any())
         self._steady = not due and not levels.any()
         if self._steady:  # until an input goes stale, only an event can change a level
             self._checked_at, self._fresh_until = now, int(self.stamps.min()) + self.max_age
@@ -323,7 +324,7 @@ class Health:
             a.tolist() for a in (events, arrivals, low, high, self._late, self._early, self._zero)
         ]
         windows, statuses = window.tolist(), []
-        for k in range(len(self._reported)):
+        for k in range(len(self.reported)):
             level, message = self.level(k, now)
             values = {label: str(n) for label, n in zip(self.labels, self.counts(k)) if n}
             for i, name in enumerate(self.inputs[k]):
@@ -331,14 +332,14 @@ class Health:
             values |= own(k) if own else {}
             values |= self.extra[k]
             statuses.append(Status(level, message, values))
-            self._reported[k], self._window_start[k] = level, now
+            self.reported[k], self._window_start[k] = level, now
         self._window_arrivals[:] = arrivals
         for row in self._delay_min:
             row[:] = [np.inf] * len(row)
         for row in self._delay_max:
             row[:] = [-np.inf] * len(row)
         self._delay_all = [[np.inf, -np.inf] for _ in self._delay_all]
-        self._steady, self._last_report = False, now
+        self._steady, self.last_report = False, now
         return statuses
 
 

@@ -73,8 +73,6 @@ class Timeline:
         self.max_age = engine.pairing.max_age
         self._held = [_Held() for _ in range(len(engine))]
         self._next_status: int | None = None
-        self._last_report = NEVER
-        self._reported = bytes([255]) * len(engine)  # levels of the last report (255: none)
         self._windows: list[list[int]] = []
 
     def counts(self, k: int) -> dict[str, int]:
@@ -132,17 +130,15 @@ class Timeline:
         timer_at = first + np.searchsorted(times, timers, 'left')
         windows = [[0, 0] for _ in events]  # per muscle and input: first arrival in the window
         reports: list[Report] = []
+        health = self.engine.health  # its report sets the levels and time of the last report
 
         def report(at: int, after: bool, now: int) -> None:
             lengths = self._restore(events, windows, at, 'right' if after else 'left')
-            statuses = self.engine.statuses(now)
-            reports.append(Report(at, after, now, statuses, lengths))
-            self._reported = bytes(int(s.level) for s in statuses)
-            self._last_report = now
+            reports.append(Report(at, after, now, self.engine.statuses(now), lengths))
 
         def passed(start: int) -> int:
             """The first input from ``start`` on that the report interval lets through."""
-            gate = np.searchsorted(inputs_now, self._last_report + self.interval, 'left')
+            gate = np.searchsorted(inputs_now, health.last_report + self.interval, 'left')
             return max(start, int(gate))
 
         i, t = passed(0), 0
@@ -153,7 +149,7 @@ class Timeline:
                 t += 1
             elif i >= count:
                 break
-            elif levels[i].tobytes() != self._reported:
+            elif (levels[i] != health.reported).any():
                 report(int(input_at[i]), True, int(inputs_now[i]))
                 i = passed(i + 1)
             else:
