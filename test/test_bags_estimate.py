@@ -7,7 +7,7 @@ import math
 import subprocess
 import sys
 
-from hypothesis import given, settings
+from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 import numpy as np
 import pytest
@@ -397,6 +397,15 @@ def warm_up(ticks: int) -> list[tuple]:
     ]
 
 
+#: A pressure and a length stamped 120 ms before their log time and 1 ms apart (a stale pair for
+#: ``approximate_time``, which the draws' independent stamps almost never make), between usual
+#: ticks.
+STALE_PAIR = warm_up(5) + [
+    ('pressure', 1, -120, 0.5, 'usual'),
+    ('muscle_state', 0, -119, 0.5, 'usual'),
+    *warm_up(3),
+]
+
 #: A recording: a warm-up of up to 15 usual ticks (pairs from the start), then random steps.
 messages_strategy = st.tuples(
     st.integers(0, 15), st.lists(step_strategy, min_size=1, max_size=40)
@@ -454,6 +463,26 @@ def random_bag(path, storage, steps, settings=SETTINGS):
     return path
 
 
+#: What a drawn recording exercised, by counter label prefix: shown by
+#: ``pytest --hypothesis-show-statistics`` (docs/bags.md quotes the counts).
+COVERAGE = {
+    'rejected': 'rejects an input',
+    'stale skipped': 'skips a stale input',
+    'pressure commands': 'commands a pressure',
+    'unpaired': 'loses an input to pairing_slop',
+}
+
+
+def record_coverage(counts: dict[str, int], estimates: int) -> None:
+    """Hypothesis events of one example: whether (and how often) it estimated; :data:`COVERAGE`."""
+    event('estimates' if estimates else 'no estimate')
+    if estimates >= 10:
+        event('ten estimates or more')
+    for prefix, what in COVERAGE.items():
+        if any(n for label, n in counts.items() if label.startswith(prefix)):
+            event(what)
+
+
 @pytest.mark.parametrize('outputs_only', [True, False], ids=['outputs-only', 'copying'])
 @pytest.mark.parametrize('pairing', ['every_input', 'approximate_time'])
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
@@ -463,6 +492,7 @@ def random_bag(path, storage, steps, settings=SETTINGS):
     variant=st.sampled_from(VARIANTS),
     chunk=st.sampled_from([3, 10, CHUNK]),
 )
+@example(steps=STALE_PAIR, storage='mcap', variant='martens', chunk=3)
 def test_random_recordings_published_as_the_node_message_by_message(
     tmp_path_factory, pairing, outputs_only, steps, storage, variant, chunk
 ):
@@ -498,6 +528,7 @@ def test_random_recordings_published_as_the_node_message_by_message(
     assert got == want  # and every byte
     assert summary.counts == counts
     assert summary.estimates == len(rows)
+    record_coverage(counts, len(rows))
     got_rows = csv_rows(tmp / 'est.csv')
     assert len(got_rows) == len(rows)
     for a, b in zip(got_rows, rows):
@@ -668,6 +699,7 @@ def test_random_multi_muscle_recordings_published_as_the_node_message_by_message
     assert got == want
     assert summary.counts == counts
     assert summary.estimates == len(rows)
+    record_coverage(counts, len(rows))
     got_rows = csv_rows(tmp / 'est.csv')
     assert len(got_rows) == len(rows)
     for a, b in zip(got_rows, rows):

@@ -279,6 +279,23 @@ def test_approximate_time_pairs_each_input_once(martens_10_250):
         Engine([Config(martens_10_250)], pairing='exact')
 
 
+def test_approximate_time_skips_a_stale_pair(martens_10_250):
+    """A pressure and a length within ``slop`` of each other but 0.12 s old (max_input_age 0.1 s)
+    pair, and give no estimate: one 'stale skipped', no 'unpaired'; the muscle is ERROR (stale)
+    until a fresh pair estimates.
+    """
+    est = Engine([Config(martens_10_250, AMBIENT, 0.1)], pairing='approximate_time', slop=0.002)
+    assert feed_pressure(est, AMBIENT + P, stamp=0.880, now=1.000) is None
+    assert feed_length(est, L, 0.0, stamp=0.881, now=1.001) is None
+    counts = est.counts(0)
+    assert counts['stale skipped'] == 1 and 'unpaired' not in counts and 'estimates' not in counts
+    level, text = est.level(0, ns(1.001))
+    assert level == Level.ERROR and text.startswith('stale '), text
+    assert feed_pressure(est, AMBIENT + P, stamp=1.010, now=1.010) is None  # waits for its length
+    assert feed_length(est, L, 0.0, stamp=1.011, now=1.011) is not None
+    assert est.counts(0)['estimates'] == 1 and est.level(0, ns(1.011))[0] == Level.OK
+
+
 # --- the two entry forms make the same decisions
 # ----------------------------------------------------------
 
