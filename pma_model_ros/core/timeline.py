@@ -173,14 +173,7 @@ class Timeline:
             for s, (positions, delay) in enumerate(h.arrivals):
                 end = int(np.searchsorted(positions, at, side))
                 arrivals.append(carry.arrivals[s] + end)
-                window, start = carry.window[s], windows[k][s]
-                if end > start:
-                    low, high = int(delay[start:end].min()), int(delay[start:end].max())
-                    window = (
-                        (low, high)
-                        if window is None
-                        else (min(window[0], low), max(window[1], high))
-                    )
+                window = _widened(carry.window[s], delay[windows[k][s] : end])
                 delays.append(
                     (math.inf, -math.inf)
                     if window is None
@@ -206,16 +199,18 @@ class Timeline:
         carry.counts += [len(c) for c in h.counters]
         for s, (positions, delay) in enumerate(h.arrivals):
             carry.arrivals[s] += len(positions)
-            start = self._windows[k][s]
-            if start < len(delay):
-                low, high = int(delay[start:].min()), int(delay[start:].max())
-                window = carry.window[s]
-                carry.window[s] = (
-                    (low, high) if window is None else (min(window[0], low), max(window[1], high))
-                )
+            carry.window[s] = _widened(carry.window[s], delay[self._windows[k][s] :])
         positions, when, texts = h.rejections
         if len(positions):
             carry.rejected = (int(when[-1]), texts[-1])
         for j, (positions, when) in enumerate(h.warnings):
             if len(positions):
                 carry.warned_at[j] = when[-1]
+
+
+def _widened(window: tuple[int, int] | None, delays: np.ndarray) -> tuple[int, int] | None:
+    """``window`` (min, max) of now - stamp [ns] (None: no arrival), widened by ``delays``."""
+    if not len(delays):
+        return window
+    low, high = int(delays.min()), int(delays.max())
+    return (low, high) if window is None else (min(window[0], low), max(window[1], high))
