@@ -42,6 +42,7 @@ import sys
 import tempfile
 import threading
 import time
+from typing import Callable
 
 import numpy as np
 import yaml
@@ -75,6 +76,8 @@ DRAIN = 0.5  # [s] after the last cycle, for late answers
 ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
 ANGLE = 0.2  # [rad] of every joint
 REPORTS = 50  # /diagnostics reports timed per row of the callback costs
+FLUSH = 8 << 20  # [bytes] read between two cycles to flush the caches (more than L2 and L3 slice)
+COLD_CYCLES = 1000  # cycles per cold-cache timing
 STALE_NEVER = 3600.0  # [s] max_input_age of the callback costs
 PROFILED = {'model_node': ModelNode, 'joint_node': JointNode}
 
@@ -399,15 +402,16 @@ def profiled_node(name: str, out: Path, args: list[str]) -> int:
     return code
 
 
-def callback_cost(
-    muscles: int, folder: Path, cycles: int = 2000
-) -> tuple[float, float, float, float]:
-    """CPU time of model_node's callbacks per cycle (both inputs as bytes, called directly: no
-    executor, no wait) and of the engine's share of it (its two calls per cycle) [us]; answers go
-    nowhere.  Then the CPU time of one /diagnostics report of every muscle (publish_status, the 1
-    Hz timer's work, a stall of the executor), each after 20 new cycles [ms], and the baseline:
-    the bare relay's callbacks per cycle of the same inputs, each deserialized by rclpy first as
-    its executor does [us].
+def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, float]:
+    """CPU time of model_node's callbacks per cycle (``cycle``: both inputs as bytes, called
+    directly: no executor, no wait) and of the engine's share of it (``engine``: its two calls per
+    cycle) [us]; answers go nowhere.  Then the CPU time of one /diagnostics report of every muscle
+    (``report``: publish_status, the 1 Hz timer's work, a stall of the executor), each after 20 new
+    cycles [ms], and the baseline: the bare relay's callbacks per cycle of the same inputs, each
+    deserialized by rclpy first as its executor does (``relay`` [us]).  ``cold`` and
+    ``cold_relay`` [us]: the same per cycle with the caches flushed before each cycle (a
+    :data:`FLUSH` read, its own time subtracted), as in a node whose core also runs the DDS
+    threads and other processes between two messages.
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     # the inputs are built first, stamped then, and taken over up to ~0.2 s: an input age of an
@@ -468,11 +472,51 @@ def callback_cost(
             for subscription, data in zip(subscriptions, cycle):
                 subscription.callback(deserialize_message(data, subscription.msg_type))
         relayed = (time.process_time() - start) / cycles
+
+        def relay_cycle(cycle: tuple[bytes, ...]) -> None:
+            for subscription, data in zip(subscriptions, cycle):
+                subscription.callback(deserialize_message(data, subscription.msg_type))
+
+        def model_cycle(cycle: tuple[bytes, ...]) -> None:
+            handlers[0](cycle[0])
+            handlers[1](cycle[1])
+
+        fresh = [node.messages(k, model.now()) for k in range(COLD_CYCLES)]
+        cold = {
+            name: flushed(run, fresh)
+            for name, run in (('model', model_cycle), ('relay', relay_cycle))
+        }
         for made in (relay, model, node):
             made.destroy_node()
     finally:
         rclpy.shutdown()
-    return per_cycle * 1e6, own * 1e6, report * 1e3, relayed * 1e6
+    return {
+        'cycle': per_cycle * 1e6,
+        'engine': own * 1e6,
+        'report': report * 1e3,
+        'relay': relayed * 1e6,
+        'cold': cold['model'] * 1e6,
+        'cold_relay': cold['relay'] * 1e6,
+    }
+
+
+def flushed(run: Callable[[tuple[bytes, ...]], None], inputs: list[tuple[bytes, ...]]) -> float:
+    """CPU time [s] per cycle of ``run`` over ``inputs`` with the caches flushed before each
+    cycle (reading :data:`FLUSH`), the flushes' own time subtracted; the median of 5 runs.
+    """
+    flush = np.ones(FLUSH, np.uint8)
+    times = []
+    for _ in range(5):
+        start = time.process_time()
+        for cycle in inputs:
+            flush.sum()
+            run(cycle)
+        both = time.process_time() - start
+        start = time.process_time()
+        for _ in inputs:
+            flush.sum()
+        times.append((both - (time.process_time() - start)) / len(inputs))
+    return sorted(times)[2]
 
 
 def print_rows(
@@ -573,15 +617,18 @@ def main() -> int:
                 'inputs):'
             )
         for n in muscles if not args.code else []:
-            cycle, bank, report, relayed = callback_cost(n, Path(tmp))
+            cost = callback_cost(n, Path(tmp))
             print(
-                f"{n:>3} muscles: {cycle:5.0f} us, of which the engine's two calls {bank:.0f} us"
+                f"{n:>3} muscles: {cost['cycle']:5.0f} us, of which the engine's two calls "
+                f'{cost["engine"]:.0f} us'
                 + (
                     ' (one vectorised call per message)'
                     if n > 1
                     else ' (its one-muscle float path)'
                 )
-                + f'; a /diagnostics report {report:.2f} ms; the bare relay {relayed:.0f} us'
+                + f'; a /diagnostics report {cost["report"]:.2f} ms; the bare relay '
+                f'{cost["relay"]:.0f} us; caches flushed before each cycle: {cost["cold"]:.0f} '
+                f'us, the relay {cost["cold_relay"]:.0f} us'
             )
         if muscles:
             print_rows(False, muscles, args, Path(tmp), last)
