@@ -30,7 +30,12 @@ def test_command_line_of_a_node():
 def test_stop_sends_sigint_then_kills(tmp_path):
     with open(tmp_path / 'log', 'w') as log:
         ready = 'import signal, sys, time; {} print("up", flush=True); time.sleep(30)'
-        polite = node_process.start([sys.executable, '-c', ready.format('')], log)
+        # a node handles SIGINT whatever it inherited (rclpy.init installs its handler); a bare
+        # Python inherits SIG_IGN when the suite runs as a background job of a script
+        polite = node_process.start(
+            [sys.executable, '-c', ready.format('signal.signal(signal.SIGINT, signal.default_int_handler);')],
+            log,
+        )
         deaf = node_process.start(
             [sys.executable, '-c', ready.format('signal.signal(signal.SIGINT, signal.SIG_IGN);')],
             log,
