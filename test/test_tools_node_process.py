@@ -32,13 +32,12 @@ def test_stop_sends_sigint_then_kills(tmp_path):
         ready = 'import signal, sys, time; {} print("up", flush=True); time.sleep(30)'
         # a node handles SIGINT whatever it inherited (rclpy.init installs its handler); a bare
         # Python inherits SIG_IGN when the suite runs as a background job of a script
+        handle = 'signal.signal(signal.SIGINT, signal.{});'
         polite = node_process.start(
-            [sys.executable, '-c', ready.format('signal.signal(signal.SIGINT, signal.default_int_handler);')],
-            log,
+            [sys.executable, '-c', ready.format(handle.format('default_int_handler'))], log
         )
         deaf = node_process.start(
-            [sys.executable, '-c', ready.format('signal.signal(signal.SIGINT, signal.SIG_IGN);')],
-            log,
+            [sys.executable, '-c', ready.format(handle.format('SIG_IGN'))], log
         )
         deadline = time.monotonic() + 10
         while (tmp_path / 'log').read_text().count('up') < 2 and time.monotonic() < deadline:
