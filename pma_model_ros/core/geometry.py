@@ -135,20 +135,11 @@ def turns(spec: MuscleSpec, fiber_angle: float | None = None) -> float:
 
 
 def braid_constants(spec: MuscleSpec, fiber_angle: float | None = None) -> BraidConstants:
-    """What :func:`braid` needs of the muscle: L_Fiber^2 [m^2], n pi [-] and 4 pi n^2 [-] (eq. 3),
-    computed once per muscle (a node evaluates the braid at every new length).
+    """What :func:`braid` needs of the muscle: L_Fiber^2 [m^2], n pi [-] and 4 pi n^2 [-] (eq. 3);
+    Martens' prepared forms (:mod:`~pma_model_ros.core.models`) compute them once per muscle.
     """
     lf, n = fiber_length(spec, fiber_angle), turns(spec, fiber_angle)
     return BraidConstants(lf**2, n * math.pi, 4 * math.pi * n**2)
-
-
-def braid_at(constants: BraidConstants, length: ArrayLike) -> tuple:
-    """:func:`braid` of a muscle's :func:`braid_constants`."""
-    lf_sq, n_pi, four_pi_n_sq = constants
-    length = ew.asarray(length)
-    length_sq = length**2
-    root = ew.sqrt(lf_sq - length_sq)
-    return root / n_pi, -length / (n_pi * root), (lf_sq - 3 * length_sq) / four_pi_n_sq
 
 
 def braid(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> tuple:
@@ -156,7 +147,11 @@ def braid(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None)
     the volume slope dV/dL = (L_Fiber^2 - 3 L^2) / (4 pi n^2) [m^2] (derivative of eq. 4), sharing
     one root.
     """
-    return braid_at(braid_constants(spec, fiber_angle), length)
+    lf_sq, n_pi, four_pi_n_sq = braid_constants(spec, fiber_angle)
+    length = ew.asarray(length)
+    length_sq = length**2
+    root = ew.sqrt(lf_sq - length_sq)
+    return root / n_pi, -length / (n_pi * root), (lf_sq - 3 * length_sq) / four_pi_n_sq
 
 
 def diameter(spec: MuscleSpec, length: ArrayLike, fiber_angle: float | None = None) -> np.ndarray:

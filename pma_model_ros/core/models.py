@@ -280,7 +280,7 @@ def _martens_end(theta, spec, domain, length, branch) -> Coefficients:
     """
     q2, _, q0 = _martens(theta[:5], spec, domain, length, branch)
     end = _end_length(spec, theta[5], length)
-    return q2, -geo.braid(spec, end, spec.fiber_angle + theta[4])[2], q0
+    return q2, -geo.volume_slope(spec, end, spec.fiber_angle + theta[4]), q0
 
 
 def _martens_end_prepared(theta, spec, domain) -> Callable[..., Coefficients]:
