@@ -76,7 +76,9 @@ DRAIN = 0.5  # [s] after the last cycle, for late answers
 ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
 ANGLE = 0.2  # [rad] of every joint
 REPORTS = 50  # /diagnostics reports timed per row of the callback costs
-FLUSH = 8 << 20  # [bytes] read between two cycles to flush the caches (more than L2 and L3 slice)
+#: [bytes] read before each cycle of the flushed timing: it empties L1 and L2 (1 MiB per core on
+#: these EPYC VMs), not the 32 MiB L3
+FLUSH = 8 << 20
 COLD_CYCLES = 1000  # cycles per cold-cache timing
 STALE_NEVER = 3600.0  # [s] max_input_age of the callback costs
 PROFILED = {'model_node': ModelNode, 'joint_node': JointNode}
@@ -409,7 +411,7 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
     (``report``: publish_status, the 1 Hz timer's work, a stall of the executor), each after 20 new
     cycles [ms], and the baseline: the bare relay's callbacks per cycle of the same inputs, each
     deserialized by rclpy first as its executor does (``relay`` [us]).  ``cold`` and
-    ``cold_relay`` [us]: the same per cycle with the caches flushed before each cycle (a
+    ``cold_relay`` [us]: the same per cycle with L1 and L2 flushed before each cycle (a
     :data:`FLUSH` read, not timed), as in a node whose core also runs the DDS threads and other
     processes between two messages.
     """
@@ -435,14 +437,25 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
             if muscles == 1
             else (model._on_pressures, model._on_states)
         )
+
+        def model_cycle(cycle: tuple[bytes, ...]) -> None:
+            handlers[0](cycle[0])
+            handlers[1](cycle[1])
+
+        def check_estimated(since: int, inputs: list[tuple[bytes, ...]]) -> None:
+            """Stop unless every input of ``inputs`` gave an estimate after the first ``since``
+            (the first cycle's pressure may not).
+            """
+            counts = model.engine.counts(0)
+            if counts.get('estimates', 0) - since < 2 * len(inputs) - 1:
+                raise SystemExit(f'callback cost: inputs refused: {counts}')
+
         inputs = [node.messages(k, model.now()) for k in range(cycles)]
         start = time.process_time()
-        for first, second in inputs:
-            handlers[0](first)
-            handlers[1](second)
+        for cycle in inputs:
+            model_cycle(cycle)
         per_cycle = (time.process_time() - start) / cycles
-        if model.engine.counts(0).get('estimates', 0) < 2 * cycles - 1:  # every input but one
-            raise SystemExit(f'callback cost: inputs refused: {model.engine.counts(0)}')
+        check_estimated(0, inputs)
         engine, now = model.engine, model.now()
         pressures, rates = np.full(muscles, AMBIENT + 300e3), np.zeros(muscles)
         lengths = [0.23 + 0.005 * np.sin(k * 1e-3 + 0.1 * rates) for k in range(cycles)]
@@ -459,33 +472,25 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
         report = 0.0  # each report after new inputs: new counters, rates and delays to write
         for _ in range(REPORTS):
             for k in range(20):
-                first, second = node.messages(k, model.now())
-                handlers[0](first)
-                handlers[1](second)
+                model_cycle(node.messages(k, model.now()))
             start = time.process_time()
             model.publish_status(model.now())
             report += (time.process_time() - start) / REPORTS
         relay = Relay(parameter_overrides=[Parameter('muscles', value=muscles)])
         subscriptions = list(relay.subscriptions)  # the pressure's, then the length's
-        start = time.process_time()
-        for cycle in inputs:
-            for subscription, data in zip(subscriptions, cycle):
-                subscription.callback(deserialize_message(data, subscription.msg_type))
-        relayed = (time.process_time() - start) / cycles
 
         def relay_cycle(cycle: tuple[bytes, ...]) -> None:
             for subscription, data in zip(subscriptions, cycle):
                 subscription.callback(deserialize_message(data, subscription.msg_type))
 
-        def model_cycle(cycle: tuple[bytes, ...]) -> None:
-            handlers[0](cycle[0])
-            handlers[1](cycle[1])
-
+        start = time.process_time()
+        for cycle in inputs:
+            relay_cycle(cycle)
+        relayed = (time.process_time() - start) / cycles
         fresh = [node.messages(k, model.now()) for k in range(COLD_CYCLES)]
-        cold = {
-            name: flushed(run, fresh)
-            for name, run in (('model', model_cycle), ('relay', relay_cycle))
-        }
+        since = model.engine.counts(0)['estimates']
+        cold = {'model': flushed(model_cycle, fresh), 'relay': flushed(relay_cycle, fresh)}
+        check_estimated(since, fresh * 5)  # flushed() runs the inputs 5 times
         for made in (relay, model, node):
             made.destroy_node()
     finally:
@@ -501,7 +506,7 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
 
 
 def flushed(run: Callable[[tuple[bytes, ...]], None], inputs: list[tuple[bytes, ...]]) -> float:
-    """CPU time [s] per cycle of ``run`` over ``inputs`` with the caches flushed before each
+    """CPU time [s] per cycle of ``run`` over ``inputs`` with L1 and L2 flushed before each
     cycle (reading :data:`FLUSH`), each cycle timed on its own (the thread's CPU clock, not the
     flush); the median of 5 runs.
     """
@@ -626,7 +631,7 @@ def main() -> int:
                     else ' (its one-muscle float path)'
                 )
                 + f'; a /diagnostics report {cost["report"]:.2f} ms; the bare relay '
-                f'{cost["relay"]:.0f} us; caches flushed before each cycle: {cost["cold"]:.0f} '
+                f'{cost["relay"]:.0f} us; L1 and L2 flushed before each cycle: {cost["cold"]:.0f} '
                 f'us, the relay {cost["cold_relay"]:.0f} us'
             )
         if muscles:
