@@ -2,6 +2,7 @@
 two entry forms (one muscle's input, every muscle's input) making the same decisions.
 """
 
+import itertools
 import math
 
 from hypothesis import given, settings
@@ -11,9 +12,16 @@ import pytest
 
 from conftest import CONFIGS
 from pma_model_ros.core.engine import Config, Engine, Level
-from pma_model_ros.core.estimation import command_problem, commands_ok, lengths_ok, pressures_ok
+from pma_model_ros.core.estimation import (
+    command_problem,
+    commands_ok,
+    lengths_ok,
+    Muscles,
+    pressures_ok,
+)
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.hysteresis import Follow
+from pma_model_ros.core.muscle_model import force_at
 from pma_model_ros.core.pairing import fresh, NEVER, SECOND, stale_command_stamps, UNSTAMPED
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
@@ -497,3 +505,130 @@ def test_each_input_rule_answers_alike_for_a_float_and_an_array():
     stale = [False, False, False, True, True, True, False]
     assert [bool(stale_command_stamps(s, now, age)) for s in stamps] == stale
     assert stale_command_stamps(np.array(stamps), now, age).tolist() == stale
+
+
+#: Raw values at and beyond the input rules' bounds: absolute pressures [Pa] around 0 and 50 bar,
+#: and, named as each muscle has its own, around the gauge pressures served as they are (0 to the
+#: highest identified; below 0, the vented band); lengths [m] around 0 and the geometry's limit,
+#: and the rest length (where a force at 0 Pa may be above 0 N)
+PRESSURE_EDGES = [math.nan, math.inf, -math.inf, -1.0, -0.0, 0.0, 5e6, 5e6 + 1]
+PRESSURE_EDGES += ['vented', 'ambient', 'known', 'above known']
+LENGTH_EDGES = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    -1.0,
+    -0.0,
+    0.0,
+    1e-9,
+    'limit',
+    'below limit',
+    'rest',
+]
+
+
+def column(edges: list) -> st.SearchStrategy:
+    """One message of every muscle: units (see :func:`_raw`; drawn as 1-tuples), one to three of
+    them replaced by raw ``edges`` one time in four.
+    """
+    usual = st.lists(good.map(lambda u: (u,)), min_size=len(MODELS), max_size=len(MODELS))
+    edits = st.lists(
+        st.tuples(st.integers(0, len(MODELS) - 1), st.sampled_from(edges)), min_size=1, max_size=3
+    )
+
+    def edited(values: list, changes: list) -> list:
+        for k, edge in changes:
+            values[k] = edge
+        return values
+
+    return often(usual, st.builds(edited, usual, edits))
+
+
+def _raw(kind: str, draw, config: Config) -> float:
+    """A drawn value of ``config``'s muscle (a pressure as its sensor reads it: absolute or
+    gauge): a unit across the identified gauge pressures or lengths (the usual message), or a raw
+    edge.
+    """
+    model = config.model
+    known, domain = model.limits.pressure_known, model.domain
+    if kind == 'length':
+        if isinstance(draw, tuple):
+            return domain.length_min + draw[0] * (domain.length_max - domain.length_min)
+        if type(draw) is float:
+            return draw
+        if draw == 'rest':
+            return model.spec.nominal_length
+        return model.max_length * {'limit': 1, 'below limit': 1 - 1e-15}[draw]
+    if type(draw) is float:
+        return draw
+    gauge = {'vented': -5e3, 'ambient': 0.0, 'known': known, 'above known': known + 1e3}
+    gauge = draw[0] * known if isinstance(draw, tuple) else gauge[draw]
+    return config.ambient_pressure + gauge - config.reading_offset
+
+
+def check_message(pressures: list, lengths: list, ambients: tuple, alike: int | None) -> None:
+    """One message of each input of every muscle (draws as :func:`_raw` takes them), checked on
+    its lowest and highest values first: which pressures and lengths it takes equals pressures_ok
+    and lengths_ok value by value, and the forces it serves from them equal force_at's at the same
+    inputs (bit for bit).  The muscles differ in pressure reference and ambient (``ambients``, in
+    turn), and in model and geometry, or not (``alike``: an arm of MODELS[alike], where the tests
+    on the lowest and highest pass).
+    """
+    models = MODELS if alike is None else [MODELS[alike]] * len(MODELS)
+    configs = [
+        Config(m, ambients[k % len(ambients)], 0.1, ('absolute', 'gauge')[k % 2])
+        for k, m in enumerate(models)
+    ]
+    muscles = Muscles(configs)
+    readings = np.array([_raw('pressure', d, c) for d, c in zip(pressures, configs)])
+    absolute, ok = muscles.take_pressures(readings)
+    offsets = np.array([c.reading_offset for c in configs])
+    assert np.array_equal(absolute, readings + offsets, equal_nan=True)
+    want = pressures_ok(readings + offsets)
+    assert (ok is None) == want.all() and (ok is None or ok.tolist() == want.tolist())
+    column = np.array([_raw('length', d, c) for d, c in zip(lengths, configs)])
+    taken, span = muscles.take_lengths(column)
+    want = lengths_ok(column, np.array([m.max_length for m in models]))
+    assert (taken is None) == want.all() and (taken is None or taken.tolist() == want.tolist())
+    assert span is None or span == (column.min(), column.max())
+    if ok is not None or taken is not None:
+        return
+    muscles.store_pressures(None, absolute)
+    muscles.store_lengths(None, column, np.zeros(len(MODELS)), span)
+    force, flags, has = muscles.forces(None)
+    ambient = np.array([c.ambient_pressure for c in configs])
+    with np.errstate(invalid='ignore', over='ignore'):
+        want = force_at(muscles.bank.operating(column, np.zeros(len(MODELS))), absolute - ambient)
+    usable = want.raw < math.inf
+    assert usable.all() if has is None else has.tolist() == usable.tolist()
+    assert force[usable].tolist() == want.force[usable].tolist()
+    assert flags.tolist() == want.flags.tolist()
+
+
+def test_each_edge_of_a_message_is_decided_as_the_elementwise_rules():
+    """:func:`check_message` of every raw edge alone in a usual message (at the identified
+    lengths' middle and longest: wickramatunge's force at 0 Pa is above 0 N there), at a muscle
+    reading absolute pressures and at one reading gauge, in a mixed arm and in arms of one type.
+    """
+    for alike, k, ambients, unit in itertools.product(
+        (None, 0, 3, 4, len(MODELS) - 1), (0, 1), ((AMBIENT,), (AMBIENT, 95e3)), (0.5, 1.0)
+    ):
+        pressures, lengths = [(0.5,)] * len(MODELS), [(unit,)] * len(MODELS)
+        for edge in PRESSURE_EDGES:
+            check_message(pressures[:k] + [edge] + pressures[k + 1 :], lengths, ambients, alike)
+        for edge in LENGTH_EDGES:
+            check_message(pressures, lengths[:k] + [edge] + lengths[k + 1 :], ambients, alike)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@given(
+    pressures=column(PRESSURE_EDGES),
+    lengths=column(LENGTH_EDGES),
+    ambients=st.sampled_from([(AMBIENT,), (AMBIENT, 95e3)]),
+    alike=st.one_of(st.none(), st.integers(0, len(MODELS) - 1)),
+)
+def test_a_messages_lowest_and_highest_decide_as_the_elementwise_rules(
+    pressures, lengths, ambients, alike
+):
+    """:func:`check_message` of random messages: usual values, some raw edges among them."""
+    check_message(pressures, lengths, ambients, alike)

@@ -155,7 +155,7 @@ class Engine:
         """Lengths [m] and rates [m/s] (NaN: unknown; the hysteresis branch follows the play
         operator, not the rate) of every muscle; see :meth:`pressures`.
         """
-        good = self.muscles.take_lengths(lengths)
+        good, span = self.muscles.take_lengths(lengths)
         limits = self.muscles.max_length
         valid = self._take(
             'muscle_state',
@@ -164,7 +164,7 @@ class Engine:
             lambda k: length_problem(lengths.item(k), limits.item(k)),
             now,
         )
-        self.muscles.store_lengths(valid, lengths, rates)
+        self.muscles.store_lengths(valid, lengths, rates, span if valid is None else None)
         return self._answer(LENGTH, valid, stamp, now)
 
     def _take(self, source, good, present, problem, now) -> np.ndarray | None:

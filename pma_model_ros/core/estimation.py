@@ -5,7 +5,11 @@ Each rule is written once over the arrays of every muscle: input validation, the
 branch (play operator, :mod:`~.hysteresis`), the length-dependent coefficients (once per new
 length, :meth:`~.muscle_bank.MuscleBank.operating`: one call per model) and the force per
 pressure (:func:`~.muscle_model.force_at`, with a shortcut, equal by construction, for the usual
-message: every pressure inside the identified range, every force finite).  One muscle's input
+message: every pressure inside the identified range, every force finite).  An input of every
+muscle is first tested on its lowest and highest value: two reductions decide the usual message
+(every value a reading, every pressure served as it is, every length identified) and are reused
+for each of these decisions, where the elementwise rules cost three operations and a count each
+(``test_core_engine.py`` pins them to the rules at every bound).  One muscle's input
 takes a measured fast path in plain floats (:meth:`Muscles.pressure_one`, :meth:`length_one`,
 :meth:`force_one`, over :meth:`~.muscle_model.MuscleModel.operating_one` and
 :func:`~.muscle_model.served_pressure`): on one value numpy's per-call overhead costs more than the
@@ -142,6 +146,13 @@ class Muscles:
         self.max_length = self.bank.max_length
         self._known = self.bank.limits.pressure_known
         self._gauge: tuple[np.ndarray, bool] | None = None  # forces' view of the pressures
+        #: the usual message's tests on its lowest and highest value (two reductions, where the
+        #: elementwise rules cost more; equal where they pass): every length below _length_top
+        #: [m] is one the geometry takes; every absolute pressure [Pa] in _served is served as
+        #: it is (in [0, known] as a gauge pressure)
+        self._length_top = float(self.max_length.min())
+        self._served = float(self.ambient.max()), float((self.ambient + self._known).min())
+        self._span: tuple[float, float] | None = None  # of the pressures stored, if one message's
         # what the play operator follows, per muscle: (length?, deadband) or None
         self._follows = [
             (c.follow.input == 'length', c.follow.deadband) if m.model.hysteresis else None
@@ -165,13 +176,22 @@ class Muscles:
         all).
         """
         absolute = readings + self.offset if self._offsets else readings
-        ok = pressures_ok(absolute)
-        return absolute, None if np.count_nonzero(ok) == ok.size else ok
+        span = ew.lowest(absolute), ew.highest(absolute)
+        if span[0] >= 0 and span[1] <= ABSURD_PRESSURE:  # pressures_ok for all (False for NaN)
+            self._span = span
+            return absolute, None
+        self._span = None
+        return absolute, pressures_ok(absolute)  # (one is not a reading)
 
-    def take_lengths(self, lengths: np.ndarray) -> np.ndarray | None:
-        """Which ``lengths`` [m] of every muscle the geometry can take (None: all)."""
+    def take_lengths(self, lengths: np.ndarray) -> tuple[np.ndarray | None, tuple | None]:
+        """(Which ``lengths`` [m] of every muscle the geometry can take: None if all; their
+        lowest and highest if they are all taken, else None).
+        """
+        span = ew.lowest(lengths), ew.highest(lengths)
+        if span[0] > 0 and span[1] < self._length_top:  # lengths_ok for all (False for NaN)
+            return None, span
         ok = lengths_ok(lengths, self.max_length)
-        return None if np.count_nonzero(ok) == ok.size else ok
+        return (None, None) if np.count_nonzero(ok) == ok.size else (ok, None)
 
     def store_pressures(self, valid: np.ndarray | None, absolute: np.ndarray) -> None:
         """The ``valid`` absolute pressures [Pa]; a branch that follows the pressure and turns
@@ -181,6 +201,7 @@ class Muscles:
             self.pressure[:] = absolute
         else:
             self.pressure[valid] = absolute[valid]
+            self._span = None
         self._gauge = None
         if self._any_pressure:
             follows = self._by_pressure if valid is None else self._by_pressure & valid
@@ -192,10 +213,14 @@ class Muscles:
                 self._operate(turned, self.length)
 
     def store_lengths(
-        self, valid: np.ndarray | None, lengths: np.ndarray, rates: np.ndarray
+        self,
+        valid: np.ndarray | None,
+        lengths: np.ndarray,
+        rates: np.ndarray,
+        span: tuple[float, float] | None = None,
     ) -> None:
         """The ``valid`` lengths [m] and rates [m/s] (NaN: unknown); a branch that follows the
-        length moves by the play operator.
+        length moves by the play operator.  ``span``: :meth:`take_lengths`' lowest and highest.
         """
         if self._any_length:
             follows = self._by_length if valid is None else self._by_length & valid
@@ -206,18 +231,22 @@ class Muscles:
             self.length[:], self.rate[:] = lengths, rates
         else:
             self.length[valid], self.rate[valid] = lengths[valid], rates[valid]
-        self._operate(valid, lengths, plain=valid is None)
+        self._operate(valid, lengths, plain=valid is None, span=span)
 
-    def _operate(self, which: np.ndarray | None, lengths: np.ndarray, plain: bool = False) -> None:
+    def _operate(
+        self,
+        which: np.ndarray | None,
+        lengths: np.ndarray,
+        plain: bool = False,
+        span: tuple[float, float] | None = None,
+    ) -> None:
         """The coefficients and length flags of the muscles ``which`` (None: all) at ``lengths``,
-        on their branches (``plain``: every length is one the geometry takes).  New arrays: a
-        result handed out before stays as it was.
+        on their branches (``plain``: every length is one the geometry takes; ``span``: their
+        lowest and highest, if known).  New arrays: a result handed out before stays as it was.
         """
-        op = self.bank.operating(lengths, self.branch, plain)
-        if which is None:  # (broadcast results are read-only: the fast path writes into them)
-            self.lflags, self.q2, self.q1, self.q0 = (
-                a if a.flags.writeable else a.copy() for a in (op.flags, op.q2, op.q1, op.q0)
-            )
+        op = self.bank.operating(lengths, self.branch, plain, span)
+        if which is None:  # (new and writeable: the fast path writes into them)
+            self.lflags, self.q2, self.q1, self.q0 = op.flags, op.q2, op.q1, op.q0
         else:
             self.lflags, self.q2, self.q1, self.q0 = (
                 np.where(which, new, old)
@@ -225,18 +254,22 @@ class Muscles:
                     (op.flags, op.q2, op.q1, op.q0), (self.lflags, self.q2, self.q1, self.q0)
                 )
             )
-        self._plain = plain or not np.count_nonzero(self.lflags & _INVALID)  # each kept is one
+        flags = int(np.bitwise_or.reduce(self.lflags, axis=None))  # every flag raised
+        self._plain = plain or not flags & _INVALID  # each kept is one
         self._linear = not np.count_nonzero(self.q2)  # (Martens, Sarosi, ...: q2 = 0)
         #: whether the length flags alone make a result WARN
-        self.length_warns = bool(np.count_nonzero(self.lflags & WARN_MASK))
+        self.length_warns = bool(flags & WARN_MASK)
 
     def forces(self, which: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(force [N], flags, which have a force: None if all) of every muscle at its newest
         inputs, where ``which`` (a mask; None: all).
         """
         if self._gauge is None:  # new pressures (a length message reuses the pressures')
-            gauge = self.pressure - self.ambient
-            served = ew.lowest(gauge) >= 0 and not np.count_nonzero(gauge > self._known)
+            gauge, span = self.pressure - self.ambient, self._span
+            if span is not None:  # one message's: no muscle's out of [0, known] as gauge
+                served = span[0] >= self._served[0] and span[1] <= self._served[1]
+            else:
+                served = ew.lowest(gauge) >= 0 and not np.count_nonzero(gauge > self._known)
             self._gauge = gauge, served
         gauge, served = self._gauge
         if which is None and self._plain and served:
@@ -271,7 +304,7 @@ class Muscles:
     def store_pressure_one(self, k: int, absolute: float) -> None:
         """:meth:`store_pressures` of muscle ``k``'s valid absolute pressure [Pa]."""
         self.pressure[k] = absolute
-        self._gauge = None
+        self._gauge = self._span = None
         follow = self._follows[k]
         if follow is not None and not follow[0]:
             before = self.branch.item(k)

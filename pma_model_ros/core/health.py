@@ -243,14 +243,8 @@ class Health:
     # --- levels and reports
     def levels(self, now: int) -> np.ndarray:
         """Every entity's level."""
-        return levels_of(
-            now,
-            self._rejected_at,
-            self.stamps,
-            self._warned_at.max(axis=1),
-            self.hold,
-            self.max_age,
-        )
+        warned = self._warned_at.max(axis=1)
+        return levels_of(now, self._rejected_at, self.stamps, warned, self.hold, self.max_age)
 
     def level(self, k: int, now: int) -> tuple[Level, str]:
         """Entity ``k``'s level and its one-line reason."""

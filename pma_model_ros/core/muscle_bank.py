@@ -112,14 +112,18 @@ class MuscleBank:
         return len(self.muscles)
 
     def operating(
-        self, length: ArrayLike, length_rate: ArrayLike | None = None, valid: bool = False
+        self,
+        length: ArrayLike,
+        length_rate: ArrayLike | None = None,
+        valid: bool = False,
+        span: tuple[float, float] | None = None,
     ) -> Operating:
         """Length-dependent coefficients and flags of every muscle (one call per model); see
-        :meth:`Evaluator.operating`.
+        :meth:`Evaluator.operating` (``span``: of all lengths; each model's own if several).
         """
         L, _, rate = self._inputs(length, length, length_rate)
         if len(self.groups) == 1:  # every muscle, in bank order
-            return self.groups[0].operating(L, rate, valid)
+            return self.groups[0].operating(L, rate, valid, span)
         parts = [
             (g.index, g.operating(L[..., g.index], rate[..., g.index], valid)) for g in self.groups
         ]

@@ -11,7 +11,6 @@ for one message of one muscle.
 
 from __future__ import annotations
 
-from contextlib import nullcontext
 from dataclasses import dataclass, fields
 from functools import cached_property
 import math
@@ -62,8 +61,6 @@ class PressureResult:
     )
 )
 
-#: where every length is identified: no NaN or overflow to silence (np.errstate costs 1 us)
-_QUIET = nullcontext()
 _EVERY = np.bool_(True)  #: ``usable`` of lengths known to be lengths of the muscle
 _LENGTH_OUT16, _EXTRAPOLATED16, _INVALID16, _BRANCH_UNKNOWN16, _NONE16 = (
     np.uint16(f) for f in (_LENGTH_OUT, _EXTRAPOLATED, _INVALID, _BRANCH_UNKNOWN, 0)
@@ -191,25 +188,29 @@ class Evaluator:
         return bool(np.any(self.domain.extrapolates))
 
     def operating(
-        self, length: ArrayLike, length_rate: ArrayLike | None = None, valid: bool = False
+        self,
+        length: ArrayLike,
+        length_rate: ArrayLike | None = None,
+        valid: bool = False,
+        span: tuple[float, float] | None = None,
     ) -> Operating:
         """The length-dependent part of the force at ``length`` [m]: coefficients and flags (see
-        :class:`Operating`).
+        :class:`Operating`), new arrays.
 
         The geometry needs 0 < L < max_length (else INVALID_INPUT).  The model is evaluated at the
         length held inside the lengths served (LENGTH_OUT_OF_RANGE where that moved it): the
         identified range, or, if the model extrapolates credibly, the physical envelope
-        (EXTRAPOLATED outside the identified range;
-        :class:`~.models.Domain`).  ``length_rate`` [m/s] picks the hysteresis branch (+1
-        lengthening, -1 shortening, 0 unknown: BRANCH_UNKNOWN).  Computed once per new length and
-        reused for every pressure at it (:func:`force_at`).  ``valid``: the caller checked that
-        the geometry takes every length.
+        (EXTRAPOLATED outside the identified range; :class:`~.models.Domain`).  ``length_rate``
+        [m/s] picks the hysteresis branch (+1 lengthening, -1 shortening, 0 unknown:
+        BRANCH_UNKNOWN).  Computed once per new length and reused for every pressure at it
+        (:func:`force_at`).  ``valid``: the caller checked that the geometry takes every length;
+        ``span``: the lowest and highest of ``length``, if the caller has them.
         """
         L, lim = np.asarray(length, float), self.limits
         # written for few numpy calls: the engines call it per message of every muscle
         low, high = self._unflagged
-        inside = L.size and ew.lowest(L) >= low and ew.highest(L) <= high
-        if inside:  # (False for NaN)
+        span = span or ((ew.lowest(L), ew.highest(L)) if L.size else (math.nan, math.nan))
+        if inside := span[0] >= low and span[1] <= high:  # (False for NaN)
             # the usual message: every length served as it is, none flagged (two reductions
             # instead of the nine operations below; test_core_muscle_model pins it to them)
             at, flags, usable = L, np.zeros(L.shape, np.uint16), _EVERY
@@ -229,10 +230,13 @@ class Evaluator:
                 rate = np.asarray(length_rate, float)
                 branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
             flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN16, _NONE16)
-        with _QUIET if inside else np.errstate(invalid='ignore', over='ignore'):
+        if inside:  # no NaN or overflow to silence (np.errstate costs 1 us)
             q2, q1, q0 = self._coefficients(at, branch)
-        if not np.shape(q2) == np.shape(q1) == np.shape(q0) == np.shape(flags):
-            q2, q1, q0, flags = np.broadcast_arrays(q2, q1, q0, flags)
+        else:
+            with np.errstate(invalid='ignore', over='ignore'):
+                q2, q1, q0 = self._coefficients(at, branch)
+        if not q2.shape == q1.shape == q0.shape == flags.shape:  # (broadcast: copied, writeable)
+            q2, q1, q0, flags = (a.copy() for a in np.broadcast_arrays(q2, q1, q0, flags))
         return Operating(usable, flags, q2, q1, q0, lim)
 
     def force(
@@ -243,16 +247,11 @@ class Evaluator:
 
         Outside the identified data the model's own value where it extrapolates credibly
         (EXTRAPOLATED), else the value at the nearest point served (LENGTH_OUT_OF_RANGE,
-        PRESSURE_OUT_OF_RANGE):
-        :meth:`operating` and :func:`force_at`.
+        PRESSURE_OUT_OF_RANGE): :meth:`operating` and :func:`force_at`.
         """
         p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
-        return force_at(
-            self.operating(
-                L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)
-            ),
-            p,
-        )
+        rate = None if length_rate is None else np.broadcast_to(length_rate, L.shape)
+        return force_at(self.operating(L, rate), p)
 
     def pressure(
         self, force: ArrayLike, length: ArrayLike, length_rate: ArrayLike | None = None
@@ -261,10 +260,8 @@ class Evaluator:
         (:func:`pressure_for`).
         """
         F, L = np.broadcast_arrays(np.asarray(force, float), np.asarray(length, float))
-        op = self.operating(
-            L, None if length_rate is None else np.broadcast_to(length_rate, L.shape)
-        )
-        return pressure_for(op, F)
+        rate = None if length_rate is None else np.broadcast_to(length_rate, L.shape)
+        return pressure_for(self.operating(L, rate), F)
 
 
 def served_pressure(gauge: float, limits: Limits) -> tuple[int, float]:
@@ -289,14 +286,13 @@ def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
     [N].
 
     p_max is the rated pressure (or the highest identified one, for a model that does not
-    extrapolate;
-    :class:`Limits`); above the identified pressures the answer is flagged EXTRAPOLATED.  At fixed
-    length every model is f(p) = q2 p^2 + q1 p + q0, of either sign of q2 and q1.  The
-    answer is the smallest root of f(p) = max(force, 0) in [0, p_max] (so a force <= 0 gives
-    the pressure at which the muscle starts to pull).  Where no root lies there, it is the pressure
-    of the nearest reachable force, flagged SATURATED: a bound or the vertex -q1 / (2 q2) (the peak
-    of a concave model, the trough of a convex one), whichever has the model force nearest the
-    target (the smaller pressure on a tie).
+    extrapolate; :class:`Limits`); above the identified pressures the answer is flagged
+    EXTRAPOLATED.  At fixed length every model is f(p) = q2 p^2 + q1 p + q0, of either sign of q2
+    and q1.  The answer is the smallest root of f(p) = max(force, 0) in [0, p_max] (so a force
+    <= 0 gives the pressure at which the muscle starts to pull).  Where no root lies there, it is
+    the pressure of the nearest reachable force, flagged SATURATED: a bound or the vertex -q1 /
+    (2 q2) (the peak of a concave model, the trough of a convex one), whichever has the model
+    force nearest the target (the smaller pressure on a tie).
     """
     F = np.asarray(force, float)
     p_max = op.limits.command_top
@@ -305,8 +301,7 @@ def pressure_for(op: Operating, force: ArrayLike) -> PressureResult:
     q2, q1, c = op.q2, op.q1, op.q0 - target
     slack = 1e-9 * p_max  # round-off at the bounds is not out of reach
     with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
-        # Both roots without cancellation (Numerical Recipes 5.6): Q = -(q1 + sgn(q1) sqrt(disc)) /
-        # 2.
+        # both roots without cancellation (Numerical Recipes 5.6): Q = -(q1 + sgn(q1) sqrt(disc))/2
         disc = q1 * q1 - 4 * q2 * c
         big = -0.5 * (q1 + np.copysign(np.sqrt(disc), q1))
         roots = np.stack(np.broadcast_arrays(big / q2, c / big))
