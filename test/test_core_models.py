@@ -13,6 +13,7 @@ from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import domain_of, identify_all, max_error_percent
 from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
 from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
 from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
 
 # Martens & Boblan 2017, Table 2 (as printed).
@@ -217,6 +218,22 @@ def test_a_prepared_model_gives_its_coefficients(path):
             prepared = m.model.prepare(m.theta, m.spec, m.domain)(L, 0.0)
             assert_within_rounding(prepared, want, name)
             assert not all(np.array_equal(a, b) for a, b in zip(prepared, want))
+
+
+@pytest.mark.parametrize('path', sorted(CONFIGS.values()), ids=lambda p: p.stem)
+def test_only_a_quadratic_model_has_a_pressure_squared_term(path):
+    """The nodes skip q2's two operations per message unless a muscle's model is ``quadratic``:
+    every other model's q2 is 0 at every length and branch, and eq. 21's is not (the flag is
+    needed), on the shipped parameters and the hysteresis model's.
+    """
+    parameters = with_martens_end(read_parameters(path))
+    models = [muscle_model(parameters, name) for name in parameters['models']]
+    for m in [*models, dmsp_10_100_hysteresis()]:
+        L = np.linspace(m.limits.length_low, m.limits.length_high, 9)
+        for branch in (0.0, 1.0, -1.0):
+            q2 = m.model.coefficients(m.theta, m.spec, m.domain, L, branch)[0]
+            assert m.model.quadratic == bool(np.any(q2)), m.model.name
+    assert {name for name, model in MODELS.items() if model.quadratic} == {'wickramatunge'}
 
 
 def test_martens_end_is_martens_with_the_braid_at_the_scaled_contraction():

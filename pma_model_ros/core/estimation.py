@@ -145,6 +145,7 @@ class Muscles:
         self._offsets = bool(self.offset.any())
         self.max_length = self.bank.max_length
         self._known = self.bank.limits.pressure_known
+        self._linear = not any(m.model.quadratic for m in self.models)  # q2 = 0
         self._gauge: tuple[np.ndarray, bool] | None = None  # forces' view of the pressures
         #: the usual message's tests on its lowest and highest value (two reductions, where the
         #: elementwise rules cost more; equal where they pass): every length below _length_top
@@ -256,7 +257,6 @@ class Muscles:
             )
         flags = int(np.bitwise_or.reduce(self.lflags, axis=None))  # every flag raised
         self._plain = plain or not flags & _INVALID  # each kept is one
-        self._linear = not np.count_nonzero(self.q2)  # (Martens, Sarosi, ...: q2 = 0)
         #: whether the length flags alone make a result WARN
         self.length_warns = bool(flags & WARN_MASK)
 
@@ -331,8 +331,6 @@ class Muscles:
     def _operate_one(self, k: int, length: float) -> None:
         flags, q2, q1, q0 = self.models[k].operating_one(length, self.branch.item(k))
         self.lflags[k], self.q2[k], self.q1[k], self.q0[k] = flags, q2, q1, q0
-        if q2:
-            self._linear = False
 
     def force_one(self, k: int) -> tuple[float, int, bool]:
         """:meth:`forces` of muscle ``k``: (force [N], flags, has a force)."""

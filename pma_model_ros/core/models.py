@@ -85,6 +85,9 @@ class Model:
     upper: tuple[float, ...]
     coefficients: Callable[..., Coefficients]
     hysteresis: bool = False
+    #: whether q2 may be non-zero (eq. 21 only); where not, the nodes skip its two operations
+    #: (test_core_models checks that every other model's q2 is 0)
+    quadratic: bool = False
     #: indices of the parameters the force is affine in at fixed others (the separable fit,
     #: :mod:`~pma_model_ros.core.separable`; test_core_models checks each)
     linear: tuple[int, ...] = ()
@@ -321,6 +324,7 @@ MODELS: dict[str, Model] = {
             (-_BIG,) * 4,
             (_BIG,) * 4,
             _wickramatunge,
+            quadratic=True,
             linear=(0, 1, 2, 3),
         ),
         Model(
