@@ -3,7 +3,7 @@ relay, same run, same settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
-        [--code DIR]
+        [--code DIR] [--repeat 1]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
 stamped with the cycle's time (the stamp is the sequence number), and measures the time until the
@@ -25,7 +25,9 @@ publishes 2 N + 1 messages per joint cycle).  Lengths (and pressures) change eve
 DIR`` runs the model's node from another checkout (PYTHONPATH and working directory DIR; e.g. a
 ``git worktree`` of the commit before a change), the relay and the pinger from this one:
 before/after in one script.  Timings are noisy on a shared machine: read the model/relay ratios,
-not the absolute times.  Not a pass/fail test.
+not the absolute times; ``--repeat K`` runs the node and its relay in turn K times and prints the
+median of each ratio over the K pairs (a pair's rows run within seconds of each other, under much
+the same load).  Not a pass/fail test.
 """
 
 from __future__ import annotations
@@ -90,8 +92,8 @@ def joint_muscles(joints: int) -> list[str]:
 
 
 class Relay(Node):
-    """The bare relay: the model node's input and output types, each input answered with its stamp,
-    no model.
+    """The bare relay: the model node's input and output types and input QoS (SENSOR_INPUT), each
+    input answered with its stamp, no model.
     """
 
     def __init__(self, **kwargs) -> None:
@@ -129,16 +131,10 @@ class Relay(Node):
                 pub.publish(out)
 
             self.create_subscription(
-                FluidPressure,
-                'pressure',
-                lambda m: answer(m, m.fluid_pressure),
-                qos_profile_sensor_data,
+                FluidPressure, 'pressure', lambda m: answer(m, m.fluid_pressure), SENSOR_INPUT
             )
             self.create_subscription(
-                JointState,
-                'muscle_state',
-                lambda m: answer(m, m.position[0]),
-                qos_profile_sensor_data,
+                JointState, 'muscle_state', lambda m: answer(m, m.position[0]), SENSOR_INPUT
             )
         else:
             pub = self.create_publisher(JointState, 'force_estimates', 10)
@@ -149,7 +145,7 @@ class Relay(Node):
                 pub.publish(out)
 
             for topic in ('muscle_pressures', 'muscle_states'):
-                self.create_subscription(JointState, topic, relay, qos_profile_sensor_data)
+                self.create_subscription(JointState, topic, relay, SENSOR_INPUT)
 
 
 def multi_muscle_file(n: int, folder: Path) -> Path:
@@ -526,7 +522,9 @@ def flushed(run: Callable[[tuple[bytes, ...]], None], inputs: list[tuple[bytes, 
 def print_rows(
     joints: bool, counts: list[int], args: argparse.Namespace, folder: Path, last: tuple
 ) -> None:
-    """Measure and print the rows of ``counts`` muscles (or joints) x ``args.executor``."""
+    """Measure and print the rows of ``counts`` muscles (or joints) x ``args.executor``: the node
+    and its relay in turn, ``args.repeat`` times, then the median of each ratio over the pairs.
+    """
     node = 'joint_node' if joints else 'model_node'
     what = (
         '2 N pressures + 1 joint_states per cycle, 1 answer (torque_estimate); N = joints'
@@ -535,33 +533,37 @@ def print_rows(
     )
     print(
         f'\n{node}: round trip at {args.rate:g} Hz, {args.duration:g} s per row, {what} (times '
-        f'in ms; ratio = {node} / relay)'
+        f'in ms; ratio = {node} / relay, the row before)'
     )
     print(
         f'{"N":>3} {"executor":<8} {"responder":<11} {"cycles":>7} {"Hz":>6} {"lost":>5} '
-        f'{"p50":>7} {"p99":>7} {"max":>7} {"cpu %":>6} {"p50 ratio":>9} {"p99 ratio":>9}'
+        f'{"p50":>7} {"p99":>7} {"max":>7} {"cpu %":>6} {"p50 ratio":>9} {"p99 ratio":>9} '
+        f'{"cpu ratio":>9}'
     )
     for n in counts:
         for executor in args.executor:
-            profile = args.profile if (joints, n, executor) == last else None
-            result = {}
-            for name, cmd in responders(n, executor, folder, profile, joints).items():
-                code = args.code if name == node else None
-                result[name] = r = measure(
-                    cmd, n, args.duration, args.rate, '/bench', joints, code
-                )
-                base = result[node]
-                ratio = (
-                    ''
-                    if name == node
-                    else f'{base["p50"] / r["p50"]:>9.2f} {base["p99"] / r["p99"]:>9.2f}'
-                )
-                print(
-                    f'{n:>3} {executor:<8} {name:<11} {r["cycles"]:>7} {r["hz"]:>6.0f} '
-                    f'{r["lost"]:>5} {r["p50"]:>7.3f} {r["p99"]:>7.3f} {r["max"]:>7.2f} '
-                    f'{r["cpu"]:>6.0f} {ratio}',
-                    flush=True,
-                )
+            ratios = []
+            for repeat in range(args.repeat):
+                profile = args.profile if (joints, n, executor) == last and not repeat else None
+                result = {}
+                for name, cmd in responders(n, executor, folder, profile, joints).items():
+                    code = args.code if name == node else None
+                    result[name] = r = measure(
+                        cmd, n, args.duration, args.rate, '/bench', joints, code
+                    )
+                    base, ratio = result[node], ''
+                    if name != node:
+                        ratios.append([base[k] / r[k] for k in ('p50', 'p99', 'cpu')])
+                        ratio = ' '.join(f'{x:>9.2f}' for x in ratios[-1])
+                    print(
+                        f'{n:>3} {executor:<8} {name:<11} {r["cycles"]:>7} {r["hz"]:>6.0f} '
+                        f'{r["lost"]:>5} {r["p50"]:>7.3f} {r["p99"]:>7.3f} {r["max"]:>7.2f} '
+                        f'{r["cpu"]:>6.1f} {ratio}',
+                        flush=True,
+                    )
+            if args.repeat > 1:
+                medians = ' '.join(f'{x:>9.2f}' for x in np.median(ratios, axis=0))
+                print(f'{n:>3} {executor:<8} {"median of " + str(args.repeat):<59} {medians}')
 
 
 def main() -> int:
@@ -592,6 +594,12 @@ def main() -> int:
     )
     parser.add_argument(
         '--quick', action='store_true', help='2 s per row (what bench/run --quick passes)'
+    )
+    parser.add_argument(
+        '--repeat',
+        type=int,
+        default=1,
+        help='node and relay rows in turn, this many times, and the median ratios (default 1)',
     )
     parser.add_argument(
         '--code',
