@@ -149,9 +149,11 @@ class Muscles:
         self._gauge: tuple[np.ndarray, bool] | None = None  # forces' view of the pressures
         #: the usual message's tests on its lowest and highest value (two reductions, where the
         #: elementwise rules cost more; equal where they pass): every length below _length_top
-        #: [m] is one the geometry takes; every absolute pressure [Pa] in _served is served as
-        #: it is (in [0, known] as a gauge pressure)
-        self._length_top = float(self.max_length.min())
+        #: [m] is one the geometry takes (None: some muscle serves lengths above it, as in an arm
+        #: of different sizes: the rule decides); every absolute pressure [Pa] in _served is
+        #: served as it is (in [0, known] as a gauge pressure)
+        top = float(self.max_length.min())
+        self._length_top = top if top > float(self.bank.limits.length_high.max()) else None
         self._served = float(self.ambient.max()), float((self.ambient + self._known).min())
         self._span: tuple[float, float] | None = None  # of the pressures stored, if one message's
         # what the play operator follows, per muscle: (length?, deadband) or None
@@ -188,9 +190,10 @@ class Muscles:
         """(Which ``lengths`` [m] of every muscle the geometry can take: None if all; their
         lowest and highest if they are all taken, else None).
         """
-        span = ew.lowest(lengths), ew.highest(lengths)
-        if span[0] > 0 and span[1] < self._length_top:  # lengths_ok for all (False for NaN)
-            return None, span
+        if self._length_top is not None:
+            span = ew.lowest(lengths), ew.highest(lengths)
+            if span[0] > 0 and span[1] < self._length_top:  # lengths_ok for all (False for NaN)
+                return None, span
         ok = lengths_ok(lengths, self.max_length)
         return (None, None) if np.count_nonzero(ok) == ok.size else (ok, None)
 
