@@ -231,8 +231,10 @@ class Muscles:
             self.branch, self.anchor = play(
                 self.branch, self.anchor, np.where(follows, lengths, math.nan), self._deadband
             )
-        if valid is None:
+        if valid is None:  # (the copy is aligned, a message's view of its bytes is not: numpy
+            # takes 0.2-0.3 us more per operation on an unaligned array)
             self.length[:], self.rate[:] = lengths, rates
+            lengths = self.length
         else:
             self.length[valid], self.rate[valid] = lengths[valid], rates[valid]
         self._operate(valid, lengths, plain=valid is None, span=span)
