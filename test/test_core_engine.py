@@ -581,7 +581,7 @@ def check_message(pressures: list, lengths: list, ambients: tuple, alike: int | 
     ]
     muscles = Muscles(configs)
     readings = np.array([_raw('pressure', d, c) for d, c in zip(pressures, configs)])
-    absolute, ok = muscles.take_pressures(readings)
+    absolute, ok, pressure_span = muscles.take_pressures(readings)
     offsets = np.array([c.reading_offset for c in configs])
     assert np.array_equal(absolute, readings + offsets, equal_nan=True)
     want = pressures_ok(readings + offsets)
@@ -595,7 +595,7 @@ def check_message(pressures: list, lengths: list, ambients: tuple, alike: int | 
         assert span is not None  # the usual message of an arm of one type takes the shortcut
     if ok is not None or taken is not None:
         return
-    muscles.store_pressures(None, absolute)
+    muscles.store_pressures(None, absolute, pressure_span)
     muscles.store_lengths(None, column, np.zeros(len(MODELS)), span)
     force, flags, has = muscles.forces(None)
     ambient = np.array([c.ambient_pressure for c in configs])

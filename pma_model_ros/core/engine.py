@@ -137,11 +137,11 @@ class Engine:
         every muscle (those ``present``; the caller rejects the others), stamped ``stamp`` [ns];
         which got an estimate.
         """
-        absolute, good = self.muscles.take_pressures(readings)
+        absolute, good, span = self.muscles.take_pressures(readings)
         valid = self._take(
             'pressure', good, present, lambda k: pressure_problem(absolute.item(k)), now
         )
-        self.muscles.store_pressures(valid, absolute)
+        self.muscles.store_pressures(valid, absolute, span)
         return self._answer(PRESSURE, valid, stamp, now)
 
     def lengths(
@@ -164,7 +164,7 @@ class Engine:
             lambda k: length_problem(lengths.item(k), limits.item(k)),
             now,
         )
-        self.muscles.store_lengths(valid, lengths, rates, span if valid is None else None)
+        self.muscles.store_lengths(valid, lengths, rates, span)
         return self._answer(LENGTH, valid, stamp, now)
 
     def _take(self, source, good, present, problem, now) -> np.ndarray | None:

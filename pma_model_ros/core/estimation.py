@@ -155,7 +155,8 @@ class Muscles:
         top = float(self.max_length.min())
         self._length_top = top if top > float(self.bank.limits.length_high.max()) else None
         self._served = float(self.ambient.max()), float((self.ambient + self._known).min())
-        self._span: tuple[float, float] | None = None  # of the pressures stored, if one message's
+        #: the lowest and highest absolute pressure stored, if one message's (None: not known)
+        self._span: tuple[float, float] | None = None
         # what the play operator follows, per muscle: (length?, deadband) or None
         self._follows = [
             (c.follow.input == 'length', c.follow.deadband) if m.model.hysteresis else None
@@ -174,17 +175,17 @@ class Muscles:
         self._operate(None, self.length)  # a kept length the new geometry cannot take: INVALID
 
     # --- every muscle
-    def take_pressures(self, readings: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    def take_pressures(
+        self, readings: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray | None, tuple | None]:
         """(absolute pressures [Pa] of ``readings`` of every muscle, which are readings: None if
-        all).
+        all, their lowest and highest if all are, else None).
         """
         absolute = readings + self.offset if self._offsets else readings
         span = ew.lowest(absolute), ew.highest(absolute)
         if span[0] >= 0 and span[1] <= ABSURD_PRESSURE:  # pressures_ok for all (False for NaN)
-            self._span = span
-            return absolute, None
-        self._span = None
-        return absolute, pressures_ok(absolute)  # (one is not a reading)
+            return absolute, None, span
+        return absolute, pressures_ok(absolute), None  # (one is not a reading)
 
     def take_lengths(self, lengths: np.ndarray) -> tuple[np.ndarray | None, tuple | None]:
         """(Which ``lengths`` [m] of every muscle the geometry can take: None if all; their
@@ -197,16 +198,21 @@ class Muscles:
         ok = lengths_ok(lengths, self.max_length)
         return (None, None) if np.count_nonzero(ok) == ok.size else (ok, None)
 
-    def store_pressures(self, valid: np.ndarray | None, absolute: np.ndarray) -> None:
+    def store_pressures(
+        self,
+        valid: np.ndarray | None,
+        absolute: np.ndarray,
+        span: tuple[float, float] | None = None,
+    ) -> None:
         """The ``valid`` absolute pressures [Pa]; a branch that follows the pressure and turns
-        recomputes the coefficients at the length held.
+        recomputes the coefficients at the length held.  ``span``: :meth:`take_pressures`' lowest
+        and highest.
         """
         if valid is None:
             self.pressure[:] = absolute
         else:
             self.pressure[valid] = absolute[valid]
-            self._span = None
-        self._gauge = None
+        self._gauge, self._span = None, span if valid is None else None
         if self._any_pressure:
             follows = self._by_pressure if valid is None else self._by_pressure & valid
             before = self.branch.copy()

@@ -11,6 +11,7 @@ for one message of one muscle.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass, fields
 from functools import cached_property
 import math
@@ -61,6 +62,8 @@ class PressureResult:
     )
 )
 
+#: where every length is identified: no NaN or overflow to silence (np.errstate costs 1 us)
+_QUIET = nullcontext()
 _EVERY = np.bool_(True)  #: ``usable`` of lengths known to be lengths of the muscle
 _LENGTH_OUT16, _EXTRAPOLATED16, _INVALID16, _BRANCH_UNKNOWN16, _NONE16 = (
     np.uint16(f) for f in (_LENGTH_OUT, _EXTRAPOLATED, _INVALID, _BRANCH_UNKNOWN, 0)
@@ -230,11 +233,8 @@ class Evaluator:
                 rate = np.asarray(length_rate, float)
                 branch = np.where(np.isfinite(rate), np.sign(rate), 0.0)
             flags = flags | np.where(branch == 0, _BRANCH_UNKNOWN16, _NONE16)
-        if inside:  # no NaN or overflow to silence (np.errstate costs 1 us)
+        with _QUIET if inside else np.errstate(invalid='ignore', over='ignore'):
             q2, q1, q0 = self._coefficients(at, branch)
-        else:
-            with np.errstate(invalid='ignore', over='ignore'):
-                q2, q1, q0 = self._coefficients(at, branch)
         if not q2.shape == q1.shape == q0.shape == flags.shape:  # (broadcast: copied, writeable)
             q2, q1, q0, flags = (a.copy() for a in np.broadcast_arrays(q2, q1, q0, flags))
         return Operating(usable, flags, q2, q1, q0, lim)
