@@ -27,12 +27,12 @@ from pma_model_ros.core.param_file import read_parameters
 
 
 def run(argv: list[str]) -> str:
-    """``pma-model argv --force`` (outputs are rewritten) in this process; its standard output
+    """``pma-model argv --overwrite`` (outputs are rewritten) in this process; its standard output
     (exit code 0 asserted).
     """
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        code = pma_model([*argv, '--force'])
+        code = pma_model([*argv, '--overwrite'])
     if code != 0:
         raise SystemExit(f'pma-model {" ".join(argv)}: exit {code}')
     return out.getvalue()
@@ -57,7 +57,7 @@ def main() -> None:
                 *fit_options,
                 '--out',
                 str(out),
-                '--force',
+                '--overwrite',
             ]
         )
         print(text.rstrip())
@@ -100,7 +100,7 @@ def main() -> None:
                         str(held),
                         '--csv',
                         str(points),
-                        '--force',
+                        '--overwrite',
                     ]
                 )
                 rows = [r.split(',') for r in points.read_text().splitlines()[1:]]

@@ -128,7 +128,7 @@ def command_table(repeat: int) -> None:
                     python, '-m', 'pma_model_ros.cli', 'fit',
                     '--data', str(data / f'{stem}_force_map.csv'),
                     '--muscle', str(data / f'{stem}.yaml'),
-                    '--model', model, '--out', str(Path(tmp) / 'fit.yaml'), '--force',
+                    '--model', model, '--out', str(Path(tmp) / 'fit.yaml'), '--overwrite',
                 ]  # fmt: skip
                 t = best(argv)
                 print(f'{muscle:<13}{model:<9}{t:>7.2f}{t / base:>10.1f}')

@@ -656,7 +656,7 @@ def cmd_plot(args: argparse.Namespace) -> None:
         jobs['models'] = lambda: figures.models_figure(
             table3(identify_shipped(MAPPED_MUSCLES))['table3']
         )
-    if not args.force:
+    if not args.overwrite:
         _refuse_existing(
             [args.out_dir / f'{stem}.{fmt}' for stem in jobs for fmt in args.format], 'plot'
         )
@@ -670,19 +670,59 @@ def cmd_plot(args: argparse.Namespace) -> None:
 
 def _refuse_existing(paths: Sequence[str | Path], what: str) -> None:
     """A CliError naming the first of ``paths`` that exists (outputs are overwritten only with
-    ``--force``).
+    ``--overwrite``).
     """
     for path in paths:
         if os.path.lexists(path):
-            raise CliError(f'{what}: {path} exists; not overwriting it (--force overwrites)')
+            raise CliError(f'{what}: {path} exists; not overwriting it (--overwrite overwrites)')
 
 
-def add_force_option(p: argparse.ArgumentParser, *outputs: str) -> None:
-    """``--force``; the options in ``outputs`` name files that must not exist without it
-    (checked by :func:`main` before the command runs).
+#: What an output option names: a ``file``; a ``bag`` (a file or a directory, replaced whole); a
+#: ``directory`` written into (created if missing; its files checked by the command).
+OUTPUT_KINDS = ('file', 'bag', 'directory')
+#: Options naming what a command reads: never one of its outputs, even with ``--overwrite``.
+INPUT_OPTIONS = ('data', 'muscle', 'config', 'bag')
+
+
+def add_overwrite_option(p: argparse.ArgumentParser, outputs: dict[str, str]) -> None:
+    """``--overwrite``; ``outputs`` maps each output option to its kind (:data:`OUTPUT_KINDS`),
+    checked by :func:`check_outputs` before the command runs.
     """
-    p.add_argument('--force', action='store_true', help='overwrite existing output files')
+    p.add_argument('--overwrite', action='store_true', help='overwrite existing output files')
     p.set_defaults(outputs=outputs)
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, each output the command could not write: in a missing directory,
+    a directory where a file is named, an existing file without ``--overwrite``, a folder without
+    write permission, or one of the command's inputs.
+    """
+    inputs = []
+    for name in INPUT_OPTIONS:
+        value = getattr(args, name, None)
+        inputs += [Path(v) for v in (value if isinstance(value, list) else [value]) if v]
+    for option, kind in getattr(args, 'outputs', {}).items():
+        value = getattr(args, option[2:].replace('-', '_'))
+        if value is None:
+            continue
+        path = Path(value)
+        if kind == 'directory':
+            if path.exists() and not path.is_dir():
+                raise CliError(f'{option} {path} is not a directory')
+            folder = next(p for p in (path, *path.absolute().parents) if p.exists())
+        else:
+            if kind == 'file' and path.is_dir():
+                raise CliError(f'{option} {path} is a directory; name a file in it')
+            if not args.overwrite:
+                _refuse_existing([path], option)
+            folder = path.parent
+            if not folder.is_dir():
+                raise CliError(f'{option} {path}: no directory {folder}')
+            for source in inputs:
+                if path.exists() and source.exists() and os.path.samefile(path, source):
+                    raise CliError(f'{option} {path} is an input of this command; name a new file')
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise CliError(f'{option} {path}: no permission to write in {folder}')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -696,7 +736,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('make-config', help='write the ROS parameter file of a shipped muscle')
     p.add_argument('muscle', choices=(*MAPPED_MUSCLES, 'DMSP-10-100'))
     p.add_argument('--out', required=True, help='output YAML path')
-    add_force_option(p, '--out')
+    add_overwrite_option(p, {'--out': 'file'})
     p.set_defaults(func=cmd_make_config)
     p = sub.add_parser(
         'fit', help='identify a model from a force map CSV (pressure_pa,length_m,force_n) or a bag'
@@ -725,7 +765,7 @@ def build_parser() -> argparse.ArgumentParser:
         '--no-calibrate-pressure', action='store_true', help='assume no pressure-sensor offset'
     )
     p.add_argument('--out', required=True, help='output ROS parameter YAML')
-    add_force_option(p, '--out')
+    add_overwrite_option(p, {'--out': 'file'})
     add_fit_bag_options(p)
     p.set_defaults(func=cmd_fit)
     p = sub.add_parser(
@@ -736,7 +776,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--data', required=True, help='force map CSV (pressure_pa,length_m,force_n)')
     p.add_argument('--model', default=None, help="override the file's default model")
     p.add_argument('--csv', help='write each point: measured, model, error [N] and flags')
-    add_force_option(p, '--csv')
+    add_overwrite_option(p, {'--csv': 'file'})
     p.set_defaults(func=cmd_evaluate)
     add_bag_commands(sub)
     add_joint_commands(sub)
@@ -781,7 +821,7 @@ def build_parser() -> argparse.ArgumentParser:
         '--out-dir', type=Path, default=Path('.'), help='directory to write into (default: .)'
     )
     p.add_argument('--format', nargs='+', choices=('png', 'svg'), default=('png', 'svg'))
-    add_force_option(p)
+    add_overwrite_option(p, {'--out-dir': 'directory'})
     p.set_defaults(func=cmd_plot)
     return parser
 
@@ -789,10 +829,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        for option in () if getattr(args, 'force', True) else args.outputs:
-            _refuse_existing(
-                [getattr(args, option[2:])] if getattr(args, option[2:]) else [], option
-            )
+        check_outputs(args)
         args.func(args)
     except BrokenPipeError:  # the reader stopped early (`| head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the Python docs' idiom

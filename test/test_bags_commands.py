@@ -79,9 +79,9 @@ def test_estimate_replaces_an_existing_output_only_with_force(tmp_path):
     argv += ['--config', str(CONFIGS['DMSP-10-250']), '--out', str(out)]
     refused = subprocess.run(argv, capture_output=True, text=True, timeout=60)
     assert refused.returncode == 2 and refused.stderr == (
-        f'pma-model: error: --out: {out} exists; not overwriting it (--force overwrites)\n'
+        f'pma-model: error: --out: {out} exists; not overwriting it (--overwrite overwrites)\n'
     )
-    assert subprocess.run([*argv, '--force'], timeout=60).returncode == 0
+    assert subprocess.run([*argv, '--overwrite'], timeout=60).returncode == 0
     assert (
         sum(1 for topic, *_ in read(out) if topic == '/m1/force_estimate') == 99
     )  # 2 x 50 inputs, the first unpaired

@@ -125,7 +125,7 @@ def test_make_config_does_not_depend_on_the_cpu_kernels(tmp_path):
         ['evaluate', '--config', 'CONFIG', '--data', 'MAP', '--csv', 'OUT'],
     ],
 )
-def test_outputs_are_never_overwritten_without_force(tmp_path, capsys, argv):
+def test_outputs_are_never_overwritten_without_overwrite(tmp_path, capsys, argv):
     """Refused before any work, the file untouched; the option is named."""
     out = tmp_path / 'out'
     out.write_text('mine')
@@ -138,9 +138,76 @@ def test_outputs_are_never_overwritten_without_force(tmp_path, capsys, argv):
     assert main([str(paths.get(a, a)) for a in argv]) == 2
     option = argv[argv.index('OUT') - 1]
     assert capsys.readouterr().err == (
-        f'pma-model: error: {option}: {out} exists; not overwriting it (--force overwrites)\n'
+        f'pma-model: error: {option}: {out} exists; not overwriting it (--overwrite overwrites)\n'
     )
     assert out.read_text() == 'mine'
+
+
+SPEC_10_250 = REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml'
+MAP_10_250 = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv'
+
+
+@pytest.mark.parametrize(
+    'argv, message',
+    [
+        (
+            ['fit', '--data', 'MAP', '--muscle', 'SPEC', '--model', 'all', '--out', 'MISSING'],
+            '--out MISSING: no directory TMP/no/such',
+        ),
+        (
+            ['fit', '--data', 'MAP', '--muscle', 'SPEC', '--model', 'all', '--out', 'TMP'],
+            '--out TMP is a directory; name a file in it',
+        ),
+        (
+            ['make-config', 'DMSP-10-250', '--out', 'MISSING'],
+            '--out MISSING: no directory TMP/no/such',
+        ),
+        (
+            ['evaluate', '--config', 'CONFIG', '--data', 'MAP', '--csv', 'TMP'],
+            '--csv TMP is a directory; name a file in it',
+        ),
+        (
+            ['evaluate', '--config', 'CONFIG', '--data', 'MAP', '--csv', 'MAP', '--overwrite'],
+            '--csv MAP is an input of this command; name a new file',
+        ),
+        (
+            ['bag', 'estimate', 'TMP', '--config', 'CONFIG', '--out', 'MISSING'],
+            '--out MISSING: no directory TMP/no/such',
+        ),
+        (
+            ['plot', 'force-map', '--config', 'CONFIG', '--out-dir', 'MAP'],
+            '--out-dir MAP is not a directory',
+        ),
+    ],
+)
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(
+    tmp_path, capsys, argv, message
+):
+    """A missing directory, a directory named as a file, an input named as an output: one line,
+    nothing done (no calibration line of fit, no progress line).
+    """
+    paths = {
+        'MAP': str(MAP_10_250),
+        'SPEC': str(SPEC_10_250),
+        'CONFIG': str(CONFIGS['DMSP-10-250']),
+        'MISSING': str(tmp_path / 'no' / 'such' / 'p.yaml'),
+        'TMP': str(tmp_path),
+    }
+    assert main([paths.get(a, a) for a in argv]) == 2
+    out, err = capsys.readouterr()
+    for key in ('MISSING', 'TMP', 'MAP'):  # longest first: MISSING holds TMP
+        message = message.replace(key, paths[key])
+    assert (out, err) == ('', f'pma-model: error: {message}\n')
+
+
+def test_pressure_for_no_force_is_where_the_muscle_starts_to_pull(capsys):
+    """``--force 0``: Table A2 has the DMSP-10-250 slack at 260 kPa at 0.234 m, so at the shorter
+    0.23 m too; and pulling at 402.187 kPa at 0.219 m, so at the longer 0.23 m too.
+    """
+    cfg = str(CONFIGS['DMSP-10-250'])
+    assert main(['pressure', '--config', cfg, '--force', '0', '--length', '0.23']) == 0
+    pressure = float(capsys.readouterr().out.split()[1])
+    assert 260e3 < pressure < 402.187e3
 
 
 def test_force_and_pressure_round_trip(capsys):
@@ -570,7 +637,7 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
     """
     spec = str(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml')
     fmap = shipped_force_map('DMSP-10-250')
-    flags = ['--no-calibrate-length', '--model', 'martens', '--muscle', spec, '--force']
+    flags = ['--no-calibrate-length', '--model', 'martens', '--muscle', spec, '--overwrite']
     out = tmp_path / 'all.yaml'
     assert (
         main(['fit', '--data', _map_csv(tmp_path / 'map.csv', fmap), *flags, '--out', str(out)])
@@ -602,7 +669,16 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
         points = tmp_path / 'points.csv'
         assert (
             main(
-                ['evaluate', '--config', str(out), '--data', held, '--csv', str(points), '--force']
+                [
+                    'evaluate',
+                    '--config',
+                    str(out),
+                    '--data',
+                    held,
+                    '--csv',
+                    str(points),
+                    '--overwrite',
+                ]
             )
             == 0
         )

@@ -228,9 +228,9 @@ def test_plot_joint_writes_the_joint_figure(tmp_path, capsys):
     assert 'plot joint needs a joint file' in capsys.readouterr().err
 
 
-def test_plot_names_carry_the_input_and_never_overwrite_without_force(tmp_path, capsys):
+def test_plot_names_carry_the_input_and_never_overwrite_without_overwrite(tmp_path, capsys):
     """A user's fit of the DMSP-10-250 plotted next to the shipped figures keeps its own name; an
-    existing figure is refused (nothing drawn) unless --force.
+    existing figure is refused (nothing drawn) unless --overwrite.
     """
     mine = tmp_path / 'mine.yaml'
     mine.write_bytes(CONFIGS['DMSP-10-250'].read_bytes())
@@ -244,8 +244,8 @@ def test_plot_names_carry_the_input_and_never_overwrite_without_force(tmp_path, 
     assert main(args) == 2
     assert capsys.readouterr().err == (
         f'pma-model: error: plot: {tmp_path / "force_map_mine_martens.png"} exists; not '
-        'overwriting it (--force overwrites)\n'
+        'overwriting it (--overwrite overwrites)\n'
     )
     assert (tmp_path / 'force_map_mine_martens.svg').read_text() == 'mine'
-    assert main([*args, '--force']) == 0
+    assert main([*args, '--overwrite']) == 0
     assert (tmp_path / 'force_map_mine_martens.svg').read_text() != 'mine'

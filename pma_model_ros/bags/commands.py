@@ -21,7 +21,7 @@ from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     """Add ``bag estimate`` and ``bag play`` to the ``pma-model`` subparsers."""
-    from ..cli import add_force_option
+    from ..cli import add_overwrite_option
 
     bag = sub.add_parser(
         'bag', help='rosbag2 recordings (mcap, sqlite3): offline estimation, replay'
@@ -47,7 +47,7 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
         help='output bag: a directory, or one storage file if it ends in .mcap or .db3',
     )
     p.add_argument('--csv', help='also write the estimates to this CSV file')
-    add_force_option(p, '--out', '--csv')
+    add_overwrite_option(p, {'--out': 'bag', '--csv': 'file'})
     p.add_argument(
         '--outputs-only',
         action='store_true',
@@ -151,8 +151,8 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
 
 @contextmanager
 def replacing(out: Path) -> Iterator[Path]:
-    """Where to write a new bag that replaces ``out`` (``--force``): a fresh path beside it, moved
-    to ``out`` only when the writing succeeded; ``out`` itself if it does not exist.
+    """Where to write a new bag that replaces ``out`` (``--overwrite``): a fresh path beside it,
+    moved to ``out`` only when the writing succeeded; ``out`` itself if it does not exist.
     """
     if not (out.exists() or out.is_symlink()):
         yield out
