@@ -576,3 +576,31 @@ def test_stand_in_forward_command_controller(ros, processes, namespace, tmp_path
         f'{[round(v) for v in controller[0].data]} Pa absolute; none before both joints were '
         'commanded; j1 alone: j0 held'
     )
+
+
+def test_forward_commands_without_an_order_come_in_the_default_order(make_node, tmp_path):
+    """An empty ``forward_command_order`` (its default) means every muscle, joint by joint, the
+    positive one first: the node starts with only ``forward_command_topic`` set.
+    """
+    node = make_node(arm_file(tmp_path, 2), forward_command_topic='pressure_controller/commands')
+    assert node.get_parameter('forward_command_order').value == []
+    forward = record(node._forward_pub)
+    order = [m for joint in node.engine.joints for m in joint.muscle_names]
+    sent = {
+        muscle: record(node._command_pubs[k][i])
+        for k, joint in enumerate(node.engine.joints)
+        for i, muscle in enumerate(joint.muscle_names)
+    }
+    node._on_states(raw(JointState(name=['j0', 'j1'], position=[0.2, -0.3])))
+    node._on_torque(raw(command(j0=0.5, j1=-1.0)))
+    assert [list(m.data) for m in forward] == [[sent[m][-1].fluid_pressure for m in order]]
+
+
+def test_an_empty_array_default_is_declared_typed(make_node):
+    """A parameter whose default is ``[]`` is declared with that value (not left unset), and a
+    value of another type is refused.
+    """
+    node = make_node()
+    assert node.get_parameter('forward_command_order').value == []
+    with pytest.raises(StartupError, match='must be of type STRING_ARRAY, got INTEGER'):
+        make_node(forward_command_order=3)

@@ -1,5 +1,7 @@
 """Runtime parameter changes of model_node: validated as a whole, applied without restart."""
 
+import math
+
 from geometry_msgs.msg import WrenchStamped
 import pytest
 from rcl_interfaces.srv import SetParameters
@@ -7,7 +9,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
-from conftest import CONFIGS
+from conftest import CONFIGS, edited_copy
 from node_messages import AMBIENT, pressure, raw, record, state
 from pma_model_ros.core.node_parameters import IDENTIFICATION
 from pma_model_ros.core.param_file import muscle_model, read_parameters
@@ -224,3 +226,17 @@ def test_identification_results_are_values_of_the_muscle_status(node):
         assert values['identification err [% of max force]'] == f'{entry["err"]:.6g}'
         assert values['identification rmse [N]'] == f'{entry["rmse"]:.6g}'
         assert values['identification objective'] == entry['objective']
+
+
+def test_pressure_range_defaults_to_an_empty_array_of_doubles(private_node, tmp_path):
+    """``pressure_range`` (default ``[]``: up to the rated pressure) is declared with its default
+    where a file has none, and takes doubles only.
+    """
+    path = edited_copy(CONFIGS['DMSP-10-100'], tmp_path, 'pressure_range: [0.0, 600000.0]', '')
+    node = private_node(ModelNode, '--params-file', path)
+    assert node.get_parameter('pressure_range').value == []
+    assert node.engine.configs[0].model.domain.pressure_max == math.inf
+    refused = node.set_parameters([Parameter('pressure_range', value=['a', 'b'])])[0]
+    assert not refused.successful and node.get_parameter('pressure_range').value == []
+    assert node.set_parameters([Parameter('pressure_range', value=[0.0, 5e5])])[0].successful
+    assert node.engine.configs[0].model.domain.pressure_max == 5e5

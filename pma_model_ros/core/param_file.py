@@ -185,7 +185,9 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     length_range = parameters.get('length_range')
     if not (isinstance(length_range, list) and len(length_range) == 2):
         raise ValueError(f'length_range must be [min, max] in m, got {length_range!r}')
-    pressure_range = parameters.get('pressure_range', [0.0, math.inf])
+    pressure_range = parameters.get('pressure_range', [])
+    if isinstance(pressure_range, list) and not pressure_range:  # absent or empty: up to rated
+        pressure_range = [0.0, math.inf]
     if not (
         isinstance(pressure_range, list) and len(pressure_range) == 2 and pressure_range[0] == 0
     ):

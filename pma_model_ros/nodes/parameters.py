@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import array
 import difflib
+from functools import partial
 from typing import Callable, Iterable
+import weakref
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -28,6 +30,13 @@ TYPES = {
     'double[]': Parameter.Type.DOUBLE_ARRAY,
     'string[]': Parameter.Type.STRING_ARRAY,
 }
+ARRAY_TYPES = (
+    Parameter.Type.BYTE_ARRAY,
+    Parameter.Type.BOOL_ARRAY,
+    Parameter.Type.INTEGER_ARRAY,
+    Parameter.Type.DOUBLE_ARRAY,
+    Parameter.Type.STRING_ARRAY,
+)
 
 
 def descriptor(spec: ParameterSpec, description: str | None = None) -> ParameterDescriptor:
@@ -54,8 +63,47 @@ def declare(node: Node, spec: ParameterSpec, prefix: str = '', default: bool = T
     name = prefix + spec.name
     if node.has_parameter(name):
         return node.get_parameter_or(name)  # unset: a NOT_SET parameter, value None
-    value = spec.default if default and spec.default not in (None, []) else TYPES[spec.kind]
-    return node.declare_parameter(name, value, descriptor(spec))
+    if not default or spec.default is None:
+        return node.declare_parameter(name, TYPES[spec.kind], descriptor(spec))
+    if spec.default == []:
+        return _declare_empty_array(node, name, spec)
+    return node.declare_parameter(name, spec.default, descriptor(spec))
+
+
+#: Per node: the parameters declared by :func:`_declare_empty_array`, with their array type.
+_ARRAYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _declare_empty_array(node: Node, name: str, spec: ParameterSpec) -> Parameter:
+    """Declare ``name`` with the default ``[]``.  rclpy infers a parameter's type from its default
+    and has none for ``[]`` (a byte array, to it): the parameter is declared with dynamic typing,
+    and a set-parameters callback of the node (one, added with the first such parameter) refuses
+    a value of any other type than the spec's but an empty array.
+    """
+    if node not in _ARRAYS:
+        _ARRAYS[node] = {}
+        node.add_on_set_parameters_callback(partial(_check_arrays, _ARRAYS[node]))
+    _ARRAYS[node][name] = TYPES[spec.kind]
+    described = descriptor(spec)
+    described.dynamic_typing = True
+    return node.declare_parameter(name, [], described)
+
+
+def _check_arrays(
+    types: dict[str, Parameter.Type], changes: list[Parameter]
+) -> SetParametersResult:
+    """Refuse a value of a parameter of ``types`` neither of its type nor an empty array."""
+    for p in changes:
+        kind = types.get(p.name)
+        if kind is None or p.type_ == kind:
+            continue
+        if p.type_ in ARRAY_TYPES and len(p.value) == 0:
+            continue
+        return SetParametersResult(
+            successful=False,
+            reason=f"parameter '{p.name}' must be of type {kind.name}, got {p.type_.name}",
+        )
+    return SetParametersResult(successful=True)
 
 
 def declare_table(
