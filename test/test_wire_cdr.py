@@ -15,6 +15,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from pma_model_ros.bags.bag_io import JOINT_STATE, TYPESTORE
 from pma_model_ros.wire.cdr import (
+    FLOATS,
     fluid_pressure,
     joint_state,
     split,
@@ -149,11 +150,11 @@ def stamped(kind, frame: str, stamp: tuple[int, int], value: float):
 def test_stamped_float_reads_and_writes_like_rclpy(frame, value, stamp):
     for kind, template, field in (
         (FluidPressure, fluid_pressure, 'fluid_pressure'),
-        (WrenchStamped, wrench_stamped, 'wrench.force.x'),
+        (WrenchStamped, wrench_stamped, 'force'),
     ):
         msg = stamped(kind, frame, stamp, value)
         ns = stamp[0] * 10**9 + stamp[1]
-        got_stamp, got = stamped_float(serialize_message(msg))
+        got_stamp, got = stamped_float(serialize_message(msg), FLOATS[field])
         assert got_stamp == ns and (got == value or math.isnan(got) and math.isnan(value))
         ours = template(frame)
         ours.values[0] = value
@@ -168,8 +169,13 @@ def test_stamped_float_reads_and_writes_like_rclpy(frame, value, stamp):
 
 def test_stamped_float_refuses_what_it_cannot_read():
     data = serialize_message(FluidPressure(fluid_pressure=3.0))
-    assert stamped_float(data[:20]) is None  # truncated
-    assert stamped_float(b'\x00\x00' + data[2:]) is None  # big-endian encapsulation
+    floats = FLOATS['fluid_pressure']
+    # an empty frame_id ends at byte 17: the value at 20..28 (8-aligned from byte 4), the
+    # variance at 28..36
+    assert stamped_float(data[:24], floats) is None  # truncated in the value
+    assert stamped_float(data[:28], floats) is None  # the value, without its variance
+    assert stamped_float(data[:36], floats) == (0, 3.0)
+    assert stamped_float(b'\x00\x00' + data[2:], floats) is None  # big-endian encapsulation
 
 
 def test_joint_index_per_layout():
@@ -377,7 +383,8 @@ def test_stamped_floats_equal_reading_each_message(stream, kind):
     def deserialize(raw):
         return deserialize_message(raw, cls)
 
-    stamps_got, values_got = stamped_floats(messages, deserialize, field)
+    stamps_got, values_got, malformed = stamped_floats(messages, deserialize, field)
+    assert not malformed.any()
     expected = [stamped_value(raw, deserialize, field) for raw in messages]
     assert stamps_got.tolist() == [s for s, _ in expected]
     np.testing.assert_array_equal(values_got, [v for _, v in expected])

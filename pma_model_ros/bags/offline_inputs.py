@@ -13,6 +13,7 @@ import numpy as np
 
 from .bag_io import FLUID_PRESSURE, JOINT_STATE, TYPESTORE, WRENCH_STAMPED
 from ..core.recording import COMMAND_IN, Inputs, LENGTH_IN, PRESSURE_IN
+from ..wire.cdr import MALFORMED
 from ..wire.columns import joint_columns, stamped_floats
 
 #: rosbags' deserializers of the input types: what the wire layer's fast readers do not read.
@@ -76,12 +77,14 @@ def decode(
                     stamps, values, rates = got.stamps, got.values[:, 0], got.rates[:, 0]
                     for i in np.flatnonzero(~got.present[:, 0]).tolist():
                         refused[i] = got.problems[i][0]
-                elif role == PRESSURE_IN:
-                    stamps, values = stamped_floats(
-                        picked, DESERIALIZE['FluidPressure'], 'fluid_pressure'
-                    )
                 else:
-                    stamps, values = stamped_floats(picked, DESERIALIZE['WrenchStamped'], 'force')
+                    kind, field = (
+                        ('FluidPressure', 'fluid_pressure')
+                        if role == PRESSURE_IN
+                        else ('WrenchStamped', 'force')
+                    )
+                    stamps, values, malformed = stamped_floats(picked, DESERIALIZE[kind], field)
+                    refused = dict.fromkeys(np.flatnonzero(malformed).tolist(), MALFORMED)
                 parts[k].append((rows, role, stamps, values, rates, refused, None))
     return [_merge(p, times, first) for p in parts]
 

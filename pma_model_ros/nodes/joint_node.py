@@ -54,7 +54,7 @@ from ..core.joint_file import (
     NODE_PARAMETERS,
 )
 from ..core.shipped_data import share_directory
-from ..wire.cdr import fluid_pressure, joint_state
+from ..wire.cdr import fluid_pressure, joint_state, MALFORMED, MalformedMessage
 from ..wire.forward_commands import ForwardCommands
 from ..wire.joint_state import JointStateArrays, JointStateReader
 from ..wire.muscle_inputs import stamped_value
@@ -182,14 +182,20 @@ class JointNode(ManagedNode):
         if not self.active:
             return
         now = self.now()
-        stamp, value = stamped_value(data, DESERIALIZE['FluidPressure'], 'fluid_pressure')
-        self.engine.pressure(k, m, value, stamp, now)
+        try:
+            stamp, value = stamped_value(data, DESERIALIZE['FluidPressure'], 'fluid_pressure')
+        except MalformedMessage:
+            self.engine.reject(k, 'pressure', MALFORMED, now)
+        else:
+            self.engine.pressure(k, m, value, stamp, now)
         self.report(now)
 
     def _on_states(self, data: bytes) -> None:
         if not self.active:
             return
-        now, msg = self.now(), self._readers['joint_states'](data)
+        now = self.now()
+        if (msg := self._read('joint_states', data, 'joint_states', now)) is None:
+            return self.report(now)
         done, torques, stiffnesses = self.engine.joint_states(
             msg.names, msg.position.tolist(), msg.stamp, now
         )
@@ -207,7 +213,8 @@ class JointNode(ManagedNode):
         if not self.active:
             return
         now, forward = self.now(), self._forward
-        msg = self._readers['torque_command'](data)
+        if (msg := self._read('torque_command', data, 'command', now)) is None:
+            return self.report(now)
         for name, torque in self._entries(msg, now):
             k = self.engine.index[name]
             absolute = self.engine.command(k, torque, now, msg.stamp)
@@ -230,13 +237,23 @@ class JointNode(ManagedNode):
         if not self.active:
             return
         now = self.now()
-        apply, msg = (
-            getattr(self.engine, topic.removesuffix('_command')),
-            self._readers[topic](data),
-        )
+        if (msg := self._read(topic, data, 'command', now)) is None:
+            return self.report(now)
+        apply = getattr(self.engine, topic.removesuffix('_command'))
         for name, value in self._entries(msg, now):
             apply(self.engine.index[name], value, now, msg.stamp)
         self.report(now)
+
+    def _read(self, topic: str, data: bytes, source: str, now: int) -> JointStateArrays | None:
+        """A JointState of ``topic``; None if its deserializer refused it, then rejected for
+        every joint as an input of ``source``.
+        """
+        try:
+            return self._readers[topic](data)
+        except MalformedMessage:
+            for k in range(len(self.engine.joints)):
+                self.engine.reject(k, source, MALFORMED, now)
+            return None
 
     def _entries(self, msg: JointStateArrays, now: int) -> list[tuple[str, float]]:
         """(joint, effort) of a command's entries of this node's joints; mismatched arrays are

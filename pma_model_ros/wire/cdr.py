@@ -6,14 +6,15 @@ Alignment is counted from the end of the 4-byte encapsulation header, as CDR def
 with a header (``std_msgs/Header``) first: ``header.stamp`` at bytes 4..12, ``header.frame_id``
 (uint32 length with its NUL, the bytes) from 12.  A reader refuses (returns None for) anything
 else: another encapsulation or endianness, a truncated message; its caller then uses a full
-deserializer.
+deserializer through :func:`decode`, which turns any refusal of it into :class:`MalformedMessage`.
+A reader accepts only messages that rclpy's deserializer reads to the same values.
 Serializers may leave arbitrary bytes in padding and after the message: nothing here reads them.
 """
 
 from __future__ import annotations
 
 import struct
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -23,6 +24,25 @@ STAMP = struct.Struct('<iI')  #: a header's builtin_interfaces/Time (sec, nanose
 _U32 = struct.Struct('<I')
 _F64 = struct.Struct('<d')
 _SECOND = 10**9
+#: float64 fields after the header: a FluidPressure's value and variance, a WrenchStamped's six
+FLOATS = {'fluid_pressure': 2, 'force': 6}
+MALFORMED = 'malformed message'  #: the reason a message its deserializer refuses is rejected for
+
+
+class MalformedMessage(ValueError):
+    """A message that its deserializer refused (truncated, corrupt counts, unknown
+    encapsulation).
+    """
+
+
+def decode(deserialize: Callable[[bytes], object], data: bytes) -> object:
+    """``deserialize(data)``; any refusal of it (rclpy raises RMWError, rosbags its own errors)
+    as :class:`MalformedMessage`.
+    """
+    try:
+        return deserialize(data)
+    except Exception as err:  # whatever the deserializer raises is a refusal
+        raise MalformedMessage(f'{MALFORMED}: {err}') from err
 
 
 def aligned(offset, size: int):
@@ -50,16 +70,17 @@ def frame_end(data: bytes) -> int | None:
     return end if end <= len(data) else None
 
 
-def stamped_float(data: bytes) -> tuple[int, float] | None:
-    """(header stamp [ns], the first float64 after the header) of a little-endian message: the
-    ``fluid_pressure`` of a FluidPressure, the ``wrench.force.x`` of a WrenchStamped; None if it
-    cannot be read so.
+def stamped_float(data: bytes, floats: int) -> tuple[int, float] | None:
+    """(header stamp [ns], the first float64 after the header) of a little-endian message with
+    ``floats`` float64 fields after its header (:data:`FLOATS`): the ``fluid_pressure`` of a
+    FluidPressure, the ``wrench.force.x`` of a WrenchStamped; None if it cannot be read so (a
+    message shorter than all its fields, too).
     """
     end = frame_end(data)
     if end is None:
         return None
     at = aligned(end, 8)
-    if at + 8 > len(data):
+    if at + 8 * floats > len(data):
         return None
     return stamp_ns(*STAMP.unpack_from(data, 4)), _F64.unpack_from(data, at)[0]
 

@@ -5,8 +5,9 @@ them are joined and their fields gathered with numpy at the offsets a message's 
 message that the gathering does not fit (another encapsulation or endianness, a truncated one, a
 JointState of a layout not seen before) is read by the per-message reader, or its deserializer,
 with the same result; a JointState of a new layout then teaches the reader that layout for the
-rest.  What the node does with each value is :mod:`.muscle_inputs`' (the engine's calls); these
-give the values and which joints a message holds, with the reasons for those it does not.
+rest.  A message its deserializer refuses gives no value (``malformed message``, as the node
+rejects it).  What the node does with each value is :mod:`.muscle_inputs`' (the engine's calls);
+these give the values and which joints a message holds, with the reasons for those it does not.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from .cdr import aligned, LITTLE_ENDIAN, stamp_ns
+from .cdr import aligned, FLOATS, LITTLE_ENDIAN, MALFORMED, MalformedMessage, stamp_ns
 from .joint_state import gather, JointIndex, JointStateArrays, JointStateReader
 from .muscle_inputs import stamped_value
 
@@ -35,9 +36,10 @@ def joined(datas: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def stamped_floats(
     datas: Sequence[bytes], deserialize: Callable[[bytes], object], field: str
-) -> tuple[np.ndarray, np.ndarray]:
-    """(header stamps [ns], values) of FluidPressure (``field`` ``fluid_pressure``) or
-    WrenchStamped (``force``) messages: what :func:`.muscle_inputs.stamped_value` gives each.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(header stamps [ns], values, which are malformed) of FluidPressure (``field``
+    ``fluid_pressure``) or WrenchStamped (``force``) messages: what
+    :func:`.muscle_inputs.stamped_value` gives each (a malformed one: stamp 0, value NaN).
     """
     buf, starts, sizes = joined(datas)
     ok = sizes >= 16
@@ -45,14 +47,18 @@ def stamped_floats(
     ok &= (buf[base] == LITTLE_ENDIAN[0]) & (buf[base + 1] == LITTLE_ENDIAN[1])
     end = 16 + gather(buf, base + 12, 4).view('<u4').ravel().astype(np.int64)
     at = aligned(end, 8)  # the first float64 after the header
-    ok &= at + 8 <= sizes
+    ok &= at + 8 * FLOATS[field] <= sizes
     base = np.where(ok, base, 0)
     sec = gather(buf, base + 4, 4).view('<i4').ravel().astype(np.int64)
     stamps = stamp_ns(sec, gather(buf, base + 8, 4).view('<u4').ravel())
     values = gather(buf, np.where(ok, base + at, 0), 8).view('<f8').ravel().copy()
+    malformed = np.zeros(len(datas), bool)
     for i in np.flatnonzero(~ok).tolist():
-        stamps[i], values[i] = stamped_value(datas[i], deserialize, field)
-    return stamps, values
+        try:
+            stamps[i], values[i] = stamped_value(datas[i], deserialize, field)
+        except MalformedMessage:
+            stamps[i], values[i], malformed[i] = 0, math.nan, True
+    return stamps, values, malformed
 
 
 class JointColumns(NamedTuple):
@@ -76,7 +82,8 @@ def joint_columns(
 ) -> JointColumns:
     """Read JointState messages as :class:`~.joint_state.JointStateReader` and
     :class:`~.joint_state.JointIndex` read each (the joints' ``field`` array: ``position`` or
-    ``effort``); the messages of a layout seen before are gathered at once.
+    ``effort``); the messages of a layout seen before are gathered at once.  A malformed message
+    names every joint and gives none (each joint's problem: ``malformed message``).
     """
     n, count = len(datas), len(joints)
     out = JointColumns(
@@ -92,7 +99,12 @@ def joint_columns(
     rows = np.arange(n)
     while rows.size:
         first = rows.item(0)
-        msg = reader(datas[first])
+        try:
+            msg = reader(datas[first])
+        except MalformedMessage:
+            out.named[first], out.problems[first] = True, [MALFORMED] * count
+            rows = rows[1:]
+            continue
         _fill(out, rows[:1], index, msg, msg.stamp, getattr(msg, field)[None], msg.velocity[None])
         rows = rows[1:]
         got = reader.read_many(buf, starts[rows], sizes[rows]) if rows.size else None

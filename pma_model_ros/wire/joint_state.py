@@ -5,7 +5,8 @@ the stamp and the numbers change.  :class:`JointStateReader` learns the layout f
 deserializer decoded, then reads the next ones of that layout with ``np.frombuffer`` at the cached
 offsets (the header, names and array lengths compared as bytes, the alignment padding between
 them masked out: rclpy's serializer leaves whatever was in memory there).  Any other message (new
-names or lengths, another encapsulation or endianness) goes to the deserializer again.
+names or lengths, another encapsulation or endianness) goes to the deserializer again; one it
+refuses raises :class:`~.cdr.MalformedMessage`.
 :class:`JointIndex` turns a layout into which of the node's joints a message gives a value of, with
 the reason for each one it does not (once per layout).
 """
@@ -17,7 +18,7 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from .cdr import CdrWriter, LITTLE_ENDIAN, STAMP, stamp_ns
+from .cdr import CdrWriter, decode, LITTLE_ENDIAN, STAMP, stamp_ns
 
 _FIELDS = ('position', 'velocity', 'effort')
 
@@ -79,7 +80,7 @@ class JointStateReader:
                 np.frombuffer(data, np.float64, e_n, e_at),
             )
         self.decoded += 1
-        msg = self._deserialize(data)
+        msg = decode(self._deserialize, data)
         names = list(msg.name)
         arrays = [np.asarray(getattr(msg, f), np.float64) for f in _FIELDS]
         self._layout = _learn(data, msg.header.frame_id, names, arrays) or self._layout

@@ -6,7 +6,8 @@ muscle's joint name) and ``force_command`` (WrenchStamped).  Combined: ``muscle_
 ``muscle_states`` (JointStates of every muscle) and ``force_commands`` (JointState efforts).  A
 JointState that lacks a muscle, or whose arrays do not match, rejects only the muscles it gives no
 value for.  ``deserialize[type]`` decodes what the fast readers cannot (types: ``FluidPressure``,
-``JointState``, ``WrenchStamped``).
+``JointState``, ``WrenchStamped``); a message it refuses is rejected as ``malformed message`` for
+the muscles of its topic (every muscle, for a combined one), and nothing is answered from it.
 """
 
 from __future__ import annotations
@@ -16,7 +17,17 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .cdr import joint_state, stamp_ns, stamped_float, Template, wrench_stamped
+from .cdr import (
+    decode,
+    FLOATS,
+    joint_state,
+    MALFORMED,
+    MalformedMessage,
+    stamp_ns,
+    stamped_float,
+    Template,
+    wrench_stamped,
+)
 from .joint_state import JointIndex, JointStateReader
 from ..core.engine import Engine
 
@@ -25,11 +36,13 @@ _IN_ORDER = slice(None)  #: a JointState's values are the muscles', in their ord
 
 
 def stamped_value(data: bytes, deserialize: Callable[[bytes], object], field: str):
-    """(stamp [ns], value) of a FluidPressure (``fluid_pressure``) or WrenchStamped (``force``)."""
-    fast = stamped_float(data)
+    """(stamp [ns], value) of a FluidPressure (``fluid_pressure``) or WrenchStamped (``force``);
+    raises :class:`~.cdr.MalformedMessage` for bytes the deserializer refuses.
+    """
+    fast = stamped_float(data, FLOATS[field])
     if fast is not None:
         return fast
-    msg = deserialize(data)
+    msg = decode(deserialize, data)
     value = msg.fluid_pressure if field == 'fluid_pressure' else msg.wrench.force.x
     return stamp_ns(msg.header.stamp.sec, msg.header.stamp.nanosec), float(value)
 
@@ -65,12 +78,21 @@ class MuscleInputs:
     # --- per muscle
     def pressure(self, k: int, data: bytes, now: int) -> bytes | None:
         """A ``pressure`` message of muscle ``k``: its force_estimate, if any."""
-        stamp, value = stamped_value(data, self._deserialize['FluidPressure'], 'fluid_pressure')
+        try:
+            read = self._deserialize['FluidPressure']
+            stamp, value = stamped_value(data, read, 'fluid_pressure')
+        except MalformedMessage:
+            self.engine.reject(k, 'pressure', MALFORMED, now)
+            return None
         return self._one(k, self.engine.pressure(k, value, stamp, now))
 
     def muscle_state(self, k: int, data: bytes, now: int) -> bytes | None:
         """A ``muscle_state`` JointState of muscle ``k``: its force_estimate, if any."""
-        msg = self._states[k](data)
+        try:
+            msg = self._states[k](data)
+        except MalformedMessage:
+            self.engine.reject(k, 'muscle_state', MALFORMED, now)
+            return None
         take, present, problems = self._state_index[k].of(msg)
         if present is not None:
             self.engine.reject(k, 'muscle_state', problems[0], now)
@@ -97,7 +119,11 @@ class MuscleInputs:
 
     def force_command(self, k: int, data: bytes, now: int) -> float | None:
         """A ``force_command`` of muscle ``k``: the pressure command [Pa], if any."""
-        stamp, force = stamped_value(data, self._deserialize['WrenchStamped'], 'force')
+        try:
+            stamp, force = stamped_value(data, self._deserialize['WrenchStamped'], 'force')
+        except MalformedMessage:
+            self.engine.reject(k, 'force_command', MALFORMED, now)
+            return None
         return self.engine.command(k, force, now, stamp)
 
     # --- combined
@@ -130,7 +156,11 @@ class MuscleInputs:
     def _read(self, topic: str, data: bytes, source: str, now: int):
         """(message, where each muscle's value is: _IN_ORDER, None if none; present)."""
         reader, index = self._combined[topic]
-        msg = reader(data)
+        try:
+            msg = reader(data)
+        except MalformedMessage:
+            self._reject_all(source, now)
+            return None, None, None
         take, present, problems = index.of(msg)
         if present is not None:
             for k, problem in zip(np.flatnonzero(~present).tolist(), problems):
@@ -138,6 +168,11 @@ class MuscleInputs:
             if not present.any():
                 return msg, None, present
         return msg, (_IN_ORDER if index.in_order(msg) else take), present
+
+    def _reject_all(self, source: str, now: int) -> None:
+        """A combined message of ``source`` its deserializer refused: rejected for every muscle."""
+        for k in range(len(self.joints)):
+            self.engine.reject(k, source, MALFORMED, now)
 
     def _many(self, estimated: np.ndarray) -> bytes | None:
         engine = self.engine
@@ -155,7 +190,11 @@ class MuscleInputs:
         pressure_commands (JointState, absolute Pa in ``position``; stamp it), if any.
         """
         reader, index = self._combined['force_commands']
-        msg = reader(data)
+        try:
+            msg = reader(data)
+        except MalformedMessage:
+            self._reject_all('force_command', now)
+            return None
         take, present, problems = index.of(msg)
         joints, pressures = [], []
         for k, joint in enumerate(self.joints):
