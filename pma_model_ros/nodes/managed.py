@@ -33,7 +33,6 @@ from functools import partial
 import traceback
 
 from lifecycle_msgs.srv import ChangeState
-from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.publisher import Publisher
@@ -41,6 +40,7 @@ from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 
 from .parameters import declare
+from .rclpy_private import clock_handle, RCLError
 from .startup import refusing, StartupError
 from ..core.health import DIAGNOSTIC_PERIOD
 from ..core.node_parameters import SPECS
@@ -59,11 +59,11 @@ class ManagedNode(LifecycleNode):
 
     def __init__(self, node_name: str, **kwargs) -> None:
         super().__init__(node_name, **kwargs)
-        service = self._service_change_state
+        service = next(s for s in self.services if s.srv_type is ChangeState)
         service.callback = partial(_refuse_unknown_transitions, service.callback)
         self.active = False  #: the gate of every input callback
         self.refusal = ''  #: why the last configure failed
-        self._ros_clock = self.get_clock().handle  # see now()
+        self._ros_clock = clock_handle(self.get_clock())  # see now()
         self._built: list = []  # the publishers, subscriptions and timer of configure
         self._starting = False
         with refusing(self):

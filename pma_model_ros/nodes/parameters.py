@@ -20,6 +20,7 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParam
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from .rclpy_private import parameter_overrides
 from ..core.node_parameters import ParameterSpec, PROCESS_PARAMETERS
 
 TYPES = {
@@ -126,10 +127,9 @@ def values(node: Node) -> dict[str, object]:
 
 def overrides(node: Node) -> dict[str, object]:
     """What the node's parameter files and ``-p`` set, declared or not, as ``{dotted name: plain
-    value}``.  rclpy keeps them in ``Node._parameter_overrides`` (since Dashing) and offers no
-    public accessor.
+    value}`` (:func:`.rclpy_private.parameter_overrides`: rclpy has no public accessor).
     """
-    return {name: plain(p.value) for name, p in node._parameter_overrides.items()}
+    return {name: plain(p.value) for name, p in parameter_overrides(node).items()}
 
 
 def warn_unknown(node: Node, expected: Callable[[str], bool] = lambda name: False) -> list[str]:

@@ -17,7 +17,6 @@ import threading
 from typing import Callable, Iterator, Sequence
 
 import rclpy
-from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
@@ -26,6 +25,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from .parameters import declare
+from .rclpy_private import RCLError
 from ..core.node_parameters import SPECS
 
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return

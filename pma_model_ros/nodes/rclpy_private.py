@@ -1,0 +1,30 @@
+"""Every private rclpy name this package uses, in one place: Jazzy's rclpy (7.1) has no public
+equivalent of any of them, and an rclpy update may rename each (test/test_nodes_rclpy_private.py
+fails then).
+
+* :data:`RCLError`: what rclpy raises from its C layer (``rclpy.init`` with a parameter file rcl
+  cannot parse, a lifecycle transition the current state does not have, a context shut down
+  under the executor); ``rclpy.exceptions`` does not export it.
+* :func:`parameter_overrides`: what the node's parameter files and ``-p`` set, declared or not
+  (``Node._parameter_overrides``, since Dashing).
+* :func:`clock_handle`: the C clock behind an rclpy ``Clock`` (``Clock.handle``, "not to be used
+  outside of rclpy"): ``handle.get_now().nanoseconds`` reads the time without building an rclpy
+  ``Time`` (:meth:`.managed.ManagedNode.now`, on every input).
+"""
+
+from __future__ import annotations
+
+from rclpy._rclpy_pybind11 import RCLError  # noqa: F401 (re-exported)
+from rclpy.clock import Clock
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+
+def parameter_overrides(node: Node) -> dict[str, Parameter]:
+    """The parameters the node's files and ``-p`` set, by name, declared or not."""
+    return node._parameter_overrides
+
+
+def clock_handle(clock: Clock):
+    """The C clock of ``clock``: ``.get_now().nanoseconds`` [ns]."""
+    return clock.handle

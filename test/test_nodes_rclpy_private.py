@@ -1,0 +1,69 @@
+"""The private rclpy names of nodes/rclpy_private.py still mean what the package takes them for:
+each test fails if an rclpy update renames or changes one.  And no other module uses a private
+rclpy name.
+"""
+
+import re
+
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+
+from conftest import CONFIGS, REPO
+from pma_model_ros.nodes import rclpy_private
+from pma_model_ros.nodes.model_node import ModelNode
+
+pytestmark = pytest.mark.ros
+
+
+def test_rcl_error_is_what_rclpy_raises_for_a_file_rcl_cannot_parse(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('/**: {ros__parameters: [1, 2')
+    context = rclpy.Context()
+    with pytest.raises(rclpy_private.RCLError):
+        rclpy.init(context=context, args=['--ros-args', '--params-file', str(bad)])
+    assert issubclass(rclpy_private.RCLError, Exception)
+
+
+def test_parameter_overrides_hold_what_was_set_declared_or_not(private_node):
+    node = private_node(
+        rclpy.node.Node, '-p', 'a.b:=2.5', overrides={'c': 'x'}, node_name='overridden'
+    )
+    overrides = rclpy_private.parameter_overrides(node)
+    assert {name: p.value for name, p in overrides.items()} == {'a.b': 2.5, 'c': 'x'}
+    assert all(isinstance(p, Parameter) for p in overrides.values())
+
+
+def test_the_clock_handle_reads_the_clock_in_nanoseconds(private_node):
+    clock = private_node(rclpy.node.Node, node_name='clocked').get_clock()
+    before = clock.now().nanoseconds
+    read = rclpy_private.clock_handle(clock).get_now().nanoseconds
+    assert isinstance(read, int) and before <= read <= clock.now().nanoseconds
+
+
+def test_a_transition_the_state_has_not_is_answered_false(private_node):
+    """The change_state service (found by its type, public API) answers ``success: false``: the
+    RCLError that rclpy raises there is caught.
+    """
+    node = private_node(
+        ModelNode, '--params-file', CONFIGS['DMSP-10-250'], overrides={'autostart': False}
+    )
+    service = next(s for s in node.services if s.srv_type is ChangeState)
+    request = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_ACTIVATE))
+    assert service.callback(request, ChangeState.Response()).success is False
+    request = ChangeState.Request(transition=Transition(label='configure'))
+    assert service.callback(request, ChangeState.Response()).success is True
+
+
+def test_no_other_module_uses_a_private_rclpy_name():
+    private = re.compile(
+        r'rclpy\._|_rclpy_pybind11|_parameter_overrides|_service_change_state|\.handle\b'
+    )
+    users = [
+        path.relative_to(REPO).as_posix()
+        for path in (REPO / 'pma_model_ros').rglob('*.py')
+        if private.search(path.read_text()) and path.name != 'rclpy_private.py'
+    ]
+    assert users == []
