@@ -36,6 +36,7 @@ from .core.param_file import held_out_band, load_muscle, read_parameters
 from .core.param_writer import build_parameters, fit_entry, model_entry, write_parameters
 from .core.progress import step
 from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from .core.units import length_hint, pressure_hint
 from .core.user_files import read_spec_yaml
 from .core.validation import fold_lengths, length_folds
 
@@ -367,27 +368,27 @@ def _pressure(name: str, value: float) -> float:
             'absolute); gauge pressure = absolute - ambient'
         )
     if 0 < abs(value) < 1e3:
-        unit, scale = ('bar', 1e5) if abs(value) <= 20 else ('kPa', 1e3)
         raise CliError(
             f'{name} {value:g} Pa is below 1 kPa, no working pressure of a muscle: gauge '
-            f'pressure in Pa; {unit}? {value:g} {unit} = {value * scale:g} Pa'
+            f'pressure in Pa; {pressure_hint(value)}'
         )
     return value
 
 
-def _length(value: float) -> float:
-    """A muscle length [m] of the command line; refused where its magnitude says mm or cm."""
+def _length(value: float, rest_length: float) -> float:
+    """A muscle length [m] of the command line; refused where its magnitude says mm or cm (the
+    unit that makes it nearest to the muscle's ``rest_length`` [m]).
+    """
     if math.isfinite(value) and 10 < value <= 1e4:
-        unit, scale = ('cm', 1e-2) if value <= 100 else ('mm', 1e-3)
         raise CliError(
-            f'--length {value:g} m is longer than any muscle: lengths are in metres; {unit}? '
-            f'{value:g} {unit} = {value * scale:g} m'
+            f'--length {value:g} m is longer than any muscle: lengths are in metres; '
+            + length_hint(value, rest_length)
         )
     return _finite('--length', value, 1e-4, 10.0, 'm', 'lengths are in metres')
 
 
-def _load(args: argparse.Namespace):
-    return load_muscle(args.config, args.model)
+def _load(args: argparse.Namespace, parameters: dict | None = None):
+    return load_muscle(args.config, args.model, parameters)
 
 
 def _check_geometry(flags: int, length: float, muscle) -> None:
@@ -399,9 +400,10 @@ def _check_geometry(flags: int, length: float, muscle) -> None:
 
 
 def cmd_force(args: argparse.Namespace) -> None:
-    length, pressure = _length(args.length), _pressure('--pressure', args.pressure)
+    pressure = _pressure('--pressure', args.pressure)
     parameters = read_parameters(args.config)
-    muscle = _load(args)
+    muscle = _load(args, parameters)
+    length = _length(args.length, muscle.spec.nominal_length)
     result = muscle.force(pressure, length, args.length_rate)
     _check_geometry(int(result.flags), length, muscle)
     print(
@@ -409,24 +411,41 @@ def cmd_force(args: argparse.Namespace) -> None:
         f'{describe(int(result.flags))}'
     )
     band = held_out_band(parameters, args.model)
+    print(expected_error(band, muscle.domain, pressure, length, int(result.flags)))
+
+
+def expected_error(band, domain, pressure: float, length: float, flags: int) -> str:
+    """The ``expected error:`` line of ``force``: the held-out band at ``length`` [m] where the
+    query lies within the identified pressures (served as such, up to ``domain.pressure_max``
+    [Pa]) and held-out lengths, else why it is unknown.
+    """
     if band is None:
-        print('expected error: unknown (the parameter file has no held_out errors)')
-        return
+        return 'expected error: unknown (the parameter file has no held_out errors)'
+    if flags & Flag.PRESSURE_OUT_OF_RANGE or pressure > domain.pressure_max:
+        return (
+            f'expected error: unknown: {pressure:g} Pa is outside the identified pressures '
+            f'0..{domain.pressure_max:g} Pa (the held-out errors hold within them)'
+        )
     percent, inside = band.at(length)
-    lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
-    print(
-        f'expected error: about ±{percent * band.max_force / 100:.3g} N ({percent:.2f} % of '
-        f'{band.max_force:.4g} N: the worst held-out err of the identified lengths around it)'
-        if inside
-        else f'expected error: unknown: {length:g} m is outside the held-out lengths {lengths} '
-        f'(the nearest one erred by {percent:.2f} % of {band.max_force:.4g} N)'
+    of = f'{percent:.2f} % of {band.max_force:.4g} N'
+    if not inside:
+        return (
+            f'expected error: unknown: {length:g} m is outside the held-out lengths '
+            f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m (the nearest one erred by {of})'
+        )
+    why = (
+        "the map's worst held-out err: the held-out lengths here measured no force, so their "
+        'own 0 % says only that the model is slack where the muscle was'
+        if band.slack_at(length)
+        else 'the worst held-out err of the identified lengths around it'
     )
+    return f'expected error: about ±{percent * band.max_force / 100:.3g} N ({of}: {why})'
 
 
 def cmd_pressure(args: argparse.Namespace) -> None:
-    length = _length(args.length)
     force = _finite('--force', args.force, -1e7, 1e7, 'N', 'force in newtons')
     muscle = _load(args)
+    length = _length(args.length, muscle.spec.nominal_length)
     result = muscle.pressure(force, length, args.length_rate)
     _check_geometry(int(result.flags), length, muscle)
     print(f'pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}')

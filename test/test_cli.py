@@ -713,6 +713,50 @@ def test_force_prints_the_expected_error_at_the_length(capsys):
     )
 
 
+def test_force_where_no_force_was_measured_has_no_band_of_zero(capsys):
+    """Table A1 measured 0 N at 0.222 m at every pressure (the DMSP-20-300 fully contracted): the
+    held-out err there (0 %) is no band of ±0 N; the map's worst held-out err stands in.
+    """
+    fmap = shipped_force_map('DMSP-20-300')
+    assert fmap.force[fmap.length == 0.222].max() == 0
+    config = str(CONFIGS['DMSP-20-300'])
+    held = read_parameters(config)['models']['martens']['held_out']
+    assert main(['force', '--config', config, '--pressure', '300000', '--length', '0.222']) == 0
+    band = capsys.readouterr().out.splitlines()[1]
+    worst = max(held['err'])
+    assert worst > 0 and band.startswith(
+        f'expected error: about ±{worst * 1653.5 / 100:.3g} N ({worst:.2f} % of 1654 N: '
+        "the map's worst held-out err"
+    )
+
+
+@pytest.mark.parametrize('pressure', ['700000', '900000'])
+def test_force_outside_the_identified_pressures_has_no_band(capsys, pressure):
+    """Table A2 reaches 650 kPa: above it (extrapolated, or beyond the rated 800 kPa: out of
+    range) the held-out errors of the identified lengths do not hold.
+    """
+    config = str(CONFIGS['DMSP-10-250'])
+    assert main(['force', '--config', config, '--pressure', pressure, '--length', '0.23']) == 0
+    assert capsys.readouterr().out.splitlines()[1] == (
+        f'expected error: unknown: {pressure} Pa is outside the identified pressures 0..650000 Pa '
+        '(the held-out errors hold within them)'
+    )
+
+
+def test_a_length_in_millimetres_of_a_short_muscle_is_named_so(capsys):
+    """95 on a DMSP-10-100 (L0 0.1 m): 95 mm, not 95 cm (0.95 m, nine rest lengths)."""
+    config = str(CONFIGS['DMSP-10-100'])
+    assert main(['force', '--config', config, '--pressure', '300000', '--length', '95']) == 2
+    assert capsys.readouterr().err.endswith('lengths are in metres; mm? 95 mm = 0.095 m\n')
+
+
+def test_a_force_map_with_a_byte_order_mark_is_read(tmp_path, capsys):
+    csv = tmp_path / 'map.csv'
+    csv.write_text(MAP_10_250.read_text(), encoding='utf-8-sig')
+    assert main(['evaluate', '--config', str(CONFIGS['DMSP-10-250']), '--data', str(csv)]) == 0
+    assert capsys.readouterr().out.split('\n')[0].endswith('(85 points)')  # Table A2: 17 x 5
+
+
 def test_evaluate_a_map_of_one_length(tmp_path, capsys):
     """A length held back to check a fit is a map of one length: evaluated, per-length table."""
     fmap = shipped_force_map('DMSP-20-300')

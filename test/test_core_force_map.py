@@ -49,8 +49,30 @@ def test_bad_files_name_the_source_and_the_problem(text, message):
 
 
 def test_millimetres_are_refused():
-    with pytest.raises(ValueError, match='millimetres'):
+    with pytest.raises(ValueError, match=r'mm\? 250 mm = 0.25 m$'):
         ForceMap([0, 1e5, 2e5], [200, 200, 250], [0, 50, 90])
+
+
+def test_a_byte_order_mark_is_not_part_of_the_header(tmp_path):
+    """Spreadsheets export 'CSV UTF-8' with a byte-order mark before the header."""
+    path = tmp_path / 'map.csv'
+    path.write_text(CSV, encoding='utf-8-sig')
+    assert path.read_bytes().startswith(b'\xef\xbb\xbf')
+    np.testing.assert_array_equal(read_force_map_csv(path).force, [0, 120.5, 0, 410])
+
+
+@pytest.mark.parametrize('separator, name', [(';', 'semicolons'), ('\t', 'tabs')])
+def test_another_separator_is_named(separator, name):
+    text = CSV.replace(',', separator)
+    with pytest.raises(ValueError, match=f'^user.csv: columns separated by {name}; '):
+        parse_force_map_csv(text, 'user.csv')
+
+
+def test_a_decimal_comma_is_named():
+    """0,25 m written with a decimal comma: four fields where the header has three."""
+    text = 'pressure_pa,length_m,force_n\n300000,0,25,410\n'
+    with pytest.raises(ValueError, match='row 2 has 4 fields, the header 3; decimals'):
+        parse_force_map_csv(text, 'user.csv')
 
 
 def test_a_subset_keeps_the_chosen_points():
@@ -61,11 +83,15 @@ def test_a_subset_keeps_the_chosen_points():
 @pytest.mark.parametrize(
     ('pressures', 'lengths', 'hint'),
     [
-        ([0, 3, 6.5], [0.2, 0.2, 0.25], r'reaches only 6.5 Pa.*; bar\? multiply by 1e5$'),
-        ([0, 300, 650], [0.2, 0.2, 0.25], r'reaches only 650 Pa.*; kPa\? multiply by 1e3$'),
+        # Table A2's 650 kPa top in bar, kPa, MPa and psi (1 psi = 6894.757 Pa)
+        ([0, 3, 6.5], [0.2, 0.2, 0.25], r'reaches only 6.5 Pa.*; bar\? 6.5 bar = 650000 Pa$'),
+        ([0, 300, 650], [0.2, 0.2, 0.25], r'reaches only 650 Pa.*; kPa\? 650 kPa = 650000 Pa$'),
+        ([0, 0.3, 0.65], [0.2, 0.2, 0.25], r'; MPa\? 0.65 MPa = 650000 Pa$'),
+        ([0, 43.5, 94.27], [0.2, 0.2, 0.25], r'; psi\? 94.27 psi = 649969 Pa$'),
         ([-5e3, 3e5, 6e5], [0.2, 0.2, 0.25], r'>= 0 Pa \(absolute - ambient\), got -5000$'),
         ([-6e5, 3e5, 6e5], [0.2, 0.2, 0.25], r'got -600000; that is below vacuum$'),
-        ([0, 3e5, 6e5], [20, 20, 25], r'got 20..25; centimetres\? divide by 100$'),
+        ([0, 3e5, 6e5], [20, 20, 25], r'got 20..25; cm\? 25 cm = 0.25 m$'),
+        ([0, 3e5, 6e5], [200, 200, 250], r'got 200..250; mm\? 250 mm = 0.25 m$'),
     ],
 )
 def test_a_csv_in_other_units_gets_the_hint_of_its_case(pressures, lengths, hint):

@@ -50,8 +50,11 @@ def test_dmsp_10_250_numbers():
         ({'membrane_thickness': 1.8}, 'membrane_thickness must be in metres .* millimetres'),
         ({'fiber_angle': 28.6}, r'fiber_angle .*; degrees\? multiply by pi/180'),
         ({'max_pressure': '8 bar'}, 'max_pressure'),
-        ({'max_pressure': 8}, r'max_pressure .* got 8; bar\? multiply by 1e5'),
-        ({'max_pressure': 800}, r'max_pressure .* got 800; kPa\? multiply by 1e3'),
+        # the Festo data sheet's 8 bar, in bar, kPa, MPa and psi
+        ({'max_pressure': 8}, r'max_pressure .* got 8; bar\? 8 bar = 800000 Pa$'),
+        ({'max_pressure': 800}, r'max_pressure .* got 800; kPa\? 800 kPa = 800000 Pa$'),
+        ({'max_pressure': 0.8}, r'max_pressure .* got 0.8; MPa\? 0.8 MPa = 800000 Pa$'),
+        ({'max_pressure': 116}, r'max_pressure .* got 116; psi\? 116 psi = 799792 Pa$'),
         ({'colour': 'black'}, "unknown key 'muscle.colour'$"),
     ],
 )

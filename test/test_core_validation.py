@@ -82,3 +82,13 @@ def test_the_band_at_a_length():
     assert band.at(0.26) == (8.0, False) and band.at(0.2) == (1.0, False)  # outside: said so
     with pytest.raises(ValueError, match='as many finite lengths as errors'):
         HeldOutBand((0.25,), (1.0, 2.0), 500.0)
+
+
+def test_a_length_that_measured_no_force_is_judged_by_the_maps_worst():
+    """A held-out err of 0: every force measured there was 0 and the clipped model says slack;
+    that is no band of 0 N around a prediction, so the map's worst held-out err stands in.
+    """
+    band = HeldOutBand((0.25, 0.234, 0.219), (8.0, 3.0, 0.0), 500.0)
+    assert band.at(0.219) == (8.0, True) and band.slack_at(0.219)
+    assert band.at(0.22) == (3.0, True) and not band.slack_at(0.22)  # the larger of 3 and 0
+    assert band.values_at(0.219)['expected error [N]'] == '40'  # 8 % of 500 N

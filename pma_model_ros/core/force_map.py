@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .node_parameters import STANDARD_ATMOSPHERE
+from .units import length_hint, pressure_hint
 from .user_files import read_user_file
 
 COLUMNS = ('pressure_pa', 'length_m', 'force_n')
@@ -54,8 +55,7 @@ class ForceMap:
         if np.any(L <= 0) or np.any(L > 10):
             raise ValueError(
                 f'length_m must be in metres (0 < L <= 10), got {L.min():g}..{L.max():g}'
-                + ('; centimetres? divide by 100' if 10 < L.max() <= 100 else '')
-                + ('; millimetres? divide by 1000' if L.max() > 100 else '')
+                + (f'; {length_hint(L.max())}' if L.max() > 10 else '')
             )
         if np.any(p < 0):
             raise ValueError(
@@ -97,6 +97,12 @@ def read_force_map_csv(path: str | Path) -> ForceMap:
 def parse_force_map_csv(text: str, source: str) -> ForceMap:
     """Parse the text of a force map CSV; ``source`` names it in errors."""
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith('#')]
+    for name, separator in (('semicolons', ';'), ('tabs', '\t')):
+        if lines and separator in lines[0] and ',' not in lines[0]:
+            raise ValueError(
+                f'{source}: columns separated by {name}; a force map CSV separates them by commas '
+                '(and writes decimals with a point)'
+            )
     reader = csv.DictReader(io.StringIO('\n'.join(lines)))
     header = [f.strip() for f in reader.fieldnames or []]
     if header not in (list(COLUMNS), [*COLUMNS, DIRECTION]):
@@ -106,6 +112,11 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
     columns = [raw for raw, name in zip(reader.fieldnames, header)]
     rows = []
     for number, row in enumerate(reader, start=2):
+        if None in row:  # more fields than the header: a decimal comma splits a number in two
+            raise ValueError(
+                f'{source}: data row {number} has {len(columns) + len(row[None])} fields, the '
+                f'header {len(columns)}; decimals are written with a point'
+            )
         try:
             values = [float(row[c]) for c in columns]
         except (TypeError, ValueError):
@@ -122,8 +133,7 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
     if 0 < top < 1e3:
         raise ValueError(
             f'{source}: pressure_pa reaches only {top:g} Pa, no working pressure of a muscle: '
-            'gauge pressure in Pa; '
-            + ('bar? multiply by 1e5' if top <= 20 else 'kPa? multiply by 1e3')
+            f'gauge pressure in Pa; {pressure_hint(top)}'
         )
     try:
         return ForceMap(

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 
 from . import elementwise as ew
 from .typos import missing_key, unknown_keys
+from .units import pressure_hint
 
 
 @dataclass(frozen=True)
@@ -68,12 +69,8 @@ class MuscleSpec:
                 )
         if self.max_pressure < 1e3:
             raise ValueError(
-                f'muscle.max_pressure must be a gauge pressure in Pa, got {self.max_pressure:g}'
-                + (
-                    '; bar? multiply by 1e5'
-                    if self.max_pressure <= 20
-                    else '; kPa? multiply by 1e3'
-                )
+                f'muscle.max_pressure must be a gauge pressure in Pa, got {self.max_pressure:g}; '
+                + pressure_hint(self.max_pressure)
             )
         if not isinstance(self.name, str) or not self.name:
             raise ValueError('muscle.name must be a non-empty string')

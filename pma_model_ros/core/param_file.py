@@ -224,11 +224,15 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     return MuscleModel(spec, model, params, domain)
 
 
-def load_muscle(path: str | Path, model: str | None = None) -> MuscleModel:
-    """:func:`muscle_model` of the parameter file ``path``; errors of the file name it."""
+def load_muscle(
+    path: str | Path, model: str | None = None, parameters: dict | None = None
+) -> MuscleModel:
+    """:func:`muscle_model` of the parameter file ``path`` (``parameters``: its
+    :func:`read_parameters`, if read already); errors of the file name it.
+    """
     if model is not None:
         get_model(model)  # an unknown override is the caller's, not the file's
-    parameters = read_parameters(path)
+    parameters = read_parameters(path) if parameters is None else parameters
     try:
         return muscle_model(parameters, model)
     except ValueError as err:
@@ -331,9 +335,10 @@ def node_engine(
     )
 
 
-def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
+def node_settings(parameters: dict, model: str | None = None, instance: str = '') -> NodeSettings:
     """The model node's settings from ``ros__parameters`` (nested); absent node settings take their
-    defaults.
+    defaults.  ``instance``: the node's fully qualified name; an unset ``hardware_id`` is then
+    ``<instance>/<joint_name>``, unique per node (else ``joint_name``).
     """
     muscle = muscle_model(parameters, model)
     values = NODE_DEFAULTS | {k: parameters[k] for k in NODE_DEFAULTS if k in parameters}
@@ -348,22 +353,24 @@ def node_settings(parameters: dict, model: str | None = None) -> NodeSettings:
         config,
         joint,
         str(parameters.get('frame_id') or joint),
-        str(parameters.get('hardware_id') or joint),
+        str(parameters.get('hardware_id') or (f'{instance}/{joint}' if instance else joint)),
         identification(parameters, model),
         held_out_band(parameters, model),
     )
 
 
-def all_node_settings(parameters: dict, model: str | None = None) -> list[NodeSettings]:
+def all_node_settings(
+    parameters: dict, model: str | None = None, instance: str = ''
+) -> list[NodeSettings]:
     """Every muscle's settings from ``ros__parameters`` (nested): one muscle, or one per name of
-    ``muscles``.
+    ``muscles`` (``instance``: as :func:`node_settings`'s).
 
     Muscle ``<name>`` reads the block ``<name>:`` plus the node-wide settings; its joint name
     defaults to ``<name>``.  ValueError names the muscle and the problem.
     """
     names = parameters.get('muscles') or []
     if not names:
-        return [node_settings(parameters, model)]
+        return [node_settings(parameters, model, instance)]
     if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
         raise ValueError(f'muscles must be a list of names, got {names!r}')
     common = {key: parameters[key] for key in NODE_DEFAULTS if key in parameters}
@@ -374,7 +381,9 @@ def all_node_settings(parameters: dict, model: str | None = None) -> list[NodeSe
             raise ValueError(f"muscle '{name}': no parameters under '{name}:'")
         try:
             result.append(
-                node_settings(common | own | {'joint_name': own.get('joint_name') or name}, model)
+                node_settings(
+                    common | own | {'joint_name': own.get('joint_name') or name}, model, instance
+                )
             )
         except ValueError as err:
             raise ValueError(f"muscle '{name}': {err}") from None

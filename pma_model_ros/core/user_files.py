@@ -15,7 +15,8 @@ MAX_FILE_BYTES = 16 * 1024 * 1024
 
 
 def read_user_file(path: str | Path, what: str) -> str:
-    """The UTF-8 text of the one regular file a user named (no search path, no includes).
+    """The UTF-8 text of the one regular file a user named (no search path, no includes); a
+    leading byte-order mark (spreadsheet exports write one) is not part of the text.
 
     ValueError for a missing path, a directory, device or FIFO, a file over
     :data:`MAX_FILE_BYTES`, or bytes that are not UTF-8.
@@ -34,7 +35,7 @@ def read_user_file(path: str | Path, what: str) -> str:
             f'{what} {path} is {info.st_size} bytes, over the {MAX_FILE_BYTES}-byte limit'
         )
     try:
-        return path.read_bytes().decode('utf-8')
+        return path.read_bytes().decode('utf-8-sig')
     except UnicodeDecodeError:
         raise ValueError(f'{what} {path} is not UTF-8 text') from None
     except OSError as err:

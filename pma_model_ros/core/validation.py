@@ -192,7 +192,9 @@ class HeldOutBand:
     """How far to trust a fit at a length: the nested held-out err of each held-out length.
 
     ``lengths`` [m] (descending, as :func:`fold_lengths`), ``errors`` [% of ``max_force``], the
-    map's ``max_force`` [N].
+    map's ``max_force`` [N].  An error of exactly 0 is a length where no force was measured: eq. 23
+    there says only that the clipped model is slack where the muscle was, not how far to trust it
+    (:meth:`at` gives the map's worst instead).
     """
 
     lengths: tuple[float, ...]
@@ -221,10 +223,9 @@ class HeldOutBand:
         order = np.argsort(self.lengths)
         return np.asarray(self.lengths)[order], np.asarray(self.errors)[order]
 
-    def at(self, length: float) -> tuple[float, bool]:
-        """(expected worst error [%] at ``length`` [m], whether it lies within the held-out
-        lengths): the larger error of the two held-out lengths around it; outside them, the
-        nearest one's (an extrapolation, which the figure does not cover).
+    def _around(self, length: float) -> tuple[float, bool]:
+        """(the larger error [%] of the held-out lengths around ``length`` [m], or at it, or the
+        nearest one's outside them; whether it lies within the held-out lengths).
         """
         lengths, errors = self._sorted
         if length < lengths[0] or length > lengths[-1]:
@@ -233,6 +234,21 @@ class HeldOutBand:
         if lengths[i] == length:
             return float(errors[i]), True
         return float(max(errors[i - 1], errors[i])), True
+
+    def slack_at(self, length: float) -> bool:
+        """Whether no force was measured at the held-out lengths that judge ``length`` [m] (their
+        errors 0).
+        """
+        return self._around(length)[0] == 0
+
+    def at(self, length: float) -> tuple[float, bool]:
+        """(expected worst error [%] at ``length`` [m], whether it lies within the held-out
+        lengths): the larger error of the two held-out lengths around it; outside them, the
+        nearest one's (an extrapolation, which the figure does not cover); where those measured
+        no force (:meth:`slack_at`), the map's worst.
+        """
+        percent, inside = self._around(length)
+        return (max(self.errors) if percent == 0 else percent), inside
 
     def values_at(self, length: float) -> dict[str, str]:
         """The expected error at ``length`` [m] as diagnostic key-values (model_node's status of a
