@@ -21,6 +21,7 @@ from .core.calibration import Calibration
 from .core.flags import describe, Flag
 from .core.force_map import read_force_map_csv
 from .core.identification import (
+    check_fit_map,
     domain_of,
     Fit,
     fit_best,
@@ -241,6 +242,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
     if args.model != 'all' and get_model(args.model).hysteresis:
         return _fit_branches(args, spec)
     fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
+    check_fit_map(fmap, spec, folds=3)
     calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
     print(calibration.describe() + ' (switch off: --no-calibrate-length, --no-calibrate-pressure)')
     names = TABLE3_MODELS if args.model == 'all' else (args.model,)
@@ -305,6 +307,7 @@ def _fit_branches(args: argparse.Namespace, spec) -> None:
         if args.data
         else bag_force_map(args, spec, two_branches=True)
     )
+    check_fit_map(fmap, spec, folds=2)
     fit = fit_best(model, spec, fmap, args.objective)
     write_parameters(
         args.out,

@@ -757,6 +757,85 @@ def test_a_force_map_with_a_byte_order_mark_is_read(tmp_path, capsys):
     assert capsys.readouterr().out.split('\n')[0].endswith('(85 points)')  # Table A2: 17 x 5
 
 
+def _table_a2(**change):
+    """Table A2 (DMSP-10-250) with ``pressure``, ``length`` or ``force`` mapped by a function, and
+    ``keep``: a mask of the points kept.
+    """
+    fmap = shipped_force_map('DMSP-10-250')
+    keep = change.get('keep', lambda m: np.ones(m.force.size, bool))(fmap)
+    same = lambda a: a  # noqa: E731
+    return (
+        change.get('pressure', same)(fmap.pressure[keep]),
+        change.get('length', same)(fmap.length[keep]),
+        change.get('force', same)(fmap.force[keep]),
+    )
+
+
+@pytest.mark.parametrize(
+    'change, message',
+    [
+        (  # absolute pressures: Table A2's first step, 5 kPa gauge, at 101325 Pa ambient
+            {'pressure': lambda p: p + 101325},
+            'pressure_pa starts at 106325 Pa with no force at any length: about ambient '
+            '(101325 Pa), so absolute pressures; the map takes gauge pressure = absolute - '
+            'ambient (e.g. 5000 Pa)',
+        ),
+        (  # 542.5 N, Table A2's largest force, in kN; the bound: test_core_geometry
+            {'force': lambda f: f / 1e3},
+            'force_n reaches 0.5425 at 650000 Pa, where the geometry of DMSP-10-250 pulls at '
+            'most 952.9 N',
+        ),
+        ({'force': lambda f: f * 1e3}, 'N·mm or mN? 542500 mN = 542.5 N'),
+        (
+            {'keep': lambda m: np.isin(m.length, (0.25, 0.219))},
+            'a fit needs a map of at least 3 lengths, got 2 (0.25, 0.219 m): with 2 no length '
+            'is held out between others to judge the fit; measure one between 0.219 and 0.25 m',
+        ),
+        (
+            {'keep': lambda m: m.length == 0.25},
+            'a fit needs a map of at least 3 lengths, got 1 (0.25 m): measure the force map at '
+            'several lengths',
+        ),
+        (  # the DMSP-10-250, L0 0.25 m: its fibre length 0.25 / cos(28.6 deg) = 0.284744 m
+            {'length': lambda L: np.where(L == 0.25, 0.29, L)},
+            'length_m reaches 0.29 m, beyond what the geometry of DMSP-10-250 can take (0 < L < '
+            '0.284744 m, its fibre length L0/cos(Theta0))',
+        ),
+    ],
+)
+def test_fit_names_a_map_it_cannot_identify_before_fitting(tmp_path, capsys, change, message):
+    """One line, exit 2, before any fitting (not even the calibration line) and no file."""
+    csv, out = tmp_path / 'map.csv', tmp_path / 'fit.yaml'
+    csv.write_text(
+        'pressure_pa,length_m,force_n\n'
+        + ''.join(f'{p:.9g},{L:.9g},{F:.9g}\n' for p, L, F in zip(*_table_a2(**change)))
+    )
+    argv = ['fit', '--data', str(csv), '--muscle', str(SPEC_10_250), '--model', 'martens']
+    assert main([*argv, '--out', str(out)]) == 2
+    out_text, err = capsys.readouterr()
+    assert out_text == '' and err.startswith('pma-model: error: ') and message in err, err
+    assert err.count('\n') == 1 and not out.exists()
+
+
+def test_fit_names_points_measured_twice_at_other_forces(tmp_path, capsys):
+    """Table A2 appended once more with every force 30 % higher: 260 kPa at 0.25 m measured
+    195.667 N and 254.367 N.
+    """
+    p, L, F = _table_a2()
+    csv = tmp_path / 'map.csv'
+    csv.write_text(
+        'pressure_pa,length_m,force_n\n'
+        + ''.join(f'{a:.9g},{b:.9g},{c:.9g}\n' for a, b, c in zip(p, L, F))
+        + ''.join(f'{a:.9g},{b:.9g},{c * 1.3:.9g}\n' for a, b, c in zip(p, L, F))
+    )
+    argv = ['fit', '--data', str(csv), '--muscle', str(SPEC_10_250), '--model', 'martens']
+    assert main([*argv, '--out', str(tmp_path / 'fit.yaml')]) == 2
+    err = capsys.readouterr().err
+    pulling = int(np.count_nonzero(0.3 * F > 0.07 * 1.3 * 542.5))  # 7 % of the max, 1.3 x 542.5
+    assert err.startswith(f'pma-model: error: {pulling} point(s) measured twice with forces more')
+    assert 'e.g. 260000 Pa, 0.25 m: 195.667, 254.367 N' in err
+
+
 def test_evaluate_a_map_of_one_length(tmp_path, capsys):
     """A length held back to check a fit is a map of one length: evaluated, per-length table."""
     fmap = shipped_force_map('DMSP-20-300')

@@ -84,3 +84,14 @@ def test_user_spec_yaml(tmp_path):
     path.write_text('- just\n- a list\n')
     with pytest.raises(ValueError, match='mapping'):
         read_spec_yaml(path)
+
+
+def test_the_pull_bound_is_the_ideal_cylinder_at_the_outer_diameter():
+    """By hand: pi 0.0136^2 / 4 = 1.45267e-4 m^2, 3 / tan^2(28.6 deg) = 10.0921: 952.9 N at
+    650 kPa, above the 542.5 N that Table A2 measured there at L0 (0.57 of it).
+    """
+    spec = shipped_spec('DMSP-10-250')
+    assert geo.pull_bound(spec, 0.25) * 650e3 == pytest.approx(952.9, abs=0.05)
+    assert geo.pull_bound(spec, 0.2) == geo.pull_bound(spec, 0.25)  # contracted: L0's
+    # stretched 10 % beyond L0: (1.1)^2 times
+    assert geo.pull_bound(spec, 0.275) == pytest.approx(1.21 * geo.pull_bound(spec, 0.25))

@@ -177,6 +177,17 @@ def diameter_slope(
     return braid(spec, length, fiber_angle)[1]
 
 
+def pull_bound(spec: MuscleSpec, length: float) -> float:
+    """[m^2] F <= p * this at lengths up to ``length`` [m]: the ideal cylinder's force (Chou and
+    Hannaford) p pi D^2/4 (3 (L/L0)^2 / tan^2 Theta0 - 1 / sin^2 Theta0) without its negative
+    term, with the outer diameter D0 + 2 H0 (the shipped maps pull 0.55..0.57 of it at their top
+    pressure) and L at least L0.
+    """
+    outer = spec.inner_diameter + 2 * spec.membrane_thickness
+    stretch = max(length, spec.nominal_length) / spec.nominal_length
+    return math.pi * outer**2 / 4 * 3 * stretch**2 / math.tan(spec.fiber_angle) ** 2
+
+
 def shortest_length(spec: MuscleSpec) -> float:
     """Shortest length of the ideal braid, L_Fiber / sqrt(3) [m]: there dV/dL = 0 (eq. 4), Theta =
     54.7 deg, and the muscle pulls no more at any pressure (its full contraction).
