@@ -56,12 +56,19 @@ def stamp_key(msg) -> int:
     return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
 
 
-def model_statuses(diagnostics: list, namespace: str) -> list:
-    """The DiagnosticStatus entries of model_node (named ``model_node: <joint>``, as
-    diagnostic_updater names them), oldest first; ``namespace``: the test's, which its own
-    /diagnostics subscription already isolates.
+def status_prefix(namespace: str, node: str = 'model_node') -> str:
+    """What the names of the statuses of ``node`` in ``namespace`` start with: its fully
+    qualified name without the leading slash, then ``': '`` (as diagnostic_updater names them).
     """
-    return [s for d in diagnostics for s in d.status if s.name.startswith('model_node: ')]
+    return f'{namespace.strip("/")}/{node}: '.lstrip('/')
+
+
+def model_statuses(diagnostics: list, namespace: str) -> list:
+    """The DiagnosticStatus entries of model_node in ``namespace`` (named ``<namespace>/model_node:
+    <joint>``), oldest first.
+    """
+    ours = status_prefix(namespace)
+    return [s for d in diagnostics for s in d.status if s.name.startswith(ours)]
 
 
 def status_values(status) -> dict[str, str]:

@@ -77,7 +77,7 @@ def test_every_node_comes_up_and_answers_in_one_process(ros, processes, namespac
     )
     ros.spin_until(
         lambda: (
-            {'model_node: DMSP-10-250', 'joint_node: elbow'}
+            {f'{namespace[1:]}/model_node: DMSP-10-250', f'{namespace[1:]}/joint_node: elbow'}
             <= {s.name for d in diagnostics for s in d.status}
         ),
         10,

@@ -100,7 +100,7 @@ def test_stale_pressure_gives_no_estimate_and_an_error(make_node):
     assert (status.level, status.name, status.hardware_id) == (
         b'\x02',
         'joint_node: elbow',
-        'elbow',
+        '/joint_node/elbow',  # unset: instance-specific
     )
     assert status.message.startswith('stale flexor pressure: newest stamp is 5 s old')
 

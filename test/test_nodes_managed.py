@@ -7,6 +7,7 @@ publishers publish recorded.  Then once over DDS: a model_node process started w
 
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 import pytest
@@ -69,6 +70,14 @@ def entities(node) -> set[str]:
     }
 
 
+def inactive(diagnostics: list) -> bool:
+    """Whether every status of ``diagnostics`` (one at least) says the node is inactive."""
+    statuses = [s for d in diagnostics for s in d.status]
+    return bool(statuses) and all(
+        (s.level, s.message) == (DiagnosticStatus.OK, 'inactive') for s in statuses
+    )
+
+
 def feed_model_node(node, stamp, force: float = 100.0) -> None:
     """A pressure, a length and a force command, as bytes into the callbacks."""
     node._on_pressure(0, raw(pressure(stamp, AMBIENT + 300e3)))
@@ -89,7 +98,7 @@ def test_model_node_goes_through_every_transition(make):
     now = frozen_clock(node)
     feed_model_node(node, now)  # inactive: dropped unread
     node._on_timer()
-    assert (estimates, commands, diagnostics) == ([], [], [])
+    assert (estimates, commands) == ([], []) and inactive(diagnostics)
     assert node.engine.counts(0) == {}
 
     assert node.trigger_activate() == SUCCESS and label(node) == 'active'
@@ -103,7 +112,8 @@ def test_model_node_goes_through_every_transition(make):
     sent = len(diagnostics)
     feed_model_node(node, now, force=200.0)
     node._on_timer()
-    assert (len(estimates), len(commands), len(diagnostics)) == (1, 1, sent)
+    assert (len(estimates), len(commands), len(diagnostics)) == (1, 1, sent + 1)
+    assert inactive(diagnostics[sent:])
 
     assert node.trigger_activate() == SUCCESS
     node._on_command(0, raw(force_command(100.0)))  # no length known since the activation
@@ -231,6 +241,49 @@ def test_joint_node_commands_only_while_active(make):
     assert node.trigger_shutdown() == SUCCESS and node.engine is None
 
 
+def test_parameters_are_declared_before_configure_and_read_by_it(make):
+    """As a lifecycle manager expects: every parameter exists while unconfigured (listed, set
+    with the node's own validation), and configure reads the values set then.
+    """
+    node = make(ModelNode, CONFIG, autostart=False)
+    assert label(node) == 'unconfigured'
+    assert {'max_input_age', 'model', 'models.martens.params', 'muscle.max_pressure'} <= set(
+        node.list_parameters([], 0).names
+    )
+    assert node.set_parameters([Parameter('max_input_age', value=0.25)])[0].successful
+    refused = node.set_parameters([Parameter('model', value='foo')])[0]
+    assert not refused.successful and "unknown model 'foo'" in refused.reason
+    assert node.trigger_configure() == SUCCESS
+    assert node.engine.configs[0].max_input_age == 0.25
+    joint = make(JointNode, EXAMPLE_JOINT, autostart=False)
+    assert joint.get_parameter('elbow.cocontraction').value is not None
+
+
+@pytest.mark.parametrize(
+    'cls, params_file, name',
+    [
+        (ModelNode, CONFIG, 'DMSP-10-250'),
+        (JointNode, EXAMPLE_JOINT, 'elbow'),
+    ],
+)
+def test_while_inactive_the_status_timer_says_inactive(make, cls, params_file, name):
+    """Configured but not active: one status per muscle or joint at level OK, ``inactive``, from
+    the status timer; none while unconfigured.
+    """
+    node = make(cls, params_file, autostart=False)
+    assert node.trigger_configure() == SUCCESS
+    diagnostics = record(node._diag_pub)
+    node._on_timer()
+    assert [s.name.split(': ')[1] for s in diagnostics[-1].status] == [name]
+    assert inactive(diagnostics[-1:])
+    assert node.trigger_activate() == SUCCESS
+    node._on_timer()
+    assert diagnostics[-1].status[0].message != 'inactive'
+    assert node.trigger_deactivate() == SUCCESS
+    node._on_timer()
+    assert inactive(diagnostics[-1:])
+
+
 # --- over DDS, from a second process
 def lifecycle(ros, node_name: str):
     """(change(transition label or id) -> success, get() -> state label) of ``node_name``'s
@@ -344,3 +397,47 @@ def test_the_readme_names_the_lifecycle_services():
     for transition in ('configure', 'activate', 'deactivate', 'cleanup', 'shutdown'):
         assert f'ros2 lifecycle set /left_biceps/model_node {transition}' in section
     assert 'lifecycle_msgs/srv/ChangeState' in section
+
+
+@pytest.mark.ros
+def test_a_lifecycle_managers_sequence_from_another_process(ros, processes, namespace):
+    """What nav2's lifecycle_manager or launch_ros does, over the standard services: set a
+    parameter before configure, configure, activate, deactivate (/diagnostics says inactive),
+    cleanup, shutdown.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+    from rcl_interfaces.srv import GetParameters, SetParameters
+
+    proc = processes.node('model_node', namespace, CONFIG, autostart='false')
+    why = lambda: processes.output(proc)  # noqa: E731
+    node = f'{namespace}/model_node'
+    change, get = lifecycle(ros, node)
+    diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
+
+    def messages() -> list[str]:
+        """The messages of this node's statuses so far (its namespace is in their names)."""
+        return [s.message for d in diagnostics for s in d.status if namespace[1:] in s.name]
+
+    assert get() == 'unconfigured'
+    value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.25)
+    request = SetParameters.Request(parameters=[ParameterMsg(name='max_input_age', value=value)])
+    result = ros.call(SetParameters, f'{node}/set_parameters', request).results[0]
+    assert result.successful, result.reason
+    assert change('configure') and get() == 'inactive', why()
+    got = ros.call(
+        GetParameters, f'{node}/get_parameters', GetParameters.Request(names=['max_input_age'])
+    )
+    assert got.values[0].double_value == 0.25
+    ros.spin_until(lambda: 'inactive' in messages(), 10, 'an inactive status', diagnose=why)
+    assert change('activate') and get() == 'active', why()
+    ros.spin_until(
+        lambda: messages() and messages()[-1] != 'inactive', 10, 'an active status', diagnose=why
+    )
+    assert change('deactivate') and get() == 'inactive', why()
+    seen = len(messages())
+    ros.spin_until(lambda: 'inactive' in messages()[seen:], 10, 'inactive again', diagnose=why)
+    assert change('cleanup') and get() == 'unconfigured', why()
+    assert change('shutdown') and get() == 'finalized', why()
+    assert proc.poll() is None, why()

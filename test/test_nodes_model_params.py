@@ -240,3 +240,25 @@ def test_pressure_range_defaults_to_an_empty_array_of_doubles(private_node, tmp_
     assert not refused.successful and node.get_parameter('pressure_range').value == []
     assert node.set_parameters([Parameter('pressure_range', value=[0.0, 5e5])])[0].successful
     assert node.engine.configs[0].model.domain.pressure_max == 5e5
+
+
+def test_an_alias_selects_its_models_block(node):
+    """``model: tondu_lopez`` is andrikopoulos's eq. 18: its block is declared, as the model's."""
+    andrikopoulos = node.set_parameters([Parameter('model', value='andrikopoulos')])[0]
+    assert andrikopoulos.successful
+    expected = estimate(node)
+    assert node.set_parameters([Parameter('model', value='tondu_lopez')])[0].successful
+    assert node.has_parameter('models.andrikopoulos.params')
+    assert node.engine.configs[0].model.model.name == 'andrikopoulos'
+    assert estimate(node) == expected
+    assert node.set_parameters([Parameter('model', value='martens')])[0].successful
+    assert not node.has_parameter('models.andrikopoulos.params')
+
+
+def test_a_file_selecting_an_alias_declares_its_models_block(private_node, tmp_path):
+    path = edited_copy(
+        CONFIGS['DMSP-10-250'], tmp_path, '    model: martens', '    model: tondu_lopez'
+    )
+    node = private_node(ModelNode, '--params-file', path)
+    assert node.has_parameter('models.andrikopoulos.params')
+    assert not node.has_parameter('models.martens.params')

@@ -11,7 +11,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import REPO
-from node_messages import AMBIENT, pressure, state
+from node_messages import AMBIENT, pressure, state, status_prefix
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.tools import node_process
 
@@ -106,7 +106,7 @@ def test_combined_mode_estimates_every_muscle_as_its_own_file(ros, processes, na
         every=combined_inputs(ros, namespace),
         diagnose=lambda: f'last: {estimates[-1:]}\n{why()}',
     )
-    ours = 'model_node: '
+    ours = status_prefix(namespace)
     ros.spin_until(
         lambda: any(len(d.status) == 4 and d.status[0].name.startswith(ours) for d in diagnostics),
         10,
@@ -120,7 +120,7 @@ def test_combined_state_without_one_muscle_rejects_only_it(ros, processes, names
     node = processes.node('model_node', namespace, EXAMPLE)
     estimates = ros.collect(JointState, f'{namespace}/force_estimates')
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics')
-    ours = 'model_node: '
+    ours = status_prefix(namespace)
     publish = combined_inputs(ros, namespace, skip_state='finger')
 
     def reported() -> bool:

@@ -116,7 +116,8 @@ JOINT_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         'hardware_id',
         'string',
         '',
-        "the device: `hardware_id` of the joint's /diagnostics status (empty: the joint's name)",
+        "the device: `hardware_id` of the joint's /diagnostics status (empty: "
+        '`/<namespace>/joint_node/<joint>`, unique per node)',
     ),
 )
 MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(

@@ -17,7 +17,7 @@ import math
 
 from .hysteresis import Follow
 from .hysteresis import INPUTS as HYSTERESIS_INPUTS
-from .models import MODELS
+from .models import ALIASES, MODELS
 
 #: Standard atmosphere [Pa absolute]: the default ambient pressure.
 STANDARD_ATMOSPHERE = 101325.0
@@ -78,7 +78,8 @@ def read_only(*specs: ParameterSpec) -> tuple[ParameterSpec, ...]:
     return tuple(replace(spec, read_only=True) for spec in specs)
 
 
-_MODEL_NAMES = ', '.join(MODELS)
+#: Every name ``model`` accepts: the registry's models and aliases.
+_MODEL_NAMES = ', '.join([*MODELS, *(f'{alias} (= {name})' for alias, name in ALIASES.items())])
 #: Every parameter of model_node, in the README's order.
 PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec(
@@ -248,7 +249,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         'hardware_id',
         'string',
         '',
-        "the device: `hardware_id` of the muscle's /diagnostics status (empty: `joint_name`)",
+        "the device: `hardware_id` of the muscle's /diagnostics status (empty: "
+        '`/<namespace>/model_node/<joint_name>`, unique per node)',
         per_muscle=True,
     ),
     ParameterSpec(

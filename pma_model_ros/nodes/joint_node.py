@@ -11,7 +11,8 @@ a namespace applies; pressures absolute, or gauge with ``pressure_reference: gau
 * out, once per joint_states message, for its joints whose pressures are fresh: ``torque_estimate``
   (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate``
   (JointState: effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics``
-  (one status per joint, named ``joint_node: <joint>``, ``hardware_id`` the joint's parameter;
+  (one status per joint, named ``<namespace>/joint_node: <joint>``, ``hardware_id`` the joint's
+  parameter, by default ``/<namespace>/joint_node/<joint>``;
   1 Hz and when a level changes, as model_node's);
 * commands: ``torque_command`` (JointState: effort = wanted torque [N·m]) → each muscle's
   ``<muscle>/pressure_command`` (FluidPressure, absolute Pa), at the newest angle, with the joint's
@@ -82,8 +83,16 @@ class JointNode(ManagedNode):
         self.engine: JointEngine | None = None
         super().__init__('joint_node', **kwargs)
 
+    def declare_all(self) -> None:
+        declare(self)
+
+    def status_names(self) -> list[tuple[str, str]]:
+        return list(zip(self._names, self._hardware))
+
     def configure(self) -> None:
-        """Read and check the parameters, build the engine, create every ROS entity."""
+        """Read and check the parameters, build the engine, warn about unknown parameters; then,
+        last, create every ROS entity (nothing is matched before the node can answer).
+        """
         declare(self)
         # the overrides: also what is not declared, e.g. an inline muscle's other models
         flat = parameters.overrides(self) | parameters.values(self)
@@ -112,7 +121,9 @@ class JointNode(ManagedNode):
             forward_order(list(flat['forward_command_order'] or []), found) if topic else None
         )
         self.reset()
-        self._hardware = [str(nested[j.name].get('hardware_id') or j.name) for j in found]
+        self._hardware = [
+            str(nested[j.name].get('hardware_id') or f'{self.instance}/{j.name}') for j in found
+        ]
         self._names = [j.name for j in found]
         # prebuilt answers of every joint (the usual joint_states), and each muscle's command
         self._all = [joint_state(self._names, 'effort') for _ in range(2)]
@@ -126,7 +137,6 @@ class JointNode(ManagedNode):
                 'cocontraction_command',
             )
         }
-        self.create_interfaces()
         parameters.warn_unknown(self, model_params.expected_undeclared)  # inline muscles' models
         self.get_logger().info(
             '; '.join(
@@ -135,6 +145,7 @@ class JointNode(ManagedNode):
                 for j in found
             )
         )
+        self.create_interfaces()
 
     def reset(self) -> None:
         """A fresh engine (no input known, co-contraction levels from the parameters), and no

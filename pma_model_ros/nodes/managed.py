@@ -39,10 +39,11 @@ from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 
+from .diagnostics import diagnostic_array
 from .parameters import declare
 from .rclpy_private import clock_handle, RCLError
 from .startup import refusing, StartupError
-from ..core.health import DIAGNOSTIC_PERIOD
+from ..core.health import DIAGNOSTIC_PERIOD, Level
 from ..core.node_parameters import SPECS
 
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
@@ -62,12 +63,18 @@ class ManagedNode(LifecycleNode):
         service = next(s for s in self.services if s.srv_type is ChangeState)
         service.callback = partial(_refuse_unknown_transitions, service.callback)
         self.active = False  #: the gate of every input callback
+        #: the node's fully qualified name: default hardware_id prefix of its statuses
+        self.instance = self.get_fully_qualified_name()
         self.refusal = ''  #: why the last configure failed
         self._ros_clock = clock_handle(self.get_clock())  # see now()
         self._built: list = []  # the publishers, subscriptions and timer of configure
         self._starting = False
         with refusing(self):
             self.autostart = declare(self, SPECS['autostart']).value
+        try:  # so that they can be listed and set while unconfigured
+            self.declare_all()
+        except (ParameterException, ValueError):
+            pass  # configure declares them again, and fails with the reason
         if self.autostart:
             self._starting = True
             try:
@@ -79,6 +86,16 @@ class ManagedNode(LifecycleNode):
             self.trigger_activate()
 
     # --- what a node provides
+    def declare_all(self) -> None:
+        """Declare every parameter of the node (again: those not declared yet); rclpy parameter
+        exceptions or ValueError for a bad override.
+        """
+        raise NotImplementedError
+
+    def status_names(self) -> list[tuple[str, str]]:
+        """(name, hardware_id) of each status :meth:`publish_status` publishes."""
+        raise NotImplementedError
+
     def configure(self) -> None:
         """Read and check the parameters, build the engine, create publishers and subscriptions;
         ValueError or an rclpy ParameterException for a bad parameter.
@@ -110,8 +127,14 @@ class ManagedNode(LifecycleNode):
             self.publish_status(now)
 
     def _on_timer(self) -> None:
+        """Every :data:`DIAGNOSTIC_PERIOD`: the statuses while active; while inactive, each status
+        at level OK with the message ``inactive`` (an aggregator sees the node alive, not stale).
+        """
         if self.active:
             self.publish_status(self.now())
+        else:
+            entries = [(name, hw, Level.OK, 'inactive', {}) for name, hw in self.status_names()]
+            self._diag_pub.publish(diagnostic_array(self, entries))
 
     # --- transitions
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:

@@ -60,19 +60,26 @@ class ModelNode(ManagedNode):
         self.engine: Engine | None = None
         super().__init__('model_node', **kwargs)
 
-    def configure(self) -> None:
-        """Read and check the parameters, build the engine, create every ROS entity."""
+    def declare_all(self) -> None:
+        """Declare every parameter; the first time, the model blocks and the set-parameters
+        callbacks (they outlive a cleanup).
+        """
         self._names, self.mode = model_params.declare(self)
-        if self._blocks is None:  # the first configure; the blocks outlive a cleanup
+        if self._blocks is None:
             self._blocks = model_params.ModelBlocks(self, self._names)
             self.add_pre_set_parameters_callback(self._blocks.hold)
             self.add_on_set_parameters_callback(self._validate)
             self.add_post_set_parameters_callback(self._apply)
+
+    def configure(self) -> None:
+        """Read and check the parameters, build the engine, warn about unknown parameters; then,
+        last, create every ROS entity (nothing is matched before the node can answer).
+        """
+        self.declare_all()
         flat = self._blocks.would_be([])
-        self.settings = model_params.all_settings(flat, self._names)
+        self.settings = model_params.all_settings(flat, self._names, self.instance)
         self._pairing = node_pairing(flat)
         self.reset()
-        self.create_interfaces()
         warn_unknown(self, model_params.expected_undeclared)
         muscles = [
             f'{s.config.model.spec.name} with model {s.config.model.model.name}, joint '
@@ -84,6 +91,10 @@ class ModelNode(ManagedNode):
             if not self._names
             else f'{len(muscles)} muscles, {self.mode}: ' + '; '.join(muscles)
         )
+        self.create_interfaces()
+
+    def status_names(self) -> list[tuple[str, str]]:
+        return [(s.joint_name, s.hardware_id) for s in self.settings]
 
     def reset(self) -> None:
         """A fresh engine of the current settings (no input known, counters at zero)."""
@@ -150,7 +161,7 @@ class ModelNode(ManagedNode):
         flat = self._blocks.applied()
         if self.engine is None:
             return
-        settings = model_params.all_settings(flat, self._names)
+        settings = model_params.all_settings(flat, self._names, self.instance)
         self.engine.configure([s.config for s in settings])
         self.settings = settings
         self.use(settings)

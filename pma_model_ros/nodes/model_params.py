@@ -24,7 +24,7 @@ from rclpy.parameter import Parameter
 
 from .parameters import declare as declare_spec
 from .parameters import descriptor, nest, overrides, plain, TYPES, values
-from ..core.models import get_model, MODELS
+from ..core.models import ALIASES, get_model, MODELS
 from ..core.node_parameters import (
     IDENTIFICATION,
     MODEL_BLOCK,
@@ -87,7 +87,7 @@ def declare_muscle(
     for spec in PARAMETERS:
         if spec.per_muscle and not spec.name.startswith('models.'):
             declare_spec(node, replace(spec, read_only=read_only), prefix, defaults)
-    model = node.get_parameter_or(prefix + 'model').value  # unset: None
+    model = block_of(node.get_parameter_or(prefix + 'model').value)  # unset: None
     if model in MODELS:
         declare_block(node, prefix, model, read_only=read_only)
 
@@ -113,6 +113,11 @@ def declare_block(
             node.declare_parameter(name, TYPES[spec.kind], descriptor(spec, text))
 
 
+def block_of(model: str | None) -> str | None:
+    """The model whose block ``model`` selects: itself, or the model an alias names."""
+    return ALIASES.get(model, model)
+
+
 def expected_undeclared(name: str) -> bool:
     """Whether a parameter file's entry ``name`` is one a node reads without declaring it: a
     known model's block entry or identification result.
@@ -133,7 +138,9 @@ class ModelBlocks:
     def __init__(self, node: Node, names: list[str]) -> None:
         self.node, self.prefixes = node, prefixes(names)
         self.stored = {k: v for k, v in overrides(node).items() if expected_undeclared(k)}
-        self.selected = {p: node.get_parameter_or(p + 'model').value for p in self.prefixes}
+        self.selected = {
+            p: block_of(node.get_parameter_or(p + 'model').value) for p in self.prefixes
+        }
         self._held: dict[str, object] = {}
         self.swapping = False  #: declarations of :meth:`applied` are in progress
 
@@ -169,7 +176,7 @@ class ModelBlocks:
         self.swapping = True
         try:
             for prefix, old in self.selected.items():
-                new = self.node.get_parameter_or(prefix + 'model').value
+                new = block_of(self.node.get_parameter_or(prefix + 'model').value)
                 if new == old:
                     continue
                 block = [f'{prefix}models.{old}.{entry}' for entry in MODEL_BLOCK]
@@ -196,10 +203,12 @@ def _check_names(names: list[str], mode: str) -> None:
         raise ValueError(f"parameter 'muscles': duplicate names in {names}")
 
 
-def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings]:
+def all_settings(
+    flat: dict[str, object], names: list[str], instance: str = ''
+) -> list[NodeSettings]:
     """Settings of every muscle of a would-be parameter set (one without ``names``; see
-    :func:`~pma_model_ros.core.param_file.all_node_settings`).  ValueError names the muscle and
-    parameter.
+    :func:`~pma_model_ros.core.param_file.all_node_settings`, and its ``instance``).  ValueError
+    names the muscle and parameter.
     """
     for prefix in prefixes(names):
         where = f"muscle '{prefix[:-1]}': " if prefix else ''
@@ -212,4 +221,4 @@ def all_settings(flat: dict[str, object], names: list[str]) -> list[NodeSettings
             get_model(flat[prefix + 'model'])
         except ValueError as err:
             raise ValueError(f"{where}parameter 'model': {err}") from None
-    return all_node_settings(nest(flat))
+    return all_node_settings(nest(flat), instance=instance)
