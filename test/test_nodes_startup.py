@@ -27,6 +27,16 @@ def test_a_params_file_rcl_cannot_parse_is_one_line(tmp_path):
     assert len(lines) == 1 and 'invalid parameters' in lines[0], lines
 
 
+def test_a_muscle_spec_as_params_file_is_named_so():
+    """rcl would say only 'Cannot have a value before ros__parameters at line 2'."""
+    spec = REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml'
+    lines = lines_of_failed_start(model_node('--params-file', str(spec)))
+    assert len(lines) == 1 and lines[0].endswith(
+        f"invalid parameters: {spec} is a muscle spec, not a ROS parameter file ('<node>: "
+        f"ros__parameters:'); make one with pma-model fit --muscle {spec}"
+    ), lines
+
+
 def test_an_unknown_executor_is_one_line_naming_it():
     lines = lines_of_failed_start(
         model_node('--params-file', str(CONFIG), '-p', 'executor:=threads')

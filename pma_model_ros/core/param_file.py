@@ -123,12 +123,31 @@ def read_parameters(path: str | Path) -> dict:
             if problems:
                 raise ValueError(f'{path}: ' + '; '.join(problems))
             return parameters
-    if set(data) <= set(MuscleSpec.__dataclass_fields__) | {'muscle'}:
+    refuse_muscle_spec(data, path)
+    raise ValueError(f"{path}: no '<node>: ros__parameters:' mapping found")
+
+
+def refuse_muscle_spec(data: dict, path: str | Path) -> None:
+    """ValueError if ``data``, the top mapping of the file ``path``, is a muscle spec (its keys
+    or ``muscle:``, no ``ros__parameters``) where a ROS parameter file is wanted.
+    """
+    nodes = [v for v in data.values() if isinstance(v, dict) and 'ros__parameters' in v]
+    if not nodes and set(data) <= set(MuscleSpec.__dataclass_fields__) | {'muscle'}:
         raise ValueError(
             f'{path} is a muscle spec, not a ROS parameter file '
             f"('<node>: ros__parameters:'); make one with pma-model fit --muscle {path}"
         )
-    raise ValueError(f"{path}: no '<node>: ros__parameters:' mapping found")
+
+
+def check_params_file(path: str | Path) -> None:
+    """A node's ``--params-file`` before rcl reads it: ValueError if it is a muscle spec (rcl says
+    only 'Cannot have a value before ros__parameters'); rcl reports any other problem itself.
+    """
+    try:
+        data = load_yaml_mapping(read_user_file(path, 'parameter file'), str(path))
+    except ValueError:
+        return
+    refuse_muscle_spec(data, path)
 
 
 def unknown_parameters(parameters: dict) -> list[str]:

@@ -13,6 +13,7 @@ import faulthandler
 import gc
 import re
 import signal
+import sys
 import threading
 from typing import Callable, Iterator, Sequence
 
@@ -27,6 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 from .parameters import declare
 from .rclpy_private import RCLError
 from ..core.node_parameters import SPECS
+from ..core.param_file import check_params_file
 
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
 #: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and
@@ -63,8 +65,16 @@ def init(args: list[str] | None) -> None:
     """Initialise rclpy with ``args``; a params file rcl cannot parse raises StartupError.
 
     rcl's own "Failed to parse global arguments" line is muted during init so the
-    caller's single line is the only one.
+    caller's single line is the only one.  A muscle spec given as ``--params-file`` is named so
+    before rcl reads it (:func:`~..core.param_file.check_params_file`).
     """
+    given = sys.argv if args is None else args
+    try:
+        for option, path in zip(given, given[1:]):
+            if option == '--params-file':
+                check_params_file(path)
+    except ValueError as err:
+        raise StartupError(str(err)) from None
     level = get_logger_level('rcl')
     set_logger_level('rcl', LoggingSeverity.FATAL)
     try:
