@@ -74,3 +74,68 @@ def model_statuses(diagnostics: list, namespace: str) -> list:
 def status_values(status) -> dict[str, str]:
     """A DiagnosticStatus's key/value pairs as a dict."""
     return {kv.key: kv.value for kv in status.values}
+
+
+#: Values a damaged sequence or string count takes (:func:`damage`): empty, small, one past the
+#: data, huge.
+COUNTS = (0, 1, 2, 3, 7, 64, 2**16, 2**31 - 1, 2**32 - 1)
+#: The ways :func:`damage` harms a message.
+HARMS = ('truncate', 'flip', 'insert', 'count', 'append', 'garbage')
+
+
+def damage(data: bytes, harms: list[tuple[str, int, bytes]]) -> bytes:
+    """``data`` (a serialized message) harmed by each (how, where, bytes) of ``harms`` in turn:
+    cut at ``where``, one bit flipped, ``bytes`` inserted, a 4-byte count (4-aligned from the
+    CDR origin) set to one of :data:`COUNTS`, ``bytes`` appended, or the whole replaced by
+    ``bytes``.
+    """
+    out = bytearray(data)
+    for how, where, junk in harms:
+        if how == 'truncate':
+            del out[where % (len(out) + 1) :]
+        elif how == 'flip' and out:
+            out[where % len(out)] ^= 1 << (where % 8)
+        elif how == 'insert':
+            at = where % (len(out) + 1)
+            out[at:at] = junk
+        elif how == 'count' and len(out) >= 8:
+            at = 4 + 4 * (where % ((len(out) - 4) // 4))
+            out[at : at + 4] = COUNTS[where % len(COUNTS)].to_bytes(4, 'little')
+        elif how == 'append':
+            out += junk
+        elif how == 'garbage':
+            out = bytearray(junk)
+    return bytes(out)
+
+
+def random_harms(rng) -> list[tuple[str, int, bytes]]:
+    """One to three harms for :func:`damage`, drawn from ``rng`` (a numpy Generator)."""
+    return [
+        (
+            HARMS[int(rng.integers(len(HARMS)))],
+            int(rng.integers(2**16)),
+            rng.bytes(int(rng.integers(1, 48))),
+        )
+        for _ in range(int(rng.integers(1, 4)))
+    ]
+
+
+def refused(data: bytes, kind) -> bool:
+    """Whether rclpy's deserializer refuses ``data`` as a ``kind`` message."""
+    try:
+        deserialize_message(data, kind)
+    except Exception:  # rclpy raises RMWError: any exception is a refusal
+        return True
+    return False
+
+
+def malformed(rng, good: bytes, kind, count: int) -> list[bytes]:
+    """``count`` harmed copies of ``good`` (a serialized ``kind`` message) that rclpy's
+    deserializer refuses, drawn from ``rng`` (a numpy Generator).
+    """
+    out = []
+    while len(out) < count:
+        data = damage(good, random_harms(rng))
+        if refused(data, kind):
+            out.append(data)
+    return out

@@ -257,10 +257,23 @@ def read(
             yield connection.topic, time_ns, deserialize(data, connection)
 
 
+def decode_cdr(data: bytes | memoryview, typename: str) -> object:
+    """One :data:`TYPESTORE` message of ``typename`` from its CDR bytes, the bytes after its end
+    ignored as rclpy's deserializer ignores them (rclpy's serializer leaves 4 or more after some
+    JointStates; ``TYPESTORE.deserialize_cdr`` refuses more than 3).  Raises SerdeError,
+    struct.error or ValueError for bytes it cannot read.
+    """
+    if len(data) < 4 or bytes(data[:2]) not in (b'\x00\x00', b'\x00\x01'):
+        raise SerdeError('invalid or unsupported CDR encapsulation')
+    msgdef = TYPESTORE.get_msgdef(typename)
+    read = msgdef.deserialize_cdr_le if data[1] else msgdef.deserialize_cdr_be
+    return read(memoryview(data)[4:], 0, msgdef.cls, TYPESTORE)[0]
+
+
 def deserialize(data: bytes | memoryview, connection: Connection) -> object:
     """One message of ``connection`` from its CDR bytes."""
     try:
-        return TYPESTORE.deserialize_cdr(data, connection.msgtype)
+        return decode_cdr(data, connection.msgtype)
     except (SerdeError, struct.error, IndexError, ValueError, UnicodeDecodeError) as err:
         raise BagError(
             f'topic {connection.topic}: cannot decode a {connection.msgtype} ({_one_line(err)})'

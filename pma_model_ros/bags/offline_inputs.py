@@ -11,14 +11,14 @@ from typing import Sequence
 
 import numpy as np
 
-from .bag_io import FLUID_PRESSURE, JOINT_STATE, TYPESTORE, WRENCH_STAMPED
+from .bag_io import decode_cdr, FLUID_PRESSURE, JOINT_STATE, WRENCH_STAMPED
 from ..core.recording import COMMAND_IN, Inputs, LENGTH_IN, PRESSURE_IN
 from ..wire.cdr import MALFORMED
 from ..wire.columns import joint_columns, stamped_floats
 
 #: rosbags' deserializers of the input types: what the wire layer's fast readers do not read.
 DESERIALIZE = {
-    name: (lambda data, kind=kind: TYPESTORE.deserialize_cdr(data, kind))
+    name: (lambda data, kind=kind: decode_cdr(data, kind))
     for name, kind in (
         ('FluidPressure', FLUID_PRESSURE),
         ('JointState', JOINT_STATE),
