@@ -7,7 +7,9 @@ Usage: ``scripts/netns-run .venv/bin/python bench/startup.py [--quick] [--repeat
 rclpy (``rclpy.init()`` and an empty node); the others import a node's module and build it from a
 parameter file as ``ros2 run`` does, with the ``executor`` parameter that :func:`startup.run`
 declares: model_node of config/dmsp_10_250.yaml (1 muscle) and of 64 DMSP-10-250 (combined),
-joint_node of 4 example elbows (8 muscles), the two simulators with their defaults.  ``params``
+``model_node 64+`` the same 64 with three node-wide keys copied into each muscle's block (192
+unknown parameters, each warned about), joint_node of 4 example elbows (8 muscles), the two
+simulators with their defaults.  ``params``
 is what ``ros2 param list`` would list (``list_parameters`` of the node, every depth).
 ``x baseline`` is the median over the baseline's median, measured in the same run;
 ``scipy.optimize`` says whether the process loaded it.
@@ -25,6 +27,7 @@ import time
 
 from joint_node_cost import arm  # bench/, this script's folder, is on sys.path
 from node_latency import multi_muscle_file
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'config' / 'dmsp_10_250.yaml'
@@ -49,6 +52,21 @@ def child(module: str, cls: str, params_file: Path | None, *ros_args: str) -> st
     )
 
 
+def misplaced_keys_file(n: int, folder: Path) -> Path:
+    """:func:`multi_muscle_file` with three node-wide keys copied into each muscle's block: 3 n
+    unknown parameters, each warned about at start-up.
+    """
+    data = yaml.safe_load(multi_muscle_file(n, folder).read_text())
+    params = data['/**']['ros__parameters']
+    for name in params['muscles']:
+        params[name].update(
+            ambient_pressure=101325.0, max_input_age=0.1, pressure_reference='absolute'
+        )
+    path = folder / f'arm_{n}_misplaced.yaml'
+    path.write_text(yaml.safe_dump(data, default_flow_style=None))
+    return path
+
+
 def children(folder: Path) -> dict[str, str]:
     arm(joints := folder / 'arm_4.yaml', 4)
     return {
@@ -57,6 +75,7 @@ def children(folder: Path) -> dict[str, str]:
         ),
         'model_node 1': child('model_node', 'ModelNode', CONFIG),
         'model_node 64': child('model_node', 'ModelNode', multi_muscle_file(64, folder)),
+        'model_node 64+': child('model_node', 'ModelNode', misplaced_keys_file(64, folder)),
         'joint_node 4x2': child(
             'joint_node', 'JointNode', joints, '-p', f'config_dir:={ROOT / "config"}'
         ),
@@ -97,16 +116,21 @@ def main() -> None:
         '  scipy.optimize'
     )
     base = None
+    medians = {}
     with tempfile.TemporaryDirectory() as folder:
         for name, code in children(Path(folder)).items():
             runs = [time_to_ready(code) for _ in range(repeat)]
             times = [t for t, _, _ in runs]
-            median = statistics.median(times)
+            median = medians[name] = statistics.median(times)
             base = base or median
             print(
                 f'{name:<16}{runs[0][2]:>8}{min(times):>8.3f}{median:>10.3f}'
                 f'{median / base:>12.2f}  {"loaded" if runs[0][1] else "not loaded"}'
             )
+    print(
+        'model_node 64+ (three node-wide keys in each block: 192 unknown parameters) / '
+        f'model_node 64: {medians["model_node 64+"] / medians["model_node 64"]:.2f} (target < 2)'
+    )
 
 
 if __name__ == '__main__':
