@@ -5,14 +5,26 @@ few hundred per topic over DDS from a second process at live nodes, the simulato
 message, each one is invalid input in ``/diagnostics``, and the next valid input is answered.
 """
 
+from geometry_msgs.msg import WrenchStamped
 import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
 from conftest import CONFIGS, REPO
-from node_messages import AMBIENT, force_command, malformed, pressure, raw, record, state
+from node_messages import (
+    AMBIENT,
+    force_command,
+    JOINT,
+    malformed,
+    pressure,
+    raw,
+    record,
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    state,
+)
 from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
@@ -133,3 +145,130 @@ def test_joint_node(private_node):
     assert torques[0].effort[0] == pytest.approx(
         float(elbow.forward(0.5, 400e3, 300e3).torque), rel=1e-9
     )
+
+
+# --- over DDS: a second process's publishers at live nodes
+DDS_FUZZ = 300  #: malformed messages per topic over DDS
+
+
+def publish_malformed(ros, ns: str, topics: dict[str, object], seed: int) -> None:
+    """``DDS_FUZZ`` refused copies of each ``topics`` message (name relative to ``ns``), published
+    as bytes on a reliable publisher, the test's executor spun between them.
+    """
+    from rclpy.qos import QoSProfile
+
+    rng = np.random.default_rng(seed)
+    for topic, msg in topics.items():
+        pub = ros.node.create_publisher(type(msg), f'{ns}/{topic}', QoSProfile(depth=1000))
+        ros.spin_until(lambda: pub.get_subscription_count() > 0, 20, f'a subscriber of {topic}')
+        for data in malformed_like(rng, msg, DDS_FUZZ):
+            pub.publish(data)
+            ros.executor.spin_once(timeout_sec=0)
+
+
+def stamped_now(ros, msg):
+    msg.header.stamp = ros.now().to_msg()
+    return msg
+
+
+SCENARIOS = {
+    'model_node per_muscle': (
+        'model_node',
+        CONFIGS['DMSP-10-250'],
+        {
+            'pressure': FluidPressure(fluid_pressure=AMBIENT + P),
+            'muscle_state': JointState(name=[JOINT], position=[L], velocity=[0.0]),
+            'force_command': force_command(50.0),
+        },
+        ('muscle_state', 'pressure'),
+        'force_estimate',
+    ),
+    'model_node combined': (
+        'model_node',
+        MULTI,
+        {
+            'muscle_pressures': JointState(name=['wrist_flexor'], position=[AMBIENT + P]),
+            'muscle_states': JointState(name=['wrist_flexor'], position=[L]),
+            'force_commands': JointState(name=['wrist_flexor'], effort=[50.0]),
+        },
+        ('muscle_states', 'muscle_pressures'),
+        'force_estimates',
+    ),
+    'joint_node': (
+        'joint_node',
+        JOINTS,
+        {
+            'flexor/pressure': FluidPressure(fluid_pressure=AMBIENT + P),
+            'extensor/pressure': FluidPressure(fluid_pressure=AMBIENT + P),
+            'joint_states': JointState(name=['elbow'], position=[0.5]),
+            'torque_command': JointState(name=['elbow'], effort=[1.0]),
+            'stiffness_command': JointState(name=['elbow'], effort=[3.0]),
+            'cocontraction_command': JointState(name=['elbow'], effort=[1e5]),
+        },
+        ('flexor/pressure', 'extensor/pressure', 'joint_states'),
+        'torque_estimate',
+    ),
+    'simulator_node': (
+        'simulator_node',
+        None,
+        {'pressure_command': FluidPressure(fluid_pressure=2e5)},
+        (),
+        'pressure',
+    ),
+    'joint_simulator_node': (
+        'joint_simulator_node',
+        None,
+        {
+            'flexor/pressure_command': FluidPressure(fluid_pressure=2e5),
+            'angle_command': JointState(name=['elbow'], position=[0.1]),
+        },
+        (),
+        'joint_states',
+    ),
+}
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('scenario', SCENARIOS)
+def test_live_node_survives_malformed_messages_over_dds(scenario, ros, processes, namespace):
+    """The node keeps running, publishes nothing from the malformed messages, says so in
+    /diagnostics (this package's estimating nodes), and answers valid input right after.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    node_name, params, topics, valid, answer = SCENARIOS[scenario]
+    proc = processes.node(node_name, namespace, params)
+    answer_type = {'pressure': FluidPressure, 'force_estimate': WrenchStamped}.get(
+        answer, JointState
+    )
+    answers = ros.collect(answer_type, f'{namespace}/{answer}', SENSOR_QOS)  # (any publisher)
+    diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
+    why = lambda: processes.output(proc)  # noqa: E731
+    publish_malformed(ros, namespace, topics, SEED)
+    estimating = bool(valid)
+    if estimating:
+        ros.spin_until(
+            lambda: any(INVALID in s.message for d in diagnostics for s in d.status),
+            30,
+            f'{INVALID} in /diagnostics',
+            diagnose=why,
+        )
+        assert answers == [], 'an answer from a malformed message'
+    before = len(answers)
+    pubs = {
+        topic: ros.node.create_publisher(type(topics[topic]), f'{namespace}/{topic}', 10)
+        for topic in valid
+    }
+
+    def send_valid():
+        for topic in valid:
+            pubs[topic].publish(stamped_now(ros, topics[topic]))
+
+    ros.spin_until(
+        lambda: len(answers) > before,
+        30,
+        f'{answer} after the fuzz',
+        every=send_valid,
+        diagnose=why,
+    )
+    assert proc.poll() is None, why()
