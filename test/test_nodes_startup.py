@@ -28,7 +28,7 @@ def test_a_params_file_rcl_cannot_parse_is_one_line(tmp_path):
 
 
 def test_a_muscle_spec_as_params_file_is_named_so():
-    """rcl would say only 'Cannot have a value before ros__parameters at line 2'."""
+    """Named before rcl reads it: rcl says only 'Cannot have a value before ros__parameters'."""
     spec = REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml'
     lines = lines_of_failed_start(model_node('--params-file', str(spec)))
     assert len(lines) == 1 and lines[0].endswith(

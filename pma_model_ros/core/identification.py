@@ -27,18 +27,15 @@ choices included, re-run without each measured length.
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 import functools
 import math
-import multiprocessing
 import os
 import time
 from typing import Callable, Iterator
 
 import numpy as np
-from scipy.optimize import minimize
 
 from . import calibration as cal
 from . import geometry as geo
@@ -50,9 +47,8 @@ from .node_parameters import STANDARD_ATMOSPHERE
 from .progress import Meter
 from .separable import Separable, Solution
 from .units import length_hint
-from .validation import fit_or_none, HeldOut, length_folds, select, within_tie
+from .validation import fit_or_none, HeldOut, length_folds, OBJECTIVES, select, within_tie
 
-OBJECTIVES = ('least_squares', 'minimax')
 #: The single-branch model each branch of a hysteresis model is.
 BRANCH_MODEL = {'sarosi_hysteresis': 'sarosi'}
 #: Set in the worker processes of :func:`identify_all` (unless the user set them).  OpenBLAS's idle
@@ -119,7 +115,7 @@ _CONFLICT = 0.07
 
 
 def check_fit_map(fmap: ForceMap, spec: MuscleSpec, folds: int) -> None:
-    """ValueError naming what makes ``fmap`` no map to identify ``spec`` from, before any fitting:
+    """Refuse (ValueError) a map no fit of ``spec`` can use, naming why, before any fitting:
     fewer than ``folds`` held-out lengths (3 to judge a fit on an interior length, 2 to fit at
     all), lengths the geometry cannot take, absolute pressures, forces in another unit than N,
     conflicting repeated points.
@@ -266,6 +262,8 @@ def fit_paper(model: Model, spec: MuscleSpec, fmap: ForceMap) -> Fit:
 
 
 def _paper_theta(model: Model, spec: MuscleSpec, fmap: ForceMap, domain: Domain) -> np.ndarray:
+    from scipy.optimize import minimize  # here: force and pressure need no optimizer
+
     if model.n_params == 0:
         return np.zeros(0)
     n = model.n_params
@@ -618,6 +616,9 @@ def _fit_everything(
     expected = (time.perf_counter() - started) * len(rest) / len(held)
     workers = os.cpu_count() or 1
     if workers > 1 and expected > _PARALLEL_ABOVE:
+        from concurrent.futures import ProcessPoolExecutor
+        import multiprocessing
+
         pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn'))
         with _environment(_WORKER_ENVIRONMENT), pool:
             fits = pool.map(

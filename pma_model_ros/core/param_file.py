@@ -128,8 +128,8 @@ def read_parameters(path: str | Path) -> dict:
 
 
 def refuse_muscle_spec(data: dict, path: str | Path) -> None:
-    """ValueError if ``data``, the top mapping of the file ``path``, is a muscle spec (its keys
-    or ``muscle:``, no ``ros__parameters``) where a ROS parameter file is wanted.
+    """Refuse (ValueError) ``data``, the top mapping of the file ``path``, if it is a muscle spec
+    (its keys or ``muscle:``, no ``ros__parameters``) where a ROS parameter file is wanted.
     """
     nodes = [v for v in data.values() if isinstance(v, dict) and 'ros__parameters' in v]
     if not nodes and set(data) <= set(MuscleSpec.__dataclass_fields__) | {'muscle'}:

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 import warnings
 
 import numpy as np
-from scipy.optimize import least_squares, linprog, minimize_scalar
 
 from .force_map import ForceMap
 from .geometry import MuscleSpec
@@ -131,6 +130,8 @@ class Separable:
         :data:`_REFINED` points refined jointly in every nonlinear parameter; with ``near`` (the
         solution of a neighbouring problem, e.g. the next rest length) only that start is refined.
         """
+        from scipy.optimize import least_squares  # here: force and pressure need no optimizer
+
         if self.nonlinear.size == 0:
             c, r = self.linear_least_squares(np.zeros(0))
             return Solution(self.theta(np.zeros(0), c), float(r @ r))
@@ -214,6 +215,8 @@ class Separable:
         worst error the one nearest to ``near`` (L1, in unit-norm columns): the linear program's
         vertex is otherwise arbitrary where the map does not determine every parameter.
         """
+        from scipy.optimize import linprog
+
         base, columns = self.design(phi)
         y = self.force
         if not (np.all(np.isfinite(base)) and np.all(np.isfinite(columns))):
@@ -276,6 +279,8 @@ class Separable:
         least-squares parameters: of a plateau of equal worst errors (within :data:`TIE`), its
         edge nearest the least-squares value, found by bisection.
         """
+        from scipy.optimize import minimize_scalar
+
         phi = start.theta[self.nonlinear].copy()
         if self.nonlinear.size:
 

@@ -22,6 +22,8 @@ import numpy as np
 
 from .force_map import ForceMap
 
+#: The objectives of a ``best`` fit (eq. 22, eq. 23), each judged here as a candidate.
+OBJECTIVES = ('least_squares', 'minimax')
 _MAX_FOLDS = 8  #: most held-out groups of a map
 _SAME_LENGTH = 1e-3  #: [m] lengths closer than this are one held-out length
 #: Relative difference below which two costs or errors are equal: rounding (BLAS kernels, SIMD
