@@ -210,6 +210,23 @@ def test_pressure_for_no_force_is_where_the_muscle_starts_to_pull(capsys):
     assert 260e3 < pressure < 402.187e3
 
 
+@pytest.mark.parametrize(
+    'query',
+    [['force', '--pressure', '300000'], ['pressure', '--force', '200']],
+)
+def test_a_query_imports_no_optimizer(query):
+    """The force and pressure queries need no scipy: its import was most of a query's start-up
+    (0.7 of 0.85 s; bench/cli_startup.py measures the whole).
+    """
+    argv = [*query, '--config', str(CONFIGS['DMSP-10-250']), '--length', '0.23']
+    code = (
+        f'import sys; from pma_model_ros.cli import main; code = main({argv!r}); '
+        "print(code, sorted(m for m in sys.modules if m.split('.')[0] == 'scipy')[:3])"
+    )
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
+    assert run.stdout.splitlines()[-1] == '0 []', run.stdout + run.stderr
+
+
 def test_force_and_pressure_round_trip(capsys):
     cfg = str(CONFIGS['DMSP-10-250'])
     assert main(['pressure', '--config', cfg, '--force', '200', '--length', '0.23']) == 0
