@@ -176,6 +176,39 @@ _FILE_LEGEND = (
 )
 
 
+def cmd_scale(args: argparse.Namespace) -> None:
+    from .core.param_writer import write_parameters
+    from .core.transfer import scale_parameters
+    from .core.user_files import load_yaml_mapping, read_user_file
+
+    data = load_yaml_mapping(read_user_file(args.config, 'parameter file'), str(args.config))
+    nodes = [k for k, v in data.items() if isinstance(v, dict) and 'ros__parameters' in v]
+    if len(nodes) > 1:
+        raise CliError(f"{args.config}: {len(nodes)} nodes in one file; scale one muscle's file")
+    parameters = read_parameters(args.config)
+    try:
+        scaled, notes = scale_parameters(parameters, args.length)
+    except ValueError as err:
+        raise CliError(f'{args.config}: {err}') from None
+    source, target = parameters['muscle'], scaled['muscle']
+    ratio = args.length / source['nominal_length']
+    header = (
+        f'{target["name"]}: {source["name"]} of {args.config} cut to L0 = {args.length:g} m by '
+        f"`pma-model scale` (s = L0' / L0 = {ratio:.6g}).\n"
+        "At equal contraction (L0 - L) / L0 and pressure it serves the source's force; lengths\n"
+        "are s times the source's (docs/calibration.md). err, rmse, r2, cv_err and held_out err\n"
+        "are the source map's figures, at equal contraction."
+    )
+    write_parameters(args.out, {nodes[0]: {'ros__parameters': scaled}}, header)
+    low, high = scaled['length_range']
+    print(
+        f'wrote {args.out}: {target["name"]} ({source["name"]} x {ratio:.6g}), length_range '
+        f'[{low:.6g}, {high:.6g}] m'
+    )
+    for note in notes:
+        print(f'  {note}')
+
+
 def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
     labels = length_headers(lengths)
     print(f'{"model":<14}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
@@ -794,6 +827,16 @@ def build_parser() -> argparse.ArgumentParser:
     add_overwrite_option(p, {'--out': 'file'})
     add_fit_bag_options(p)
     p.set_defaults(func=cmd_fit)
+    p = sub.add_parser(
+        'scale',
+        help="a parameter file's muscle type cut to another rest length (equal force at equal "
+        'contraction and pressure)',
+    )
+    p.add_argument('--config', required=True, help='parameter file of one identified muscle')
+    p.add_argument('--length', required=True, type=float, help="the new rest length L0' [m]")
+    p.add_argument('--out', required=True, help='output ROS parameter YAML')
+    add_overwrite_option(p, {'--out': 'file'})
+    p.set_defaults(func=cmd_scale)
     p = sub.add_parser(
         'evaluate',
         help='a fitted model against a measured force map: eq. 23, RMSE, per length, flags',

@@ -910,3 +910,82 @@ def test_evaluate_bad_input_is_one_line_exit_2(tmp_path, capsys, data, config, m
 def test_length_headers_differ_where_lengths_do():
     assert length_headers([0.25, 0.234, 0.219]) == ['0.250', '0.234', '0.219']
     assert length_headers([0.23271, 0.23268, 0.215]) == ['0.23271', '0.23268', '0.21500']
+
+
+def test_scale_writes_the_muscle_cut_to_another_length_and_back(tmp_path, capsys):
+    """DMSP-20-300 cut to 0.274 m: the same force at equal contraction and pressure, the domain
+    moved in contraction, and cut back to 0.3 m the source's parameters to 1e-9.
+    """
+    cut, back = tmp_path / 'cut.yaml', tmp_path / 'back.yaml'
+    source = CONFIGS['DMSP-20-300']
+    assert main(['scale', '--config', str(source), '--length', '0.274', '--out', str(cut)]) == 0
+    assert capsys.readouterr().out == (
+        f'wrote {cut}: DMSP-20-274 (DMSP-20-300 x 0.913333), length_range [0.20276, 0.270347] m\n'
+    )
+    assert cut.read_text().startswith(f'# DMSP-20-274: DMSP-20-300 of {source} cut to L0 = 0.274')
+    assert main(['scale', '--config', str(cut), '--length', '0.3', '--out', str(back)]) == 0
+    theirs, ours, cut_params = (read_parameters(p) for p in (source, back, cut))
+    assert ours['muscle'] == theirs['muscle']
+    assert ours['joint_name'] == 'DMSP-20-300' and cut_params['frame_id'] == 'dmsp_20_274'
+    for name, entry in theirs['models'].items():
+        got, want = (np.asarray(e.get('params', []), float) for e in (ours['models'][name], entry))
+        assert np.all(np.abs(got - want) <= 1e-9 * np.abs(want)), name
+    capsys.readouterr()
+    for kappa in (0.02, 0.1, 0.2):
+        forces = []
+        for config, l0 in ((source, 0.3), (cut, 0.274)):
+            argv = ['force', '--config', str(config), '--pressure', '4e5']
+            assert main([*argv, '--length', repr((1 - kappa) * l0)]) == 0
+            forces.append(float(capsys.readouterr().out.split()[1]))
+        # printed to 6 digits
+        assert forces[0] == pytest.approx(forces[1], rel=2e-6) and forces[0] > 0
+
+
+def test_scale_refuses_an_existing_output_before_any_work(tmp_path, capsys):
+    out = tmp_path / 'out.yaml'
+    out.write_text('mine')
+    config = str(CONFIGS['DMSP-20-300'])
+    assert main(['scale', '--config', config, '--length', '0', '--out', str(out)]) == 2
+    assert capsys.readouterr() == (
+        '',
+        f'pma-model: error: --out: {out} exists; not overwriting it (--overwrite overwrites)\n',
+    )
+    assert out.read_text() == 'mine'
+    argv = ['scale', '--config', config, '--length', '0.5', '--out', str(out)]
+    assert main([*argv, '--overwrite']) == 0
+    assert read_parameters(out)['muscle']['name'] == 'DMSP-20-500'
+    argv = ['scale', '--config', str(out), '--length', '0.4', '--out', str(out), '--overwrite']
+    assert main(argv) == 2
+    assert 'is an input of this command' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    'length, message',
+    [
+        ('0', 'rest length must be in (0, 10] m, got 0.0'),
+        ('-0.3', 'rest length must be in (0, 10] m, got -0.3'),
+        ('nan', 'rest length must be in (0, 10] m, got nan'),
+        ('274', 'rest length must be in (0, 10] m, got 274.0; millimetres? divide by 1000'),
+    ],
+)
+def test_scale_refuses_a_rest_length_beyond_physics(tmp_path, capsys, length, message):
+    out = tmp_path / 'out.yaml'
+    config = CONFIGS['DMSP-20-300']
+    assert main(['scale', '--config', str(config), '--length', length, '--out', str(out)]) == 2
+    assert capsys.readouterr() == ('', f'pma-model: error: {config}: {message}\n')
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    'config, message',
+    [
+        ('example_multi_muscle.yaml', "a file with 'muscles:' has no one muscle to cut"),
+        ('example_composed.yaml', "2 nodes in one file; scale one muscle's file"),
+        ('example_joint.yaml', "a file with 'joints:' has no one muscle to cut"),
+    ],
+)
+def test_scale_takes_one_muscle(tmp_path, capsys, config, message):
+    path = REPO / 'config' / config
+    argv = ['scale', '--config', str(path), '--length', '0.2', '--out', str(tmp_path / 'o.yaml')]
+    assert main(argv) == 2
+    assert capsys.readouterr().err.startswith(f'pma-model: error: {path}: {message}')
