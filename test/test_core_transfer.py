@@ -196,6 +196,9 @@ def test_names_follow_the_new_length_unless_set_by_hand():
     assert notes == []
     assert transfer.renamed('AARL-DMSP-20-274', 0.274, 0.3) == 'AARL-DMSP-20-300'
     assert transfer.renamed('my muscle', 0.274, 0.3005) == 'my muscle-300.5'
+    # a calibrated L0 (here 1.5 % above the given 274 mm) keeps the given one's name
+    assert transfer.renamed('AARL-DMSP-20-274', 0.27811, 0.3) == 'AARL-DMSP-20-300'
+    assert transfer.renamed('DMSP-20-100', 0.3, 0.274) == 'DMSP-20-100-274'
     source.update(joint_name='elbow_flexor', hardware_id='rig-3')
     target, notes = scale_parameters(source, 0.274)
     assert target['joint_name'] == 'elbow_flexor' and target['hardware_id'] == 'rig-3'

@@ -42,7 +42,9 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 
+from .calibration import LENGTH_BOUND
 from .geometry import MuscleSpec
 from .models import get_model
 
@@ -72,10 +74,14 @@ def _millimetres(length: float) -> str:
 
 
 def renamed(name: str, old_length: float, new_length: float) -> str:
-    """``<type>-<L0' in mm>``: a trailing ``-<L0 in mm>`` of ``name`` replaced, else appended."""
-    old = _millimetres(old_length)
-    stem = name[: -len(old) - 1] if name.endswith(f'-{old}') else name
-    return f'{stem}-{_millimetres(new_length)}'
+    """``<type>-<L0' in mm>``: a trailing ``-<number>`` of ``name`` replaced where it is the old
+    rest length in mm (within :data:`~.calibration.LENGTH_BOUND`: a calibrated L0 keeps the given
+    one's name), else ``-<L0' in mm>`` appended.
+    """
+    found = re.fullmatch(r'(.*)-(\d+(?:\.\d+)?)', name)
+    if found and abs(float(found[2]) / 1e3 - old_length) <= LENGTH_BOUND * old_length:
+        name = found[1]
+    return f'{name}-{_millimetres(new_length)}'
 
 
 def frame_of(name: str) -> str:
