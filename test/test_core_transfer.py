@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import CONFIGS
+from conftest import CONFIGS, REPO
 from pma_model_ros.core import transfer
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.models import force_raw, get_model, MODELS
@@ -15,6 +15,13 @@ from pma_model_ros.core.transfer import EXPONENTS, scale_parameters
 
 #: New rest lengths [m]: far shorter, a little shorter, longer.
 NEW_LENGTHS = (0.05, 0.274, 1.7)
+#: Every shipped parameter file of one muscle: the configs, the docs' examples, and the model_node
+#: section of the composed example (:func:`read_parameters` reads a file's first node).
+SHIPPED = {
+    **CONFIGS,
+    **{p.stem: p for p in sorted((REPO / 'docs' / 'examples').glob('*.yaml'))},
+    'composed': REPO / 'config' / 'example_composed.yaml',
+}
 
 
 def _close(a, b, rel=1e-9):
@@ -22,10 +29,10 @@ def _close(a, b, rel=1e-9):
     return a.shape == b.shape and bool(np.all(np.abs(a - b) <= rel * np.abs(b)))
 
 
-@pytest.mark.parametrize('muscle', sorted(CONFIGS))
+@pytest.mark.parametrize('muscle', sorted(SHIPPED))
 @pytest.mark.parametrize('length', NEW_LENGTHS)
 def test_round_trip_gives_the_source_back(muscle, length):
-    source = read_parameters(CONFIGS[muscle])
+    source = read_parameters(SHIPPED[muscle])
     there, _ = scale_parameters(source, length)
     back, _ = scale_parameters(there, source['muscle']['nominal_length'])
     assert back['muscle'] == source['muscle']
@@ -37,8 +44,9 @@ def test_round_trip_gives_the_source_back(muscle, length):
         if 'held_out' in block:
             assert _close(ours['held_out']['lengths'], block['held_out']['lengths'])
             assert ours['held_out']['err'] == block['held_out']['err']
-    assert (back['joint_name'], back['frame_id']) == (source['joint_name'], source['frame_id'])
-    assert source == read_parameters(CONFIGS[muscle])  # the source mapping is not changed
+    for key in ('joint_name', 'frame_id'):
+        assert back.get(key) == source.get(key)
+    assert source == read_parameters(SHIPPED[muscle])  # the source mapping is not changed
 
 
 def _grid(parameters):
@@ -50,11 +58,11 @@ def _grid(parameters):
     return np.meshgrid(pressure, kappa)
 
 
-@pytest.mark.parametrize('muscle', sorted(CONFIGS))
+@pytest.mark.parametrize('muscle', sorted(SHIPPED))
 @pytest.mark.parametrize('length', NEW_LENGTHS)
 def test_every_model_serves_the_same_force_at_equal_contraction_and_pressure(muscle, length):
     """The served force and its flags, in and outside the identified box, for each model."""
-    source = read_parameters(CONFIGS[muscle])
+    source = read_parameters(SHIPPED[muscle])
     target, _ = scale_parameters(source, length)
     pressure, kappa = _grid(source)
     for name in source['models']:
@@ -203,6 +211,14 @@ def test_names_follow_the_new_length_unless_set_by_hand():
     target, notes = scale_parameters(source, 0.274)
     assert target['joint_name'] == 'elbow_flexor' and target['hardware_id'] == 'rig-3'
     assert notes == ["joint_name 'elbow_flexor' kept as set", "hardware_id 'rig-3' kept as set"]
+
+
+def test_hysteresis_settings_are_kept_and_said_so():
+    source = read_parameters(CONFIGS['DMSP-10-100'])
+    source['hysteresis'] = {'input': 'length', 'length_deadband': 0.001}
+    target, notes = scale_parameters(source, 0.3)
+    assert target['hysteresis'] == source['hysteresis']
+    assert notes == ["hysteresis settings kept: deadbands are the sensors', not the muscle's"]
 
 
 def test_every_model_has_one_exponent_per_parameter():
