@@ -22,8 +22,10 @@ after ``--``):
 Then a leave-one-muscle-out choice of the rule by the edge figure: for each muscle, the rule with
 the lowest worst edge err over the other three, and that muscle's figure under it.
 
-Usage: ``.venv/bin/python bench/generalisation.py [--quick] [-- fit options]``.  ``--quick``: the
-two shipped maps only.  Not a test.
+Usage: ``.venv/bin/python bench/generalisation.py [--quick] [--rules] [-- fit options]``.
+``--quick``: the two shipped maps only; ``--rules``: also each model's rule (hold or extrapolate,
+leave-one-muscle-out on the served edge err of ``fit --model <model>``) against the rule served.
+Not a test.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import numpy as np
 
 from pma_model_ros.cli import main as pma_model
 from pma_model_ros.core.force_map import ForceMap, read_force_map_csv
+from pma_model_ros.core.models import extrapolates, TABLE3_MODELS
 from pma_model_ros.core.param_file import load_muscle, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
@@ -116,6 +119,7 @@ def measure(name: str, csv: Path, spec: Path, options: list[str], tmp: Path) -> 
     entry = parameters['models'][default]
     line = last_line(text).split('  -> ')[0]
     printed_worst = float(re.search(r'held-out worst ([0-9.]+) %', line).group(1))
+    parts = re.search(r'between measured lengths ([0-9.]+) %, beyond them ([0-9.]+) %', line)
     lengths = fmap.lengths  # descending
     served = {rule: [] for rule in RULES}
     for k, length in enumerate(lengths):
@@ -161,6 +165,8 @@ def measure(name: str, csv: Path, spec: Path, options: list[str], tmp: Path) -> 
         'in_sample': float(entry['err']),
         'printed': printed,
         'printed_worst': printed_worst,
+        # the last line's two parts (absent before it printed them: the file's nested errors')
+        'printed_parts': tuple(map(float, parts.groups())) if parts else interior_edge(printed),
         'served': served,
         'line': line,
         'seconds': seconds,
@@ -190,14 +196,15 @@ def report(results: list[dict]) -> None:
     print("\nfour-muscle table [%] (served: as the fit's parameter file serves it)")
     print(
         f'{"map":<14}{"in-sample":>10}{"interior":>10}{"edge":>8}{"fit prints":>12}'
-        f'{"printed int.":>14}{"printed edge":>14}'
+        f'{"printed int.":>14}{"printed edge":>14}{"|printed-served|":>18}'
     )
     for r in results:
         i, e = interior_edge(r['served']['file'])
-        pi, pe = interior_edge(r['printed'])
+        pi, pe = r['printed_parts']
+        gap = max(abs(r['printed_worst'] - max(i, e)), abs(pi - i), abs(pe - e))
         print(
             f'{r["name"]:<14}{r["in_sample"]:>10.2f}{i:>10.2f}{e:>8.2f}'
-            f'{r["printed_worst"]:>12.2f}{pi:>14.2f}{pe:>14.2f}'
+            f'{r["printed_worst"]:>12.2f}{pi:>14.2f}{pe:>14.2f}{gap:>18.2f}'
         )
     lomo(results)
 
@@ -230,9 +237,47 @@ def lomo(results: list[dict]) -> None:
         )
 
 
+def rules_by_model(maps: dict, tmp: Path) -> None:
+    """The served rule of each model (:func:`~pma_model_ros.core.models.extrapolates`) against
+    its leave-one-muscle-out choice between holding and extrapolating, by the served edge err of
+    ``fit --model <model>`` on every map.
+    """
+    print('\nserved edge err [%] per model: hold / extrapolate; the leave-one-muscle-out choice')
+    print('for each map judged (chosen on the other maps); the rule the package serves')
+    names = list(maps)
+    print(
+        f'{"model":<15}'
+        + ''.join(f'{n:>17}' for n in names)
+        + ''.join(f'{"LOMO " + n[5:]:>13}' for n in names)
+        + f'{"served":>13}'
+    )
+    for model in (*TABLE3_MODELS, 'martens_end'):
+        edge = {}
+        for name, (csv, spec) in maps.items():
+            r = measure(name, csv, spec, ['--model', model], tmp)
+            edge[name] = {rule: interior_edge(r['served'][rule])[1] for rule in RULES}
+        picks = []
+        for name in names:
+            others = [n for n in names if n != name] or names
+            picks.append(
+                min(('hold', 'extrapolate'), key=lambda rule: max(edge[n][rule] for n in others))
+            )
+        print(
+            f'{model:<15}'
+            + ''.join(f'{edge[n]["hold"]:>8.2f} /{edge[n]["extrapolate"]:>7.2f}' for n in names)
+            + ''.join(f'{p:>13}' for p in picks)
+            + f'{"extrapolate" if extrapolates(model) else "hold":>13}'
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='the two shipped maps only')
+    parser.add_argument(
+        '--rules',
+        action='store_true',
+        help='also every model: its served rule against the leave-one-muscle-out choice',
+    )
     argv = sys.argv[1:]
     options = argv[argv.index('--') + 1 :] if '--' in argv else ['--model', 'martens']
     args = parser.parse_args(argv[: argv.index('--')] if '--' in argv else argv)
@@ -251,8 +296,10 @@ def main() -> None:
             maps |= INDEPENDENT_MAPS
         for name, (csv, spec) in maps.items():
             results.append(measure(name, csv, spec, options, tmp))
-    print(f'pma-model fit options: {" ".join(options) or "(defaults)"}')
-    report(results)
+        print(f'pma-model fit options: {" ".join(options) or "(defaults)"}')
+        report(results)
+        if args.rules:
+            rules_by_model(maps, tmp)
 
 
 if __name__ == '__main__':

@@ -324,8 +324,21 @@ def cmd_fit(args: argparse.Namespace) -> None:
         how = 'the one fitted'
     print(
         f'\ndefault model ({how}): {found.default}  err {chosen.err:.3f} %  rmse '
-        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  held-out worst {_worst(found.held_out):.2f} %'
+        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  {held_out_parts(found.held_out)}'
         f'  -> {args.out}'
+    )
+
+
+def held_out_parts(nested: np.ndarray) -> str:
+    """``held-out worst X % (between measured lengths Y %, beyond them Z %)``: the worst nested
+    held-out err per fold [%] (longest first), on the lengths between the map's shortest and
+    longest (interpolation) and on those two (extrapolation, as served there).
+    """
+    from .core.identification import edge_err, interior_err
+
+    return (
+        f'held-out worst {_worst(nested):.2f} % (between measured lengths '
+        f'{interior_err(nested):.2f} %, beyond them {edge_err(nested):.2f} %)'
     )
 
 
@@ -455,9 +468,9 @@ def cmd_force(args: argparse.Namespace) -> None:
 
 
 def expected_error(band, domain, pressure: float, length: float, flags: int) -> str:
-    """The ``expected error:`` line of ``force``: the held-out band at ``length`` [m] where the
-    query lies within the identified pressures (served as such, up to ``domain.pressure_max``
-    [Pa]) and held-out lengths, else why it is unknown.
+    """The ``expected error:`` line of ``force``: within the identified pressures (served as such,
+    up to ``domain.pressure_max`` [Pa]), the held-out band's figure at ``length`` [m]: between the
+    measured lengths the interpolation's, beyond them the extrapolation's; else why it is unknown.
     """
     if band is None:
         return 'expected error: unknown (the parameter file has no held_out errors)'
@@ -468,17 +481,19 @@ def expected_error(band, domain, pressure: float, length: float, flags: int) -> 
         )
     percent, inside = band.at(length)
     of = f'{percent:.2f} % of {band.max_force:.4g} N'
-    if not inside:
-        return (
-            f'expected error: unknown: {length:g} m is outside the held-out lengths '
-            f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m (the nearest one erred by {of})'
+    lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
+    if band.slack_at(length):
+        why = (
+            "the map's worst held-out err: the held-out lengths that judge it measured no force, "
+            'so their own 0 % says only that the model is slack where the muscle was'
         )
-    why = (
-        "the map's worst held-out err: the held-out lengths here measured no force, so their "
-        'own 0 % says only that the model is slack where the muscle was'
-        if band.slack_at(length)
-        else 'the worst held-out err of the identified lengths around it'
-    )
+    elif inside:
+        why = f'between the measured lengths {lengths}: the worst held-out err of those inside'
+    else:
+        why = (
+            f'extrapolation: {length:g} m is beyond the measured lengths {lengths}; the worst '
+            'held-out err of the shortest and longest, each served from a fit without it'
+        )
     return f'expected error: about ±{percent * band.max_force / 100:.3g} N ({of}: {why})'
 
 

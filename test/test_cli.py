@@ -516,8 +516,8 @@ def test_joint_pressures_for_a_stiffness_and_out_of_reach(capsys):
     assert main(['joint', 'pressures', '--config', JOINT, '--angle', '0', '--torque', '50']) == 0
     out = capsys.readouterr().out
     assert (
-        'flags SATURATED' in out and 'flexor 650000 Pa' in out
-    )  # the map's top: hildebrandt does not extrapolate
+        'flags SATURATED' in out and 'flexor 800000 Pa' in out
+    )  # the rated pressure: hildebrandt is served extrapolated beyond the map's 650 kPa
 
 
 def test_joint_envelope_is_symmetric_for_a_symmetric_joint(capsys):
@@ -667,7 +667,14 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
             ln for ln in lines if ln.startswith('martens ') and len(ln.split()) == 7
         ).split()[1:6]
     ]
-    assert lines[-1].split('held-out worst ')[1].startswith(f'{max(column):.2f} %')
+    assert (
+        lines[-1]
+        .split('held-out worst ')[1]
+        .startswith(
+            f'{max(column):.2f} % (between measured lengths {max(column[1:4]):.2f} %, beyond them '
+            f'{max(column[0], column[4]):.2f} %)'
+        )
+    )
     held_out = read_parameters(out)['models']['martens']['held_out']
     assert held_out['lengths'] == list(fmap.lengths) and held_out['err'] == pytest.approx(
         column[:5], abs=0.005
@@ -705,45 +712,50 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
 
 
 def test_force_prints_the_expected_error_at_the_length(capsys):
-    """Between two identified lengths, the larger of their held-out errors (from the file); at an
-    identified length its own; outside the identified lengths, that it is unknown.
+    """Between the measured lengths the worst held-out err of the lengths inside (interpolation),
+    from the file; beyond them the worse of the shortest's and longest's, said to be
+    extrapolation.
     """
     config = str(CONFIGS['DMSP-10-250'])
     held = read_parameters(config)['models']['martens']['held_out']
-    by_length = dict(zip(held['lengths'], held['err']))
-    for length, expected in (
-        (0.23, max(by_length[0.234], by_length[0.219])),
-        (0.219, by_length[0.219]),
-    ):
+    interior, edge = max(held['err'][1:-1]), max(held['err'][0], held['err'][-1])
+    for length in (0.23, 0.219, 0.198, 0.25):
         assert (
             main(['force', '--config', config, '--pressure', '300000', '--length', str(length)])
             == 0
         )
         band = capsys.readouterr().out.splitlines()[1]
-        newtons = expected * held['max_force'] / 100
         assert band.startswith(
-            f'expected error: about ±{newtons:.3g} N ({expected:.2f} % of 542.5 N'
+            f'expected error: about ±{interior * 542.5 / 100:.3g} N ({interior:.2f} % of 542.5 N: '
+            'between the measured lengths 0.198..0.25 m'
         )
-    assert main(['force', '--config', config, '--pressure', '300000', '--length', '0.26']) == 0
-    assert (
-        'unknown: 0.26 m is outside the held-out lengths 0.198..0.25 m' in capsys.readouterr().out
-    )
+    for length in (0.26, 0.19):
+        assert (
+            main(['force', '--config', config, '--pressure', '300000', '--length', str(length)])
+            == 0
+        )
+        band = capsys.readouterr().out.splitlines()[1]
+        assert band.startswith(
+            f'expected error: about ±{edge * 542.5 / 100:.3g} N ({edge:.2f} % of 542.5 N: '
+            f'extrapolation: {length:g} m is beyond the measured lengths 0.198..0.25 m'
+        )
 
 
 def test_force_where_no_force_was_measured_has_no_band_of_zero(capsys):
-    """Table A1 measured 0 N at 0.222 m at every pressure (the DMSP-20-300 fully contracted): the
-    held-out err there (0 %) is no band of ±0 N; the map's worst held-out err stands in.
+    """Table A1 measured 0 N at 0.222 m at every pressure (the DMSP-20-300 fully contracted): its
+    held-out err (0 %) is no band of ±0 N; the figure of the lengths inside stands for it.
     """
     fmap = shipped_force_map('DMSP-20-300')
     assert fmap.force[fmap.length == 0.222].max() == 0
     config = str(CONFIGS['DMSP-20-300'])
     held = read_parameters(config)['models']['martens']['held_out']
+    assert held['err'][-1] == 0
     assert main(['force', '--config', config, '--pressure', '300000', '--length', '0.222']) == 0
     band = capsys.readouterr().out.splitlines()[1]
-    worst = max(held['err'])
-    assert worst > 0 and band.startswith(
-        f'expected error: about ±{worst * 1653.5 / 100:.3g} N ({worst:.2f} % of 1654 N: '
-        "the map's worst held-out err"
+    interior = max(held['err'][1:-1])
+    assert interior > 0 and band.startswith(
+        f'expected error: about ±{interior * 1653.5 / 100:.3g} N ({interior:.2f} % of 1654 N: '
+        'between the measured lengths'
     )
 
 

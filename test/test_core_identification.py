@@ -84,6 +84,25 @@ def test_held_out_figures_are_nested_and_the_default_is_the_selection(results):
         assert found.held_out.max() <= limits[muscle], (muscle, found.held_out)
 
 
+def test_held_out_edge_figure_is_what_is_served_there(results):
+    """A model served held beyond its identified lengths (Sárosi: not extrapolated) is judged at a
+    left-out edge by the value it serves there: the force at the nearest identified length.  On
+    Table A2 without its 0.250 m row that is the 0.234 m row's force, which Sárosi fits to about
+    1 % of the max force; at 650 kPa Table A2 measured 542.5 N at 0.250 m and 282.83 N at 0.234 m,
+    so the held-out err at 0.250 m is about 100 (542.5 - 282.83) / 542.5 = 47.9 %, not the
+    exponential's own extrapolation (over 1000 %).  Martens, served extrapolated, is judged by its
+    own value there (below 10 %, README).
+    """
+    reports = results['DMSP-10-250'].reports
+    hand = 100 * (542.5 - 282.8333) / 542.5
+    assert reports['sarosi'].nested[0] == pytest.approx(hand, abs=1.0)
+    assert reports['sarosi'].edge_cv_err == pytest.approx(hand, abs=1.0)
+    assert reports['martens'].edge_cv_err < 10 < hand
+    for rep in reports.values():
+        inner = rep.nested[1:-1]
+        assert rep.interior_cv_err == inner.max() and rep.cv_err == rep.nested.max()
+
+
 def test_two_branch_model_from_a_map_with_directions(tmp_path):
     """Sárosi's published DMSP-10-100 branches (Tables 2 and 4) sampled on 0-600 kPa x 0-25 %
     contraction with their direction; fitting sarosi_hysteresis to that CSV gives both branches

@@ -18,8 +18,8 @@ from pma_model_ros.core.joint_file import load_joints
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 EXAMPLE = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
-#: The highest pressure the example's muscles are commanded: their map's 650 kPa (hildebrandt does
-#: not extrapolate).
+#: The highest pressure the example's muscles are commanded: the rated 800 kPa (hildebrandt is
+#: served extrapolated beyond its map's 650 kPa).
 TOP = EXAMPLE.muscles[0].limits.command_top
 #: The README's worked example: the example joint at 0.5 rad, flexor 400 kPa, extensor 300 kPa
 #: (gauge).
@@ -278,9 +278,9 @@ def test_lever_arm_must_stay_positive():
 
 
 def test_out_of_reach_cocontraction_is_saturated_at_the_nearest_level():
-    solution = EXAMPLE.pressures_one(0.0, 0.0, 900e3)  # above the identified 650 kPa
+    solution = EXAMPLE.pressures_one(0.0, 0.0, 900e3)  # above the rated 800 kPa
     assert solution.flags & Flag.SATURATED and solution.pressures == (TOP, TOP)
-    solution = EXAMPLE.pressures_one(0.0, 0.0, 2e6, 'sum')  # above 650 + 650 kPa
+    solution = EXAMPLE.pressures_one(0.0, 0.0, 2e6, 'sum')  # above 800 + 800 kPa
     assert solution.flags & Flag.SATURATED and solution.pressures == (TOP, TOP)
 
 

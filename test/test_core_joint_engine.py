@@ -8,6 +8,7 @@ from the joint file or :class:`~pma_model_ros.core.joint.MuscleAt`; stiffnesses 
 differences of those hand torques.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -24,9 +25,13 @@ from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 AMBIENT = 101325.0  # [Pa]
 AGE = 0.125  # [s] max_input_age (a binary fraction: the freshness edge is exact)
-#: DMSP-10-250 identified over 0.198..0.25 m and 0..650 kPa (Table A2); hildebrandt does not
-#: extrapolate, martens does (up to the rated 800 kPa).
+#: DMSP-10-250 identified over 0.198..0.25 m and 0..650 kPa (Table A2); martens extrapolates (up
+#: to the rated 800 kPa), and so does hildebrandt as the file serves it; HELD is hildebrandt held
+#: at the identified box (a file's ``extrapolates: false``).
 HILDEBRANDT = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'hildebrandt')
+HELD = dataclasses.replace(
+    HILDEBRANDT, domain=dataclasses.replace(HILDEBRANDT.domain, extrapolates=False)
+)
 MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 #: DMSP-20-300, identified over 0.222..0.296 m.
 BIG = muscle_model(read_parameters(CONFIGS['DMSP-20-300']), 'hildebrandt')
@@ -348,12 +353,12 @@ def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_
     'muscle, gauge, served, flags',
     [
         # README flag table: within the 10 kPa vented band below 0 a muscle is vented, unflagged
-        (HILDEBRANDT, -5e3, 0.0, set()),
-        (HILDEBRANDT, 0.0, 0.0, set()),
-        (HILDEBRANDT, 650e3, 650e3, set()),  # the map's top (Table A2)
+        (HELD, -5e3, 0.0, set()),
+        (HELD, 0.0, 0.0, set()),
+        (HELD, 650e3, 650e3, set()),  # the map's top (Table A2)
         # beyond the band: a vacuum a muscle cannot hold
-        (HILDEBRANDT, -20e3, 0.0, {'BELOW_AMBIENT', 'PRESSURE_OUT_OF_RANGE'}),
-        (HILDEBRANDT, 700e3, 650e3, {'PRESSURE_OUT_OF_RANGE'}),  # served at the top
+        (HELD, -20e3, 0.0, {'BELOW_AMBIENT', 'PRESSURE_OUT_OF_RANGE'}),
+        (HELD, 700e3, 650e3, {'PRESSURE_OUT_OF_RANGE'}),  # served at the top
         # martens extrapolates up to the rated 800 kPa: its own value there, then held
         (MARTENS, 700e3, 700e3, {'EXTRAPOLATED'}),
         (MARTENS, 900e3, 800e3, {'EXTRAPOLATED', 'PRESSURE_OUT_OF_RANGE'}),
@@ -438,8 +443,9 @@ def test_an_out_of_reach_torque_is_served_at_the_map_top_and_warns():
     e.angle(0, 0.0, 0.0, 0.0)
     assert e.status(0, 0.0)[0] == Level.OK
     p0, p1 = (p - AMBIENT for p in e.command(0, 100.0, 0.0))
-    # hildebrandt commands up to the map's 650 kPa; the extensor stays at the 300 kPa level
-    assert (p0, p1) == pytest.approx((650e3, 300e3), abs=1e-6)
+    # hildebrandt (extrapolated) commands up to the rated 800 kPa; the extensor stays at the
+    # 300 kPa level
+    assert (p0, p1) == pytest.approx((800e3, 300e3), abs=1e-6)
     assert elbow_torque(0.0, p0, p1) < 100.0
     assert e.status(0, 0.0)[:2] == (Level.WARN, 'saturated (SATURATED)')
 

@@ -16,7 +16,7 @@ import pytest
 from conftest import CONFIGS
 from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import fit_best, max_error_percent
-from pma_model_ros.core.models import EDGE_CV_LIMIT, get_model
+from pma_model_ros.core.models import extrapolates, get_model
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
@@ -66,15 +66,15 @@ def test_martens_extrapolates_to_left_out_shortest_length(muscle, objective):
 def test_sarosi_does_not_extrapolate_to_l0():
     own, _ = served_at_left_out('DMSP-10-250', 'sarosi', 'minimax', 0, extrapolates=True)
     clamped, _ = served_at_left_out('DMSP-10-250', 'sarosi', 'minimax', 0, extrapolates=False)
-    assert own > 10 * clamped > EDGE_CV_LIMIT
+    assert own > 10 * clamped > 10 and not extrapolates('sarosi')
 
 
-def test_shipped_files_extrapolate_where_the_left_out_edges_say_so():
+def test_shipped_files_serve_each_model_by_its_rule():
     for muscle in ('DMSP-10-250', 'DMSP-20-300'):
         models = read_parameters(CONFIGS[muscle])['models']
         assert models['martens']['extrapolates'] and not models['sarosi']['extrapolates']
-        for entry in models.values():
-            assert entry['extrapolates'] == (entry['edge_cv_err'] <= EDGE_CV_LIMIT)
+        for name, entry in models.items():
+            assert entry['extrapolates'] == extrapolates(name)
 
 
 def test_issue_examples_dmsp_20_300_at_nominal_length_and_675_kpa():

@@ -149,12 +149,15 @@ def test_identification_results_as_diagnostic_values(params):
         'identification rmse [N]': f'{martens["rmse"]:.6g}',
         'identification r2': f'{martens["r2"]:.6g}',
         'identification cv_err [% of max force]': f'{martens["cv_err"]:.6g}',
+        'identification interior_cv_err [% of max force]': f'{martens["interior_cv_err"]:.6g}',
         'identification edge_cv_err [% of max force]': f'{martens["edge_cv_err"]:.6g}',
         'identification held_out [m: % of max force]': ', '.join(
             f'{length:.4g}: {err:.3g}' for length, err in zip(held['lengths'], held['err'])
         ),
     }
     assert max(held['err']) == martens['cv_err']  # the worst held-out length is cv_err
+    assert max(held['err'][1:-1]) == martens['interior_cv_err']  # of those inside
+    assert max(held['err'][0], held['err'][-1]) == martens['edge_cv_err']  # the two edges
     assert identification(params, 'hildebrandt')['identification err [% of max force]'] == (
         f'{params["models"]["hildebrandt"]["err"]:.6g}'
     )

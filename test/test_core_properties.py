@@ -155,14 +155,18 @@ def test_force_rises_with_pressure_exactly_where_the_slope_is_nonnegative(muscle
 @pytest.mark.parametrize('muscle', MUSCLES, ids=[f'{m.spec.name}-{m.model.name}' for m in MUSCLES])
 def test_which_models_are_monotonic_in_their_validity_domain(muscle):
     """Documented above: on the shipped parameters only andrikopoulos falls with pressure in its
-    domain.
+    domain, and hildebrandt of DMSP-10-250 extrapolated below 0.179 m (its shortest measured
+    length is 0.198 m); both only where they serve 0 N at every pressure.
     """
     L = domain_length(muscle, np.linspace(0, 1, 2001))
     falling = np.zeros(L.shape, bool)
     for rate in RATES:
         q2, q1, _ = coefficients(muscle, L, rate)
         falling |= np.minimum(q1, q1 + 2 * q2 * muscle.spec.max_pressure) < 0
-    assert falling.any() == (muscle.model.name == 'andrikopoulos')
+    assert falling.any() == (
+        muscle.model.name == 'andrikopoulos'
+        or (muscle.model.name, muscle.spec.name) == ('hildebrandt', 'DMSP-10-250')
+    )
     if falling.any():
         # At the shortest lengths only, where the raw force is <= 0 for every p > 0: served 0 N
         # there.

@@ -75,20 +75,41 @@ def test_nested_choice_is_made_again_without_each_fold():
 
 
 def test_the_band_at_a_length():
+    """Between the shortest and longest held-out length the worst err of those between them (an
+    interpolation's figure); beyond them the worse of those two (an extrapolation's), said so.
+    """
     band = HeldOutBand((0.25, 0.234, 0.219), (8.0, 3.0, 1.0), 500.0)
-    assert band.at(0.234) == (3.0, True)  # a held-out length: its own
-    assert band.at(0.24) == (8.0, True)  # between: the larger of the two around it
-    assert band.at(0.22) == (3.0, True)
-    assert band.at(0.26) == (8.0, False) and band.at(0.2) == (1.0, False)  # outside: said so
+    assert band.at(0.234) == (3.0, True)  # a held-out length: the interior figure
+    assert band.at(0.24) == (3.0, True)  # between the longest two: still interpolation
+    assert band.at(0.219) == (3.0, True) and band.at(0.25) == (3.0, True)
+    assert band.at(0.26) == (8.0, False) and band.at(0.2) == (8.0, False)  # beyond: max(8, 1)
+    assert band.values_at(0.24) == {
+        'expected error [N]': '15',  # 3 % of 500 N
+        'expected error [% of max force]': '3',
+    }
+    assert band.values_at(0.2) == {
+        'expected error [N]': '40',  # 8 % of 500 N
+        'expected error [% of max force]': (
+            '8 (extrapolation: 0.2 m is beyond the measured lengths 0.219..0.25 m)'
+        ),
+    }
     with pytest.raises(ValueError, match='as many finite lengths as errors'):
         HeldOutBand((0.25,), (1.0, 2.0), 500.0)
 
 
+def test_two_lengths_have_no_interior_figure():
+    band = HeldOutBand((0.25, 0.219), (8.0, 1.0), 500.0)
+    assert band.at(0.23) == (8.0, True) and band.at(0.2) == (8.0, False)
+
+
 def test_a_length_that_measured_no_force_is_judged_by_the_maps_worst():
     """A held-out err of 0: every force measured there was 0 and the clipped model says slack;
-    that is no band of 0 N around a prediction, so the map's worst held-out err stands in.
+    that is no band of 0 N around a prediction, so where every length inside measured no force,
+    the map's worst held-out err stands in.
     """
     band = HeldOutBand((0.25, 0.234, 0.219), (8.0, 3.0, 0.0), 500.0)
-    assert band.at(0.219) == (8.0, True) and band.slack_at(0.219)
-    assert band.at(0.22) == (3.0, True) and not band.slack_at(0.22)  # the larger of 3 and 0
-    assert band.values_at(0.219)['expected error [N]'] == '40'  # 8 % of 500 N
+    assert band.at(0.219) == (3.0, True) and not band.slack_at(0.219)  # the interior: 3
+    band = HeldOutBand((0.25, 0.24, 0.23, 0.22), (8.0, 0.0, 0.0, 5.0), 500.0)
+    assert band.at(0.235) == (8.0, True) and band.slack_at(0.235)
+    assert band.at(0.2) == (8.0, False) and not band.slack_at(0.2)
+    assert band.values_at(0.235)['expected error [N]'] == '40'  # 8 % of 500 N

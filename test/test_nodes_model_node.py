@@ -92,8 +92,10 @@ def test_one_muscle_command_and_diagnostics_on_change(make_node):
 
 
 def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
-    """The nested held-out error of the identified lengths around the newest length (the file's
-    ``models.martens.held_out``: 4.66 % at 0.234 m, 1.79 % at 0.219 m, of 542.5 N), in N and %.
+    """The nested held-out error that judges the newest length, in N and %: between the measured
+    lengths the worst of those inside (the file's ``models.martens.held_out``: 4.66 % at 0.234 m,
+    of 542.5 N); beyond them the worse of the shortest's and longest's (8.81 % at 0.25 m), said to
+    be extrapolation.
     """
     node = make_node(CONFIGS['DMSP-10-250'])
     diagnostics = record(node._diag_pub)
@@ -106,14 +108,19 @@ def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
 
     assert expected() == ('unknown', 'unknown: no length yet')
     held = read_parameters(CONFIGS['DMSP-10-250'])['models']['martens']['held_out']
-    worst = max(held['err'][1], held['err'][2])  # 0.234 m and 0.219 m, around 0.23 m
+    worst = max(held['err'][1:-1])  # 0.234, 0.219 and 0.204 m: between the measured lengths
     node._on_state(0, raw(state(now, 0.23, 0.0)))
     node._on_pressure(0, raw(pressure(now, AMBIENT + 300e3)))
     assert expected() == (f'{worst * 542.5 / 100:.3g}', f'{worst:.3g}') == ('25.3', '4.66')
     node._on_state(0, raw(state(now, 0.26, 0.0)))  # beyond L0 = 0.25 m, the longest held out
-    assert expected() == (
-        'unknown',
-        'unknown: 0.26 m is outside the held-out lengths 0.198..0.25 m',
+    edge = max(held['err'][0], held['err'][-1])  # 0.25 m and 0.198 m
+    assert (
+        expected()
+        == (
+            f'{edge * 542.5 / 100:.3g}',
+            f'{edge:.3g} (extrapolation: 0.26 m is beyond the measured lengths 0.198..0.25 m)',
+        )
+        == ('47.8', '8.81 (extrapolation: 0.26 m is beyond the measured lengths 0.198..0.25 m)')
     )
 
 

@@ -28,7 +28,7 @@ choices included, re-run without each measured length.
 from __future__ import annotations
 
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import functools
 import math
 import os
@@ -42,7 +42,8 @@ from . import geometry as geo
 from .calibration import Calibration, OFF
 from .force_map import ForceMap
 from .geometry import MuscleSpec
-from .models import Domain, force_raw, get_model, Model
+from .models import Domain, extrapolates, force_raw, get_model, Model
+from .muscle_model import MuscleModel
 from .node_parameters import STANDARD_ATMOSPHERE
 from .progress import Meter
 from .separable import Separable, Solution
@@ -82,14 +83,32 @@ class Fit:
     #: (:func:`~.calibration.slack_length`; None: none, or L0 not calibrated)
     slack_length: float | None = None
 
-    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
-        """The fitted model's physical force [N] at sensor pressure [Pa] and length [m], as
-        identified (unclipped L).
+    def __getstate__(self) -> dict:
+        """The fit without its :attr:`served` muscle (rebuilt on use; its prepared coefficients
+        are closures, which do not pickle into worker processes).
+        """
+        state = dict(self.__dict__)
+        state.pop('served', None)
+        return state
+
+    @functools.cached_property
+    def served(self) -> MuscleModel:
+        """The muscle as its parameter file serves it (:func:`~.param_file.muscle_model` of what
+        :mod:`.param_writer` writes): the model's own value within the identified lengths, and
+        beyond them the rule of :func:`~.models.extrapolates`.
         """
         model, theta = get_model(self.model), self.theta
         if self.calibration.pressure:
             model, theta = cal.shifted(model), np.r_[theta, self.pressure_offset]
-        return physical_force(model, theta, self.spec, self.domain, pressure, length)
+        domain = replace(self.domain, extrapolates=extrapolates(self.model))
+        return MuscleModel(self.spec, model, theta, domain)
+
+    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """The served force [N] at sensor pressure [Pa] and length [m] (:attr:`served`: what
+        ``evaluate``, ``force`` and the nodes serve from the fit's parameter file); unknown branch
+        for a hysteresis model.
+        """
+        return np.nan_to_num(self.served.force(pressure, length).force)
 
 
 def domain_of(fmap: ForceMap) -> Domain:
@@ -527,8 +546,30 @@ class ModelReport:
 
     @property
     def edge_cv_err(self) -> float:
-        """Worst nested held-out err on the map's shortest and longest length [%]."""
-        return float(max(self.nested[0], self.nested[-1]))
+        """Worst nested held-out err on the map's shortest and longest length [%]: beyond the
+        lengths it was fitted on, what the fit serves there (:attr:`Fit.served`).
+        """
+        return edge_err(self.nested)
+
+    @property
+    def interior_cv_err(self) -> float:
+        """Worst nested held-out err on the lengths between the shortest and the longest [%]."""
+        return interior_err(self.nested)
+
+
+def edge_err(nested: np.ndarray) -> float:
+    """The worst of nested held-out errors per fold [%] (longest first) on the map's shortest and
+    longest length: an extrapolation's figure.
+    """
+    return float(max(nested[0], nested[-1]))
+
+
+def interior_err(nested: np.ndarray) -> float:
+    """The worst of nested held-out errors per fold [%] (longest first) on the lengths between the
+    map's shortest and longest: an interpolation's figure (NaN for fewer than 3 folds).
+    """
+    inner = nested[1:-1]
+    return float(np.nanmax(inner)) if inner.size and np.any(np.isfinite(inner)) else math.nan
 
 
 @dataclass(frozen=True)

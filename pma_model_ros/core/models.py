@@ -34,8 +34,8 @@ class Domain:
     """What a model was identified on, and how it is served outside that.
 
     Inside [length_min, length_max] x [0, pressure_max] the model is served as identified.
-    Outside, if ``extrapolates`` (its held-out error on the map's edge lengths is at most
-    ``EDGE_CV_LIMIT``), the model's own value is served in the physical envelope (the braid's
+    Outside, if ``extrapolates`` (the served rule of the model, :func:`extrapolates`), the model's
+    own value is served in the physical envelope (the braid's
     shortest length to L0, 0 to the rated pressure), flagged EXTRAPOLATED; otherwise the value at
     the nearest identified point, flagged LENGTH_OUT_OF_RANGE or PRESSURE_OUT_OF_RANGE
     (:meth:`~.muscle_model.Evaluator.operating`).
@@ -59,9 +59,19 @@ class Domain:
             )
 
 
-#: [%] Worst held-out error (eq. 23) on the map's shortest and longest lengths up to which a model
-#: is trusted outside its identified data (:class:`Domain`).
-EDGE_CV_LIMIT = 10.0
+#: The models served beyond their identified lengths by their own value (in the physical envelope,
+#: flagged EXTRAPOLATED); every other model is held at the nearest identified length.  Chosen per
+#: model across four muscles by leave-one-muscle-out on the served nested error of the map's edge
+#: lengths (``bench/generalisation.py --rules``; docs/calibration.md): for each muscle the rule
+#: that wins on the other three.
+EXTRAPOLATING = frozenset({'mckibben', 'andrikopoulos', 'hildebrandt', 'martens'})
+
+
+def extrapolates(model: str) -> bool:
+    """Whether ``fit`` and ``make-config`` serve ``model`` beyond its identified lengths by its own
+    value (:data:`EXTRAPOLATING`, :class:`Domain`); its held-out figures judge the force so served.
+    """
+    return model in EXTRAPOLATING
 
 
 @dataclass(frozen=True)

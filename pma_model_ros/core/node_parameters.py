@@ -189,7 +189,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         False,
         "serve the model's own value outside the identified "
         'ranges, flagged EXTRAPOLATED (else the nearest identified point, flagged out of range); '
-        "set by `make-config` where the held-out error on the map's edge lengths is ≤ 10 %",
+        '`fit` and `make-config` set it by the model (martens: true), the rule its held-out '
+        'errors judge',
         per_muscle=True,
     ),
     ParameterSpec(
@@ -323,7 +324,16 @@ PROCESS_PARAMETERS = ('executor', 'autostart')
 MODEL_BLOCK = ('params', 'extrapolates', 'nominal_length', 'pressure_offset')
 #: ... and its identification results, read from the parameter file into each muscle's
 #: diagnostics (:func:`~pma_model_ros.core.param_file.identification`), not ROS parameters.
-IDENTIFICATION = ('objective', 'err', 'rmse', 'r2', 'cv_err', 'edge_cv_err', 'held_out')
+IDENTIFICATION = (
+    'objective',
+    'err',
+    'rmse',
+    'r2',
+    'cv_err',
+    'interior_cv_err',
+    'edge_cv_err',
+    'held_out',
+)
 _INPUT = SPECS['hysteresis.input'].default
 #: What a hysteresis muscle's branch follows unless its parameters say otherwise.
 DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)

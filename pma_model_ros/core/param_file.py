@@ -20,7 +20,8 @@ Layout (every value SI; ``config/dmsp_10_250.yaml``, its martens entry)::
             rmse: 7.92133215146
             r2: 0.996811298801
             cv_err: 8.81150464667        # the worst nested held-out err [%]
-            edge_cv_err: 8.81150464667
+            interior_cv_err: 4.65750678692  # ... between the shortest and longest length
+            edge_cv_err: 8.81150464667   # ... at those two (the served extrapolation's)
             held_out:                    # nested held-out err [%] of each identified length
               lengths: [0.25, 0.234, 0.219, 0.204, 0.198]
               err: [8.81150464667, 4.65750678692, 1.79429019697, 0.406203929704, 0.44477631869]
@@ -286,6 +287,7 @@ IDENTIFICATION_UNITS = {
     'rmse': 'N',
     'r2': '',
     'cv_err': '% of max force',
+    'interior_cv_err': '% of max force',
     'edge_cv_err': '% of max force',
 }
 

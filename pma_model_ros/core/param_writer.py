@@ -11,7 +11,7 @@ import yaml
 from .force_map import ForceMap
 from .geometry import MuscleSpec
 from .identification import Fit, ModelReport
-from .models import Domain, EDGE_CV_LIMIT
+from .models import Domain, extrapolates
 from .param_file import NODE_DEFAULTS
 from .validation import fold_lengths
 
@@ -37,14 +37,21 @@ def fit_entry(fit: Fit) -> dict:
 
 def model_entry(report: ModelReport, fmap: ForceMap) -> dict:
     """:func:`fit_entry` of the shipped fit plus its worst nested held-out errors, overall
-    (``cv_err``) and on the map's edge lengths (``edge_cv_err``), whether that lets it extrapolate
-    (:class:`~.models.Domain`), and the error per held-out length (``held_out``: ``lengths`` [m],
-    ``err`` [%] and the ``max_force`` [N] they are a share of), when every length was judged.
+    (``cv_err``), on the lengths between the map's shortest and longest (``interior_cv_err``,
+    interpolation) and on those two (``edge_cv_err``, extrapolation), whether it is served beyond
+    the identified lengths by its own value (:func:`~.models.extrapolates`, the rule those figures
+    judge), and the error per held-out length (``held_out``: ``lengths`` [m], ``err`` [%] and the
+    ``max_force`` [N] they are a share of), when every length was judged.
     """
     entry = fit_entry(report.shipped) | {
         'cv_err': _num(report.cv_err),
+        **(
+            {'interior_cv_err': _num(report.interior_cv_err)}
+            if math.isfinite(report.interior_cv_err)
+            else {}
+        ),
         'edge_cv_err': _num(report.edge_cv_err),
-        'extrapolates': bool(report.edge_cv_err <= EDGE_CV_LIMIT),
+        'extrapolates': extrapolates(report.shipped.model),
     }
     if report.nested.size and np.all(np.isfinite(report.nested)):
         entry['held_out'] = {

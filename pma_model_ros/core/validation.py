@@ -191,12 +191,16 @@ def _first_best(names: list[str], score: Callable[[str], float]) -> str:
 
 @dataclass(frozen=True)
 class HeldOutBand:
-    """How far to trust a fit at a length: the nested held-out err of each held-out length.
+    """How far to trust a fit at a length: the nested held-out err of each held-out length, in two
+    figures.  Between the map's shortest and longest length (interpolation) the worst err of the
+    lengths between them; beyond them (extrapolation, :func:`~.models.extrapolates`) the worst err
+    of those two, each served from a fit without it.
 
     ``lengths`` [m] (descending, as :func:`fold_lengths`), ``errors`` [% of ``max_force``], the
     map's ``max_force`` [N].  An error of exactly 0 is a length where no force was measured: eq. 23
-    there says only that the clipped model is slack where the muscle was, not how far to trust it
-    (:meth:`at` gives the map's worst instead).
+    there says only that the clipped model is slack where the muscle was, not how far to trust it;
+    a figure of 0 gives way to the map's worst (:meth:`at`).  With fewer than three lengths both
+    figures are the map's worst.
     """
 
     lengths: tuple[float, ...]
@@ -218,61 +222,73 @@ class HeldOutBand:
             )
 
     @cached_property
-    def _sorted(self) -> tuple[np.ndarray, np.ndarray]:
-        """The held-out lengths [m] in increasing order, and their errors [%] (model_node asks
-        :meth:`at` for every muscle at each status report).
+    def _figures(self) -> tuple[float, float, float, float]:
+        """(shortest length [m], longest [m], the interior figure [%], the edge figure [%]) before
+        a figure of 0 gives way (model_node asks :meth:`at` for every muscle at each status
+        report).
         """
         order = np.argsort(self.lengths)
-        return np.asarray(self.lengths)[order], np.asarray(self.errors)[order]
+        lengths, errors = np.asarray(self.lengths)[order], np.asarray(self.errors)[order]
+        worst = float(errors.max())
+        if errors.size < 3:
+            return float(lengths[0]), float(lengths[-1]), worst, worst
+        return (
+            float(lengths[0]),
+            float(lengths[-1]),
+            float(errors[1:-1].max()),
+            float(max(errors[0], errors[-1])),
+        )
 
-    def _around(self, length: float) -> tuple[float, bool]:
-        """(the larger error [%] of the held-out lengths around ``length`` [m], or at it, or the
-        nearest one's outside them; whether it lies within the held-out lengths).
-        """
-        lengths, errors = self._sorted
-        if length < lengths[0] or length > lengths[-1]:
-            return float(errors[0] if length < lengths[0] else errors[-1]), False
-        i = int(np.searchsorted(lengths, length))
-        if lengths[i] == length:
-            return float(errors[i]), True
-        return float(max(errors[i - 1], errors[i])), True
+    @property
+    def interior(self) -> float:
+        """The worst held-out err [%] between the shortest and longest length (interpolation)."""
+        return self._figures[2] or max(self.errors)
+
+    @property
+    def edge(self) -> float:
+        """The worst held-out err [%] of the shortest and longest length (extrapolation)."""
+        return self._figures[3] or max(self.errors)
+
+    def inside(self, length: float) -> bool:
+        """Whether ``length`` [m] lies within the held-out lengths (interpolation)."""
+        return self._figures[0] <= length <= self._figures[1]
 
     def slack_at(self, length: float) -> bool:
-        """Whether no force was measured at the held-out lengths that judge ``length`` [m] (their
-        errors 0).
+        """Whether the figure that judges ``length`` [m] is 0: no force was measured at any of its
+        held-out lengths (:meth:`at` gives the map's worst instead).
         """
-        return self._around(length)[0] == 0
+        return self._figures[2 if self.inside(length) else 3] == 0
 
     def at(self, length: float) -> tuple[float, bool]:
         """(expected worst error [%] at ``length`` [m], whether it lies within the held-out
-        lengths): the larger error of the two held-out lengths around it; outside them, the
-        nearest one's (an extrapolation, which the figure does not cover); where those measured
-        no force (:meth:`slack_at`), the map's worst.
+        lengths): :attr:`interior` within them, :attr:`edge` beyond them (an extrapolation).
         """
-        percent, inside = self._around(length)
-        return (max(self.errors) if percent == 0 else percent), inside
+        inside = self.inside(length)
+        return (self.interior if inside else self.edge), inside
 
     def values_at(self, length: float) -> dict[str, str]:
         """The expected error at ``length`` [m] as diagnostic key-values (model_node's status of a
-        muscle at its newest length): in N and in % of the map's max force (:meth:`at`), or
-        ``unknown`` and why (no length yet, or one outside the held-out lengths).
+        muscle at its newest length): in N and in % of the map's max force (:meth:`at`), beyond
+        the held-out lengths saying that it is an extrapolation's figure; ``unknown`` before a
+        length.
         """
         keys = ('expected error [N]', 'expected error [% of max force]')
         if not np.isfinite(length):
             return dict(zip(keys, ('unknown', 'unknown: no length yet')))
         percent, inside = self.at(length)
+        newtons = f'{percent * self.max_force / 100:.3g}'
         if not inside:
             return dict(
                 zip(
                     keys,
                     (
-                        'unknown',
-                        f'unknown: {length:.4g} m is outside the held-out lengths '
-                        f'{min(self.lengths):.4g}..{max(self.lengths):.4g} m',
+                        newtons,
+                        f'{percent:.3g} (extrapolation: {length:.4g} m is beyond the measured '
+                        f'lengths {min(self.lengths):.4g}..{max(self.lengths):.4g} m)',
                     ),
                 )
             )
-        return dict(zip(keys, (f'{percent * self.max_force / 100:.3g}', f'{percent:.3g}')))
+        return dict(zip(keys, (newtons, f'{percent:.3g}')))
 
 
 def fit_or_none(
