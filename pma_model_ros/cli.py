@@ -317,6 +317,9 @@ def cmd_fit(args: argparse.Namespace) -> None:
         f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
         + _FILE_LEGEND,
     )
+    rows = rows_to_add(found.held_out, fold_lengths(fmap), chosen.spec)
+    if rows:
+        print('\n' + rows)
     if len(reports) > 1:
         print('\n' + _default_line(found))
         how = f'by held-out err; {reports[found.default].cv_err:.2f} % is a selection figure'
@@ -326,6 +329,40 @@ def cmd_fit(args: argparse.Namespace) -> None:
         f'\ndefault model ({how}): {found.default}  err {chosen.err:.3f} %  rmse '
         f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  {held_out_parts(found.held_out)}'
         f'  -> {args.out}'
+    )
+
+
+#: [%, pp] An edge figure above EDGE_LARGE and above the interior one by EDGE_MARGIN is large.
+EDGE_LARGE, EDGE_MARGIN = 5.0, 1.0
+
+
+def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec) -> str:
+    """What to measure when the fit's edge figure (nested held-out err per fold [%] at the fold
+    ``lengths`` [m], longest first) is large against its interior one: the rows that make the
+    lengths served there interpolation, the rest-length row (L0) and the shortest working length;
+    '' when it is not large.
+    """
+    from .core.geometry import shortest_length
+    from .core.identification import edge_err, interior_err
+
+    edge, interior = edge_err(nested), interior_err(nested)
+    if not (edge > EDGE_LARGE and edge > interior + EDGE_MARGIN):
+        return ''
+    rest, longest, shortest = spec.nominal_length, float(lengths[0]), float(lengths[-1])
+    side = 'longest' if nested[0] >= nested[-1] else 'shortest'
+    at_rest = abs(longest - rest) <= 0.005 * rest  # within a calibrated L0's reach
+    return (
+        f'beyond the measured lengths the fit errs by {edge:.2f} % (the {side}, predicted from '
+        f'the others) against {interior:.2f} % between them; '
+        'rows to measure: the rest-length row at L0 '
+        + (
+            f'{rest:.4g} m (measured: it is the edge; a row between {float(lengths[1]):.4g} and '
+            f'{rest:.4g} m makes it less of an extrapolation)'
+            if at_rest
+            else f'{rest:.4g} m (not measured: the longest is {longest:.4g} m)'
+        )
+        + ', and the shortest working length (the shortest is '
+        f'{shortest:.4g} m; the braid pulls down to {shortest_length(spec):.4g} m)'
     )
 
 

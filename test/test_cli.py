@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.cli import length_headers, main
+from pma_model_ros.cli import length_headers, main, rows_to_add
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
@@ -709,6 +709,32 @@ def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, ca
         capsys.readouterr()
         errors = [float(row.split(',')[4]) for row in points.read_text().splitlines()[1:]]
         assert 100 * max(map(abs, errors)) / fmap.max_force == pytest.approx(printed, abs=0.006)
+
+
+def test_fit_names_the_rows_to_measure_when_the_edge_figure_is_large(tmp_path, capsys):
+    """Table A2's rest-length row (0.250 m) is the fit's worst held-out length, an extrapolation
+    from the shorter rows: fit names the rows that would make it less of one.  The braid pulls down
+    to L_F / sqrt(3) = 0.25 / cos(28.6 deg) / sqrt(3) = 0.1644 m (eq. 4).
+    """
+    spec = str(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml')
+    fmap = shipped_force_map('DMSP-10-250')
+    out = tmp_path / 'fit.yaml'
+    data = _map_csv(tmp_path / 'map.csv', fmap)
+    argv = ['fit', '--data', data, '--muscle', spec, '--model', 'martens', '--out', str(out)]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    advice = next(line for line in lines if line.startswith('beyond the measured lengths'))
+    assert '(the longest, predicted from the others)' in advice
+    assert (
+        'the rest-length row at L0 0.25 m (measured: it is the edge; a row between 0.234 and '
+        '0.25 m makes it less of an extrapolation)' in advice
+    )
+    assert 'the shortest is 0.198 m; the braid pulls down to 0.1644 m' in advice
+    assert lines[-1].startswith('default model')  # the last line stays the figures' line
+    # not large: an edge within 5 %, or within 1 pp of the lengths between the edges
+    lengths = np.array([0.3, 0.28, 0.26, 0.24])
+    assert rows_to_add(np.array([2.69, 0.64, 1.44, 4.9]), lengths, None) == ''
+    assert rows_to_add(np.array([9.0, 8.5, 3.0, 6.0]), lengths, None) == ''
 
 
 def test_force_prints_the_expected_error_at_the_length(capsys):
