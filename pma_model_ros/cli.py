@@ -383,8 +383,8 @@ def _fit_branches(args: argparse.Namespace, spec) -> None:
     """``fit`` of a two-branch (hysteresis) model: each branch on its direction's points,
     uncalibrated.
     """
-    from .core.identification import check_fit_map, fit_best
-    from .core.param_writer import build_parameters, fit_entry, write_parameters
+    from .core.identification import check_fit_map, fit_best, judge_branches
+    from .core.param_writer import build_parameters, fit_entry, held_out_entry, write_parameters
 
     model = get_model(args.model)
     fmap = (
@@ -393,16 +393,37 @@ def _fit_branches(args: argparse.Namespace, spec) -> None:
         else bag_force_map(args, spec, two_branches=True)
     )
     check_fit_map(fmap, spec, folds=2)
-    fit = fit_best(model, spec, fmap, args.objective)
+    if len(length_folds(fmap)) < 3:  # no length between others to judge it on
+        fit, figures = fit_best(model, spec, fmap, args.objective), ''
+        entry = fit_entry(fit)
+    else:
+        fit, nested = judge_branches(model, spec, fmap, args.objective)
+        entry = fit_entry(fit) | held_out_entry(model.name, nested, fmap)
+        figures = f'  {held_out_parts(nested)}'
+        print(
+            'nested held-out err [%] per held-out length [m] (each point on its branch; each '
+            'length predicted by the fit without it, as served)'
+        )
+        labels = length_headers(fold_lengths(fmap))
+        print(f'{"model":<18}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
+        print(
+            f'{model.name:<18}'
+            + ''.join(f'{e:>9.2f}' for e in nested)
+            + f'{_worst(nested):>9.2f}\n'
+        )
+        rows = rows_to_add(nested, fold_lengths(fmap), spec)
+        if rows:
+            print(rows + '\n')
     write_parameters(
         args.out,
-        build_parameters(spec, model.name, fit.domain, {model.name: fit_entry(fit)}),
+        build_parameters(spec, model.name, fit.domain, {model.name: entry}),
         f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
         f'({fit.objective}, '
         'one branch per direction).',
     )
     print(
-        f'{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}  -> {args.out}'
+        f'{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}{figures}'
+        f'  -> {args.out}'
     )
 
 
@@ -411,7 +432,8 @@ def cmd_evaluate(args: argparse.Namespace) -> None:
 
     muscle = load_muscle(args.config, args.model)
     fmap = read_force_map_csv(args.data)
-    result = muscle.force(fmap.pressure, fmap.length)
+    # a map's direction column picks each point's hysteresis branch, as the fit's figures do
+    result = muscle.force(fmap.pressure, fmap.length, fmap.direction)
     model = np.nan_to_num(result.force)
     err, rmse, r2 = quality(fmap.force, model, fmap.max_force)
     print(

@@ -103,12 +103,15 @@ class Fit:
         domain = replace(self.domain, extrapolates=extrapolates(self.model))
         return MuscleModel(self.spec, model, theta, domain)
 
-    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray:
+    def force(
+        self, pressure: np.ndarray, length: np.ndarray, direction: np.ndarray | None = None
+    ) -> np.ndarray:
         """The served force [N] at sensor pressure [Pa] and length [m] (:attr:`served`: what
-        ``evaluate``, ``force`` and the nodes serve from the fit's parameter file); unknown branch
-        for a hysteresis model.
+        ``evaluate``, ``force`` and the nodes serve from the fit's parameter file); a hysteresis
+        model on the branch of ``direction`` (+1 lengthening or filling, -1 shortening or venting,
+        as a map's direction column; None: unknown, the mean of both).
         """
-        return np.nan_to_num(self.served.force(pressure, length).force)
+        return np.nan_to_num(self.served.force(pressure, length, direction).force)
 
 
 def domain_of(fmap: ForceMap) -> Domain:
@@ -349,6 +352,21 @@ def fit_branches(
         True,
         branch=fmap.direction,
     )
+
+
+def judge_branches(
+    model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str = 'least_squares'
+) -> tuple[Fit, np.ndarray]:
+    """:func:`fit_branches` on the whole map and its held-out err per fold [%] (nothing is chosen
+    among candidates, so leave-one-length-out is nested): each fold predicted, on its points'
+    branches, by the force the fit without it serves there.
+    """
+    held = HeldOut(fmap, functools.partial(_branch_fits, model, spec, objective=objective))
+    return held.fits_without(frozenset())[objective], held.errors(objective)
+
+
+def _branch_fits(model: Model, spec: MuscleSpec, fmap: ForceMap, objective: str) -> dict:
+    return {objective: fit_branches(model, spec, fmap, objective)}
 
 
 def fit_best_all(

@@ -10,7 +10,7 @@ import yaml
 
 from .force_map import ForceMap
 from .geometry import MuscleSpec
-from .identification import Fit, ModelReport
+from .identification import edge_err, Fit, interior_err, ModelReport
 from .models import Domain, extrapolates
 from .param_file import NODE_DEFAULTS
 from .validation import fold_lengths
@@ -43,20 +43,24 @@ def model_entry(report: ModelReport, fmap: ForceMap) -> dict:
     judge), and the error per held-out length (``held_out``: ``lengths`` [m], ``err`` [%] and the
     ``max_force`` [N] they are a share of), when every length was judged.
     """
-    entry = fit_entry(report.shipped) | {
-        'cv_err': _num(report.cv_err),
-        **(
-            {'interior_cv_err': _num(report.interior_cv_err)}
-            if math.isfinite(report.interior_cv_err)
-            else {}
-        ),
-        'edge_cv_err': _num(report.edge_cv_err),
-        'extrapolates': extrapolates(report.shipped.model),
+    return fit_entry(report.shipped) | held_out_entry(report.shipped.model, report.nested, fmap)
+
+
+def held_out_entry(model: str, nested: np.ndarray, fmap: ForceMap) -> dict:
+    """The held-out keys of a model entry from its nested held-out err per fold [%] of ``fmap``
+    (:func:`model_entry`).
+    """
+    interior, edge = interior_err(nested), edge_err(nested)
+    entry = {
+        'cv_err': _num(float(np.nanmax(nested))),
+        **({'interior_cv_err': _num(interior)} if math.isfinite(interior) else {}),
+        'edge_cv_err': _num(edge),
+        'extrapolates': extrapolates(model),
     }
-    if report.nested.size and np.all(np.isfinite(report.nested)):
+    if nested.size and np.all(np.isfinite(nested)):
         entry['held_out'] = {
             'lengths': [_num(v) for v in fold_lengths(fmap)],
-            'err': [_num(v) for v in report.nested],
+            'err': [_num(v) for v in nested],
             'max_force': _num(fmap.max_force),
         }
     return entry

@@ -46,7 +46,13 @@ def within_tie(value: float, best: float) -> bool:
 
 
 class Predictor(Protocol):
-    def force(self, pressure: np.ndarray, length: np.ndarray) -> np.ndarray: ...
+    """A fit: its force at pressures and lengths (and, on a map with directions, on each point's
+    hysteresis branch).
+    """
+
+    def force(
+        self, pressure: np.ndarray, length: np.ndarray, *direction: np.ndarray
+    ) -> np.ndarray: ...
 
 
 def length_folds(fmap: ForceMap) -> list[np.ndarray]:
@@ -125,7 +131,10 @@ class HeldOut:
         if fits is None:
             return float('nan')
         forces = self.truth if against_truth else self.fmap.force
-        predicted = fits[candidate].force(self.fmap.pressure[test], self.fmap.length[test])
+        at = (self.fmap.pressure[test], self.fmap.length[test])
+        if self.fmap.direction is not None:  # each point on its branch
+            at += (self.fmap.direction[test],)
+        predicted = fits[candidate].force(*at)
         return float(100 * np.max(np.abs(forces[test] - predicted)) / forces.max())
 
     def errors(self, candidate: str, against_truth: bool = False) -> np.ndarray:
