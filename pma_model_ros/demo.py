@@ -119,7 +119,8 @@ class Monitor(Node):
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
-            if status.name.startswith('model_node: '):  # diagnostic_updater's naming
+            # '<namespace>/model_node: <joint>': the node's fully qualified name, then the joint
+            if status.name.partition(': ')[0].rsplit('/', 1)[-1] == 'model_node':
                 self.diagnostics = {kv.key: kv.value for kv in status.values}
                 self.diagnostics['level'] = ('OK', 'WARN', 'ERROR', 'STALE')[status.level[0]]
                 self.diagnostics['message'] = status.message
