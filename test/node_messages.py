@@ -51,6 +51,20 @@ def force_command(force: float) -> WrenchStamped:
     return msg
 
 
+def stamped(kind, frame: str, stamp: tuple[int, int], value: float):
+    """A FluidPressure or WrenchStamped (``kind``) with ``frame``, ``stamp`` (sec, nanosec) and
+    its float (``fluid_pressure``, ``wrench.force.x``).
+    """
+    msg = kind()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+    if kind is FluidPressure:
+        msg.fluid_pressure = value
+    else:
+        msg.wrench.force.x = value
+    return msg
+
+
 def stamp_key(msg) -> int:
     """A header stamp in integer nanoseconds."""
     return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec

@@ -13,6 +13,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
+from node_messages import stamped
 from pma_model_ros.bags.bag_io import JOINT_STATE, TYPESTORE
 from pma_model_ros.wire.cdr import (
     FLOATS,
@@ -131,18 +132,6 @@ def arrays_of(msg) -> JointStateArrays:
         list(msg.name),
         *(np.asarray(getattr(msg, f), float) for f in ('position', 'velocity', 'effort')),
     )
-
-
-def stamped(kind, frame: str, stamp: tuple[int, int], value: float):
-    """A FluidPressure or WrenchStamped (``kind``) with ``frame``, ``stamp`` and its float."""
-    msg = kind()
-    msg.header.frame_id = frame
-    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
-    if kind is FluidPressure:
-        msg.fluid_pressure = value
-    else:
-        msg.wrench.force.x = value
-    return msg
 
 
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)

@@ -17,7 +17,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS
-from node_messages import AMBIENT, damage, HARMS, malformed, refused
+from node_messages import AMBIENT, damage, HARMS, malformed, refused, stamped
 from pma_model_ros.core.engine import Engine, Level
 from pma_model_ros.core.param_file import node_settings, read_parameters
 from pma_model_ros.nodes.model_node import DESERIALIZE
@@ -58,14 +58,7 @@ def equal_float(a: float, b: float) -> bool:
     harm=harms,
 )
 def test_stamped_reader_equals_rclpy_or_refuses(kind, frame, stamp, value, harm):
-    msg = kind()
-    msg.header.frame_id = frame
-    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
-    if kind is FluidPressure:
-        msg.fluid_pressure = value
-    else:
-        msg.wrench.force.x = value
-    data = damage(serialize_message(msg), harm)
+    data = damage(serialize_message(stamped(kind, frame, stamp, value)), harm)
     expected = rclpy_reads(data, kind)
     read = DESERIALIZE[kind.__name__]
     field = STAMPED[kind]
