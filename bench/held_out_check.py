@@ -3,10 +3,10 @@
 For each measured length: ``pma-model fit`` on the map without it (same options), then
 ``pma-model evaluate --csv`` of that fit on the held-back length; its worst |error| in % of the
 whole map's max force is that length's nested held-out error (a slack length has no force for
-evaluate's eq. 23 and is skipped).  Prints the fit's column beside the check's.  The column judges
-the model's own prediction; ``evaluate`` serves as model_node does, so at a held-out edge length a
-fit whose file does not extrapolate (``extrapolates: false``) is served at its nearest identified
-length instead, and the check says so.
+evaluate's eq. 23 and is skipped).  Prints the fit's column beside the check's.  Both judge the
+force the fit's parameter file serves, as model_node does: at a held-out edge length a model that
+does not extrapolate (``extrapolates: false``) is served at its nearest identified length, and the
+check says so.
 
 Usage: ``.venv/bin/python bench/held_out_check.py --data map.csv --muscle spec.yaml [options]``
 with ``pma-model fit``'s options (default ``--model martens``).  Not a test
