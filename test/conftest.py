@@ -59,6 +59,17 @@ PIP_ONLY = 'a pip-only library'
 _skipped_for_libraries: list[str] = []
 
 
+def pytest_configure(config):
+    """Under pytest-xdist (``scripts/test`` runs one worker per core), each worker in a DDS domain
+    of its own (1..100, from the run's), so that one worker's nodes and /diagnostics never reach
+    another's tests.
+    """
+    worker = os.environ.get('PYTEST_XDIST_WORKER')  # gw0, gw1, ...
+    if worker:
+        run = int(os.environ.get('ROS_DOMAIN_ID', '0'))
+        os.environ['ROS_DOMAIN_ID'] = str(1 + (run + int(worker.removeprefix('gw'))) % 100)
+
+
 def pytest_collectreport(report):
     _note_library_skip(report)
 
