@@ -31,18 +31,16 @@ Not a test.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
-import io
 from pathlib import Path
 import re
 import sys
 import tempfile
 import time
 
+from _cli import run
 import numpy as np
 
-from pma_model_ros.cli import main as pma_model
 from pma_model_ros.core.force_map import ForceMap, read_force_map_csv
 from pma_model_ros.core.models import extrapolates, TABLE3_MODELS
 from pma_model_ros.core.param_file import load_muscle, read_parameters
@@ -79,16 +77,6 @@ def write_map(path: Path, fmap: ForceMap) -> None:
             for p, L, F in zip(fmap.pressure, fmap.length, fmap.force)
         )
     )
-
-
-def run(argv: list[str]) -> str:
-    """``pma-model argv`` in this process; its standard output (exit code 0 asserted)."""
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
-        code = pma_model(argv)
-    if code != 0:
-        raise SystemExit(f'pma-model {" ".join(argv)}: exit {code}')
-    return out.getvalue()
 
 
 def last_line(text: str) -> str:

@@ -24,16 +24,14 @@ the geometry calibration, ``--no-calibrate-length --no-calibrate-pressure``, fas
 from __future__ import annotations
 
 import argparse
-import contextlib
 from dataclasses import replace
-import io
 import math
 from pathlib import Path
 import tempfile
 
+from _cli import run
 import numpy as np
 
-from pma_model_ros.cli import main as pma_model
 from pma_model_ros.core.force_map import ForceMap, read_force_map_csv
 from pma_model_ros.core.muscle_model import MuscleModel
 from pma_model_ros.core.param_file import load_muscle, read_parameters
@@ -44,16 +42,6 @@ INDEPENDENT = REPO.parent / 'shared' / 'data' / 'independent-muscles'
 MAP_274 = INDEPENDENT / 'dmsp20_274_fill.csv'
 SPEC_274 = INDEPENDENT / 'dmsp20_274.yaml'
 SHIPPED_300 = REPO / 'config' / 'dmsp_20_300.yaml'
-
-
-def run(argv: list[str]) -> str:
-    """``pma-model argv`` in this process; its standard output (exit code 0 asserted)."""
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
-        code = pma_model(argv)
-    if code != 0:
-        raise SystemExit(f'pma-model {" ".join(argv)}: exit {code}')
-    return out.getvalue()
 
 
 def _err(fmap: ForceMap, model: np.ndarray, at: np.ndarray) -> float:
