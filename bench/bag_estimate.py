@@ -11,7 +11,7 @@ without the progress bar) writing only the outputs (``--outputs-only``) and copy
 beside them, and the I/O floor: the same read, and one template WrenchStamped written per input
 message with rosbags' writer (what any estimator writing through rosbags pays with
 ``--outputs-only``).  It prints messages/s of each (best run, in CPU time of this process) and the
-ratios to the bare pass (issue 20's targets: outputs-only >= 1.0, copying >= 0.6).  Absolute rates
+ratios to the bare pass (the targets: outputs-only >= 1.0, copying >= 0.6).  Absolute rates
 depend on the machine's load; the ratios, taken within one run, are what to compare.
 ``--profile N``: then the N entries of most own time of each estimate under cProfile.
 """

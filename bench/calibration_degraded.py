@@ -2,8 +2,8 @@
 without calibration.
 
 Usage: ``.venv/bin/python bench/calibration_degraded.py [--all-models | --write DIR]``
-(docs/calibration.md). Not a test: it prints tables (``test/test_core_calibration.py`` asserts the
-issue's targets on the same kind of degradation with another seed and another missing length).
+(docs/calibration.md). Not a test: it prints tables (``test/test_core_calibration.py`` asserts
+bounds on the same kind of degradation with another seed and another missing length).
 
 Degradation of a shipped map (Martens & Boblan 2017, Tables A1/A2) with the paper's geometry as the
 truth: the rest length L0 given ``dl`` wrong, the pressure sensor reading ``offset`` too high,
