@@ -11,7 +11,7 @@ executor would, deserializes each with rclpy, then answers it (``node_latency.Re
 responder runs twice under callgrind, with 0 and with ``--cycles`` cycles after 100 warm-up
 cycles; per cycle = the difference of its main thread's instructions (``--separate-threads``: the
 DDS threads' count moves with the run's wall time), divided by the cycles.  Counted, not timed:
-caches and the executor are not in it (docs/performance-nodes.md: at 1 kHz the node's callbacks
+caches and the executor are not in it (docs/performance.md: at 1 kHz the node's callbacks
 cost 3-4 x their cost in a loop).  ``--code DIR`` counts model_node from another checkout
 (before/after), the relay from this one.  About a minute per valgrind run, four per row.  Not a
 pass/fail test.

@@ -143,6 +143,21 @@ PATHS = [
 DOTTED = re.compile(
     r'(?<![\w./-])((?:pma_model_ros|core|nodes|bags|wire|tools)(?:\.[A-Za-z_]\w*)+)(?![\w/-])'
 )
+#: Suffixes that make a dotted name a file's name, not a module path.
+FILE_SUFFIXES = {
+    'md',
+    'py',
+    'yaml',
+    'csv',
+    'png',
+    'svg',
+    'mcap',
+    'db3',
+    'txt',
+    'toml',
+    'cfg',
+    'xml',
+}
 #: Markdown links [text](target); targets without a scheme are files of the repository.
 LINK = re.compile(r'\]\(([^)\s]+)\)')
 
@@ -196,8 +211,10 @@ def dotted_problem(dotted: str) -> str | None:
 
 
 def github_anchor(title: str) -> str:
-    """The anchor GitHub gives a heading: lower case, punctuation dropped, spaces to hyphens."""
-    title = re.sub(r'[`*_]', '', title.strip().lower()).replace('_', '')
+    """The anchor GitHub gives a heading: lower case, punctuation but '-' and '_' dropped,
+    spaces to hyphens.
+    """
+    title = re.sub(r'[`*]', '', title.strip().lower())
     return re.sub(r'[^\w\- ]', '', title).replace(' ', '-')
 
 
@@ -214,6 +231,8 @@ def missing_names(page: Path) -> list[tuple[int, str, str]]:
     problems = [(n, 'no such file', m) for n, m, path in path_mentions(text) if not path.exists()]
     for number, line in enumerate(text.splitlines(), 1):
         for match in DOTTED.finditer(line):
+            if match.group(1).rsplit('.', 1)[1] in FILE_SUFFIXES:
+                continue  # a file's name: bags.md, core.py
             why = dotted_problem(match.group(1))
             if why is not None:
                 problems.append((number, why, match.group(1)))
@@ -277,12 +296,13 @@ def test_the_name_checks_pass_what_exists(tmp_path):
     page = tmp_path / 'page.md'
     page.write_text(
         '# A page: `its` title\n'
+        '## `model_node` over DDS\n'
         'pma_model_ros/wire/cdr.py and wire/cdr.py, pma_model_ros/core/data/, bench/run,\n'
-        'bench/*.py, scripts/test, test/test_docs.py::test_x, config/dmsp_10_250.yaml.\n'
+        'bench/*.py, scripts/test, test/test_docs.py::test_x, config/dmsp_10_250.yaml, bags.md\n'
         'pma_model_ros.wire.cdr, pma_model_ros.wire,\n'
         'pma_model_ros.bags.synthetic.record_simulation,\n'
         'site-packages/rclpy/executors.py, https://example.org/core/x.py, .venv/bin/x\n'
-        '[a](#a-page-its-title), [b](https://example.org/nothing.md)\n',
+        '[a](#a-page-its-title), [b](https://example.org/nothing.md), [c](#model_node-over-dds)\n',
         encoding='utf-8',
     )
     assert missing_names(page) == []
