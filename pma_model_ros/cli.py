@@ -19,11 +19,16 @@ from .bags.commands import add_bag_commands, add_fit_bag_options, bag_force_map
 from .core.calibration import Calibration
 from .core.flags import describe, Flag
 from .core.force_map import read_force_map_csv
+from .core.geometry import STANDARD_ATMOSPHERE
 from .core.models import get_model, TABLE3_MODELS
-from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import held_out_band, load_muscle, read_parameters
 from .core.progress import step
-from .core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from .core.shipped_data import (
+    dmsp_10_100_hysteresis,
+    MAPPED_MUSCLES,
+    shipped_force_map,
+    shipped_spec,
+)
 from .core.units import length_hint, pressure_hint
 from .core.user_files import read_spec_yaml
 from .core.validation import fold_lengths, length_folds, OBJECTIVES
@@ -141,7 +146,6 @@ def cmd_reproduce(args: argparse.Namespace) -> None:
 
 
 def cmd_make_config(args: argparse.Namespace) -> None:
-    from .core import sarosi
     from .core.identification import domain_of
     from .core.param_writer import build_parameters, model_entry, write_parameters
 
@@ -150,7 +154,7 @@ def cmd_make_config(args: argparse.Namespace) -> None:
         "from the package's shipped data; regenerate rather than edit. SI units throughout."
     )
     if args.muscle == 'DMSP-10-100':
-        hyst = sarosi.dmsp_10_100_hysteresis()
+        hyst = dmsp_10_100_hysteresis()
         models = {'sarosi_hysteresis': {'params': [float(v) for v in hyst.theta]}}
         params = build_parameters(hyst.spec, 'sarosi_hysteresis', hyst.domain, models)
         header += (

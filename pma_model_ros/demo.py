@@ -24,8 +24,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
+from .core.geometry import STANDARD_ATMOSPHERE
 from .core.muscle_model import MuscleModel
-from .core.node_parameters import STANDARD_ATMOSPHERE
 from .core.param_file import muscle_model, read_parameters
 from .core.shipped_data import MAPPED_MUSCLES, share_directory, shipped_force_map
 from .tools import node_process

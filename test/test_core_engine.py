@@ -24,7 +24,7 @@ from pma_model_ros.core.hysteresis import Follow
 from pma_model_ros.core.muscle_model import force_at
 from pma_model_ros.core.pairing import fresh, NEVER, SECOND, stale_command_stamps, UNSTAMPED
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
+from pma_model_ros.core.shipped_data import dmsp_10_100_hysteresis
 
 AMBIENT = 101325.0
 P = 300e3  # gauge [Pa]

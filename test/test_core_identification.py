@@ -10,8 +10,11 @@ import yaml
 from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
 from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
-from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map
+from pma_model_ros.core.shipped_data import (
+    dmsp_10_100_hysteresis,
+    MAPPED_MUSCLES,
+    shipped_force_map,
+)
 
 FITTED = ('andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 

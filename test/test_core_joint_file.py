@@ -7,9 +7,8 @@ import yaml
 
 from conftest import CONFIGS, docstring_yaml, REPO
 from pma_model_ros.core import joint_file
-from pma_model_ros.core.hysteresis import Follow
+from pma_model_ros.core.hysteresis import DEFAULT_FOLLOW, Follow
 from pma_model_ros.core.joint_file import joints, load_joints
-from pma_model_ros.core.node_parameters import DEFAULT_FOLLOW
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'

@@ -13,8 +13,7 @@ from pma_model_ros.core.flags import Flag
 from pma_model_ros.core.identification import domain_of, identify_all, max_error_percent
 from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
 from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.sarosi import dmsp_10_100_hysteresis
-from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.shipped_data import dmsp_10_100_hysteresis, shipped_force_map, shipped_spec
 
 # Martens & Boblan 2017, Table 2 (as printed).
 TABLE2 = {

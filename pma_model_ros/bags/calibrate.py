@@ -46,8 +46,9 @@ from .bag_io import (
 )
 from .estimate import muscle_namespace
 from ..core.force_map import ForceMap
+from ..core.geometry import STANDARD_ATMOSPHERE
 from ..core.hysteresis import branches
-from ..core.node_parameters import SPECS, STANDARD_ATMOSPHERE
+from ..core.node_parameters import SPECS
 from ..core.progress import Meter
 from ..wire.cdr import stamp_ns
 

@@ -15,8 +15,8 @@ import tempfile
 from typing import Iterator
 
 from ..core.force_map import ForceMap
-from ..core.geometry import MuscleSpec
-from ..core.node_parameters import PRESSURE_REFERENCES, STANDARD_ATMOSPHERE
+from ..core.geometry import MuscleSpec, STANDARD_ATMOSPHERE
+from ..core.node_parameters import PRESSURE_REFERENCES
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:

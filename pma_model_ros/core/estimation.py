@@ -27,10 +27,10 @@ import numpy as np
 from . import elementwise as ew
 from .flags import describe, Flag
 from .health import WARN_MASK
-from .hysteresis import Follow, play
+from .hysteresis import DEFAULT_FOLLOW, Follow, play
 from .muscle_bank import MuscleBank
 from .muscle_model import force_at, MuscleModel, Operating, served_pressure
-from .node_parameters import DEFAULT_FOLLOW, SPECS
+from .node_parameters import SPECS
 
 #: Absolute pressures above this [Pa] are sensor or unit errors (50 bar; muscles are rated <= 8
 #: bar).

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .node_parameters import STANDARD_ATMOSPHERE
+from .geometry import STANDARD_ATMOSPHERE
 from .units import length_hint, pressure_hint
 from .user_files import read_user_file
 

@@ -20,6 +20,9 @@ from . import elementwise as ew
 from .typos import missing_key, unknown_keys
 from .units import pressure_hint
 
+#: Standard atmosphere [Pa absolute]: the default ambient pressure (gauge = absolute - ambient).
+STANDARD_ATMOSPHERE = 101325.0
+
 
 @dataclass(frozen=True)
 class MuscleSpec:

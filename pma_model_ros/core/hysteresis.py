@@ -33,6 +33,13 @@ class Follow(NamedTuple):
     deadband: float
 
 
+#: The play operator's deadband of each input unless a muscle's parameters say otherwise [m, Pa]
+#: (the defaults of ``hysteresis.<input>_deadband``).
+DEFAULT_DEADBANDS = {'length': 0.0005, 'pressure': 5000.0}
+#: What a hysteresis muscle's branch follows unless its parameters say otherwise.
+DEFAULT_FOLLOW = Follow('length', DEFAULT_DEADBANDS['length'])
+
+
 def play(branch, anchor, value, deadband):
     """One step of the play operator: the new (branch, anchor) after the signal reads ``value``.
 

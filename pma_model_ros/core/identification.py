@@ -41,10 +41,9 @@ from . import calibration as cal
 from . import geometry as geo
 from .calibration import Calibration, OFF
 from .force_map import ForceMap
-from .geometry import MuscleSpec
+from .geometry import MuscleSpec, STANDARD_ATMOSPHERE
 from .models import Domain, extrapolates, force_raw, get_model, Model
 from .muscle_model import MuscleModel
-from .node_parameters import STANDARD_ATMOSPHERE
 from .progress import Meter
 from .separable import Separable, Solution
 from .units import length_hint

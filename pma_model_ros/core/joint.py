@@ -35,10 +35,9 @@ from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
 from .flags import Flag
-from .hysteresis import Follow
+from .hysteresis import DEFAULT_FOLLOW, Follow
 from .models import coefficient_slopes
 from .muscle_model import force_at, MuscleModel, pressure_for_one
-from .node_parameters import DEFAULT_FOLLOW
 
 #: Co-contraction levels of the inverse: the lower of the two pressures, or their sum [Pa gauge].
 COCONTRACTION_MODES = ('min', 'sum')

@@ -1,5 +1,5 @@
-"""Joint specs from ``ros__parameters`` (a YAML file or joint_node's ROS parameters); joint_node's
-parameter table.
+"""Joint specs from ``ros__parameters`` (a YAML file or joint_node's ROS parameters; its parameter
+table is :data:`~pma_model_ros.core.node_parameters.JOINT_NODE_PARAMETERS` and the two after it).
 
 Layout (SI units; ``config/example_joint.yaml``)::
 
@@ -33,105 +33,10 @@ from pathlib import Path
 from .hysteresis import Follow
 from .joint import Joint, Transmission
 from .muscle_model import MuscleModel
-from .node_parameters import ParameterSpec, PROCESS_PARAMETERS, read_only, SPECS
-from .param_file import (
-    hysteresis_follow,
-    muscle_model,
-    read_parameters,
-    ROS_PARAMETERS,
-    unknown_muscle_parameters,
-)
+from .node_parameters import JOINT_PARAMETERS, names_of
+from .param_file import hysteresis_follow, muscle_model, read_parameters
 from .param_file import identification as muscle_identification
-from .typos import did_you_mean, missing_key, unknown_keys
-
-#: joint_node's parameters: node-wide, then per joint (under ``<joint>.``), then per muscle
-#: (``<joint>.<muscle>.``).  All read-only: joint_node reads them at start-up.
-NODE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
-    ParameterSpec(
-        'joints',
-        'string[]',
-        None,
-        'names of the joints, each with its parameters under `<joint>.`',
-    ),
-    ParameterSpec(
-        'config_dir',
-        'string',
-        '',
-        "directory of relative muscle `file`s (empty: the package's shipped `config/`, found "
-        'through ament_index from any working directory)',
-    ),
-    SPECS['ambient_pressure'],
-    SPECS['pressure_reference'],
-    SPECS['max_input_age'],
-    ParameterSpec(
-        'forward_command_topic',
-        'string',
-        '',
-        "topic of every muscle's pressure command as one std_msgs/Float64MultiArray per "
-        "torque command, in `forward_command_order` (what ros2_control's "
-        'forward_command_controller takes on `<controller>/commands`); empty: none',
-    ),
-    ParameterSpec(
-        'forward_command_order',
-        'string[]',
-        [],
-        "the muscles of the `forward_command_topic` array, in order (the controller's `joints`; "
-        "some or all of this node's muscles, each once); empty: every joint's muscles, joint by "
-        'joint, the one that shortens for positive θ first',
-    ),
-)
-JOINT_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
-    ParameterSpec(
-        'radius',
-        'double[]',
-        None,
-        'lever arm r(θ) = Σ radius[k] θ^k (one entry: pulley radius)',
-        'm',
-    ),
-    ParameterSpec('limits', 'double[]', None, '[min, max] joint angle', 'rad'),
-    ParameterSpec('muscles', 'string[]', None, "the two muscles' names (topic namespaces)"),
-    ParameterSpec(
-        'positive',
-        'string',
-        None,
-        'the muscle that shortens for positive θ (REP-103: counter-clockwise)',
-    ),
-    ParameterSpec(
-        'cocontraction',
-        'double',
-        100e3,
-        'co-contraction level of torque commands until a '
-        '`cocontraction_command` or `stiffness_command` arrives',
-        'Pa gauge',
-        (0.0, 1e7),
-    ),
-    ParameterSpec(
-        'cocontraction_mode',
-        'string',
-        'min',
-        'what the level is: `min` (the lower pressure) or `sum` (the pressure sum)',
-        choices=('min', 'sum'),
-    ),
-    ParameterSpec(
-        'hardware_id',
-        'string',
-        '',
-        "the device: `hardware_id` of the joint's /diagnostics status (empty: "
-        '`/<namespace>/joint_node/<joint>`, unique per node)',
-    ),
-)
-MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
-    ParameterSpec(
-        'file',
-        'string',
-        '',
-        "single-muscle parameter file (empty: the muscle's parameters inline, "
-        'as in that file, under `<joint>.<muscle>.`)',
-    ),
-    ParameterSpec(
-        'length_at_zero', 'double', None, "the muscle's length at θ = 0", 'm', (0.0, 10.0)
-    ),
-)
+from .typos import did_you_mean, missing_key
 
 
 def joint(name: str, parameters: dict, base: Path) -> Joint:
@@ -143,7 +48,9 @@ def joint(name: str, parameters: dict, base: Path) -> Joint:
         raise ValueError(f"{where}: no parameters under '{name}:'")
     for key in ('radius', 'limits', 'muscles', 'positive'):
         if key not in parameters:
-            raise ValueError(f'{where}: {missing_key(key, parameters, _names(JOINT_PARAMETERS))}')
+            raise ValueError(
+                f'{where}: {missing_key(key, parameters, names_of(JOINT_PARAMETERS))}'
+            )
     radius = parameters.get('radius')
     radius = (
         [radius] if isinstance(radius, (int, float)) and not isinstance(radius, bool) else radius
@@ -236,33 +143,6 @@ def identification(joint: Joint, parameters: dict, base: Path) -> dict[str, str]
             _muscle_parameters(parameters[joint.name][muscle], base)
         ).items()
     }
-
-
-def _names(table: tuple[ParameterSpec, ...]) -> tuple[str, ...]:
-    return tuple(p.name for p in table)
-
-
-def unknown_joint_parameters(parameters: dict) -> list[str]:
-    """One message per key of a joint file's ``ros__parameters`` that joint_node does not read,
-    naming the known key it looks like (a muscle given by ``file`` is checked when it is read).
-    """
-    names = parameters.get('joints')
-    names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
-    every_node = (*PROCESS_PARAMETERS, *ROS_PARAMETERS)
-    problems = unknown_keys(parameters, (*_names(NODE_PARAMETERS), *every_node, *names))
-    for name in names:
-        block = parameters.get(name)
-        if not isinstance(block, dict):
-            continue
-        muscles = block.get('muscles')
-        muscles = [m for m in muscles if isinstance(m, str)] if isinstance(muscles, list) else []
-        problems += unknown_keys(block, (*_names(JOINT_PARAMETERS), *muscles), f'{name}.')
-        for muscle in muscles:
-            if isinstance(block.get(muscle), dict):
-                problems += unknown_muscle_parameters(
-                    block[muscle], _names(MUSCLE_PARAMETERS), f'{name}.{muscle}.'
-                )
-    return problems
 
 
 def _number(value: object) -> bool:

@@ -1,13 +1,14 @@
-"""The nodes' parameters as declarative tables of :class:`ParameterSpec` (no ROS); model_node's.
+"""The nodes' parameters as declarative tables of :class:`ParameterSpec` (no ROS): model_node's and
+joint_node's.
 
 Each row gives a parameter's name, type, default, unit, range, description and whether the node
 ever changes it.  Every node declares its ROS parameters (descriptors with ranges, read-only
 flags) from such a table (:mod:`pma_model_ros.nodes.parameters`): model_node from
-:data:`PARAMETERS`, joint_node from :mod:`~pma_model_ros.core.joint_file`'s, the simulators from
-:mod:`~pma_model_ros.core.simulation`'s and :mod:`~pma_model_ros.core.joint_simulation`'s.  The
-core checks values against the same ranges (:meth:`ParameterSpec.check`, used by
-:class:`~pma_model_ros.core.engine.Config` and the engine), and the README's model_node table is
-:func:`markdown_table` (a test compares them).
+:data:`PARAMETERS`, joint_node from :data:`JOINT_NODE_PARAMETERS`, :data:`JOINT_PARAMETERS` and
+:data:`JOINT_MUSCLE_PARAMETERS`, the simulators from :mod:`~pma_model_ros.core.simulation`'s and
+:mod:`~pma_model_ros.core.joint_simulation`'s.  The core checks values against the same ranges
+(:meth:`ParameterSpec.check`, used by :class:`~pma_model_ros.core.engine.Config` and the engine),
+and the README's model_node table is :func:`markdown_table` (a test compares them).
 """
 
 from __future__ import annotations
@@ -15,12 +16,11 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import math
 
-from .hysteresis import Follow
+from .geometry import STANDARD_ATMOSPHERE
+from .hysteresis import DEFAULT_DEADBANDS, DEFAULT_FOLLOW
 from .hysteresis import INPUTS as HYSTERESIS_INPUTS
 from .models import ALIASES, MODELS
 
-#: Standard atmosphere [Pa absolute]: the default ambient pressure.
-STANDARD_ATMOSPHERE = 101325.0
 #: Pairing rules of the engine (see :mod:`pma_model_ros.core.engine`).
 PAIRINGS = ('every_input', 'approximate_time')
 #: Input modes of a node serving several muscles.
@@ -206,7 +206,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec(
         'hysteresis.input',
         'string',
-        'length',
+        DEFAULT_FOLLOW.input,
         "what a hysteresis model's branch follows: `length` "
         "(lengthening +1 / shortening −1, Sárosi's loop) or `pressure` (filling +1 / venting −1)",
         choices=HYSTERESIS_INPUTS,
@@ -215,7 +215,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec(
         'hysteresis.length_deadband',
         'double',
-        0.0005,
+        DEFAULT_DEADBANDS['length'],
         'the branch changes when the length reverses by '
         'more than this from the extreme of its run (play operator)',
         'm',
@@ -225,7 +225,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec(
         'hysteresis.pressure_deadband',
         'double',
-        5000.0,
+        DEFAULT_DEADBANDS['pressure'],
         'the same, for `hysteresis.input: pressure`',
         'Pa',
         (0.0, 1e6),
@@ -334,9 +334,101 @@ IDENTIFICATION = (
     'edge_cv_err',
     'held_out',
 )
-_INPUT = SPECS['hysteresis.input'].default
-#: What a hysteresis muscle's branch follows unless its parameters say otherwise.
-DEFAULT_FOLLOW = Follow(_INPUT, SPECS[f'hysteresis.{_INPUT}_deadband'].default)
+#: joint_node's parameters (:mod:`~pma_model_ros.core.joint_file`): node-wide, then per joint
+#: (:data:`JOINT_PARAMETERS`, under ``<joint>.``), then per muscle
+#: (:data:`JOINT_MUSCLE_PARAMETERS`, ``<joint>.<muscle>.``).  All read-only: joint_node reads them
+#: at start-up.
+JOINT_NODE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
+    ParameterSpec(
+        'joints',
+        'string[]',
+        None,
+        'names of the joints, each with its parameters under `<joint>.`',
+    ),
+    ParameterSpec(
+        'config_dir',
+        'string',
+        '',
+        "directory of relative muscle `file`s (empty: the package's shipped `config/`, found "
+        'through ament_index from any working directory)',
+    ),
+    SPECS['ambient_pressure'],
+    SPECS['pressure_reference'],
+    SPECS['max_input_age'],
+    ParameterSpec(
+        'forward_command_topic',
+        'string',
+        '',
+        "topic of every muscle's pressure command as one std_msgs/Float64MultiArray per "
+        "torque command, in `forward_command_order` (what ros2_control's "
+        'forward_command_controller takes on `<controller>/commands`); empty: none',
+    ),
+    ParameterSpec(
+        'forward_command_order',
+        'string[]',
+        [],
+        "the muscles of the `forward_command_topic` array, in order (the controller's `joints`; "
+        "some or all of this node's muscles, each once); empty: every joint's muscles, joint by "
+        'joint, the one that shortens for positive θ first',
+    ),
+)
+JOINT_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
+    ParameterSpec(
+        'radius',
+        'double[]',
+        None,
+        'lever arm r(θ) = Σ radius[k] θ^k (one entry: pulley radius)',
+        'm',
+    ),
+    ParameterSpec('limits', 'double[]', None, '[min, max] joint angle', 'rad'),
+    ParameterSpec('muscles', 'string[]', None, "the two muscles' names (topic namespaces)"),
+    ParameterSpec(
+        'positive',
+        'string',
+        None,
+        'the muscle that shortens for positive θ (REP-103: counter-clockwise)',
+    ),
+    ParameterSpec(
+        'cocontraction',
+        'double',
+        100e3,
+        'co-contraction level of torque commands until a '
+        '`cocontraction_command` or `stiffness_command` arrives',
+        'Pa gauge',
+        (0.0, 1e7),
+    ),
+    ParameterSpec(
+        'cocontraction_mode',
+        'string',
+        'min',
+        'what the level is: `min` (the lower pressure) or `sum` (the pressure sum)',
+        choices=('min', 'sum'),
+    ),
+    ParameterSpec(
+        'hardware_id',
+        'string',
+        '',
+        "the device: `hardware_id` of the joint's /diagnostics status (empty: "
+        '`/<namespace>/joint_node/<joint>`, unique per node)',
+    ),
+)
+JOINT_MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
+    ParameterSpec(
+        'file',
+        'string',
+        '',
+        "single-muscle parameter file (empty: the muscle's parameters inline, "
+        'as in that file, under `<joint>.<muscle>.`)',
+    ),
+    ParameterSpec(
+        'length_at_zero', 'double', None, "the muscle's length at θ = 0", 'm', (0.0, 10.0)
+    ),
+)
+
+
+def names_of(table: tuple[ParameterSpec, ...]) -> tuple[str, ...]:
+    """The parameter names of ``table``."""
+    return tuple(p.name for p in table)
 
 
 def topic_prefixes(names: list[str]) -> list[str]:

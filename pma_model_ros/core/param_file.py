@@ -50,7 +50,17 @@ from .health import node_timing, Status
 from .hysteresis import Follow
 from .models import ALIASES, Domain, get_model, MODELS
 from .muscle_model import MuscleModel
-from .node_parameters import IDENTIFICATION, MODEL_BLOCK, PARAMETERS, SPECS
+from .node_parameters import (
+    IDENTIFICATION,
+    JOINT_MUSCLE_PARAMETERS,
+    JOINT_NODE_PARAMETERS,
+    JOINT_PARAMETERS,
+    MODEL_BLOCK,
+    names_of,
+    PARAMETERS,
+    PROCESS_PARAMETERS,
+    SPECS,
+)
 from .typos import missing_key, unknown_keys
 from .user_files import load_yaml_mapping, read_user_file
 from .validation import HeldOutBand
@@ -157,8 +167,6 @@ def unknown_parameters(parameters: dict) -> list[str]:
     (``joints:``, joint_node).
     """
     if 'joints' in parameters:
-        from .joint_file import unknown_joint_parameters
-
         return unknown_joint_parameters(parameters)
     names = parameters.get('muscles') or []
     names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
@@ -182,6 +190,29 @@ def unknown_muscle_parameters(block: dict, others: tuple[str, ...], where: str =
                 problems += unknown_keys(entry, MODEL_ENTRY_KEYS, f'{where}models.{name}.')
     if isinstance(block.get('hysteresis'), dict):
         problems += unknown_keys(block['hysteresis'], HYSTERESIS_KEYS, f'{where}hysteresis.')
+    return problems
+
+
+def unknown_joint_parameters(parameters: dict) -> list[str]:
+    """One message per key of a joint file's ``ros__parameters`` that joint_node does not read,
+    naming the known key it looks like (a muscle given by ``file`` is checked when it is read).
+    """
+    names = parameters.get('joints')
+    names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
+    every_node = (*PROCESS_PARAMETERS, *ROS_PARAMETERS)
+    problems = unknown_keys(parameters, (*names_of(JOINT_NODE_PARAMETERS), *every_node, *names))
+    for name in names:
+        block = parameters.get(name)
+        if not isinstance(block, dict):
+            continue
+        muscles = block.get('muscles')
+        muscles = [m for m in muscles if isinstance(m, str)] if isinstance(muscles, list) else []
+        problems += unknown_keys(block, (*names_of(JOINT_PARAMETERS), *muscles), f'{name}.')
+        for muscle in muscles:
+            if isinstance(block.get(muscle), dict):
+                problems += unknown_muscle_parameters(
+                    block[muscle], names_of(JOINT_MUSCLE_PARAMETERS), f'{name}.{muscle}.'
+                )
     return problems
 
 

@@ -1,5 +1,6 @@
 """The shipped data: the muscle data inside the Python package (``core/data``: specs, measured
-force maps, Sárosi's tables) and the package's share directory (``config/``, the parameter files).
+force maps, Sárosi's tables, and the DMSP-10-100 built from them) and the package's share directory
+(``config/``, the parameter files).
 """
 
 from __future__ import annotations
@@ -8,8 +9,13 @@ from importlib import resources
 from pathlib import Path
 import sys
 
+import numpy as np
+
 from .force_map import ForceMap, parse_force_map_csv
 from .geometry import MuscleSpec
+from .models import Domain, get_model
+from .muscle_model import MuscleModel
+from .sarosi import IDENTIFIED_PRESSURE, to_si
 from .user_files import load_yaml_mapping
 
 PACKAGE = 'pma_model_ros'
@@ -50,6 +56,25 @@ def shipped_spec(muscle: str) -> MuscleSpec:
 def sarosi_tables() -> dict:
     """The Sárosi paper's published parameter tables for the DMSP-10-100 (as printed)."""
     return load_yaml_mapping(_data_file('sarosi_dmsp_10_100.yaml'), 'sarosi_dmsp_10_100.yaml')
+
+
+def dmsp_10_100_hysteresis(
+    upper: str = 'table2_upper_0_600kpa', lower: str = 'table4_lower_0_600kpa'
+) -> MuscleModel:
+    """DMSP-10-100 with Sárosi's upper/lower branches (default: Tables 2 and 4, 0-600 kPa).
+
+    Identified on 0-600 kPa and 0-25 % contraction; no held-out data judge its extrapolation (the
+    single-branch Sárosi model misses the DMSP-10-250's L0 by 1,065 % held out), so it does not
+    extrapolate.
+    """
+    tables = sarosi_tables()
+    theta = np.concatenate([to_si(tables[upper]), to_si(tables[lower])])
+    return MuscleModel(
+        shipped_spec('DMSP-10-100'),
+        get_model('sarosi_hysteresis'),
+        theta,
+        Domain(*tables['length_range'], IDENTIFIED_PRESSURE),
+    )
 
 
 def share_directory() -> Path:

@@ -46,13 +46,11 @@ from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.health import node_timing
 from ..core.joint_engine import JointEngine, Settings
-from ..core.joint_file import (
-    forward_order,
-    identification,
+from ..core.joint_file import forward_order, identification, joints
+from ..core.node_parameters import (
+    JOINT_MUSCLE_PARAMETERS,
+    JOINT_NODE_PARAMETERS,
     JOINT_PARAMETERS,
-    joints,
-    MUSCLE_PARAMETERS,
-    NODE_PARAMETERS,
 )
 from ..core.shipped_data import share_directory
 from ..wire.cdr import fluid_pressure, joint_state, MALFORMED, MalformedMessage
@@ -65,12 +63,12 @@ def declare(node: Node) -> None:
     """Declare every joint_node parameter, read-only: node-wide, per joint, per muscle (by file or
     inline; a model's block only where the muscle names its ``model`` inline).
     """
-    names = parameters.declare_table(node, NODE_PARAMETERS)['joints'] or []
+    names = parameters.declare_table(node, JOINT_NODE_PARAMETERS)['joints'] or []
     for joint in names:
         for muscle in (
             parameters.declare_table(node, JOINT_PARAMETERS, f'{joint}.')['muscles'] or []
         ):
-            parameters.declare_table(node, MUSCLE_PARAMETERS, f'{joint}.{muscle}.')
+            parameters.declare_table(node, JOINT_MUSCLE_PARAMETERS, f'{joint}.{muscle}.')
             model_params.declare_muscle(node, f'{joint}.{muscle}.', defaults=False, read_only=True)
 
 
