@@ -245,7 +245,7 @@ def missing_names(page: Path) -> list[tuple[int, str, str]]:
                 problems.append((number, 'link to no file', target))
             elif anchor and path.suffix == '.md' and anchor not in anchors(path):
                 problems.append((number, 'link to no heading', target))
-    return problems
+    return list(dict.fromkeys(problems))  # a mention and its link: once
 
 
 @pytest.mark.parametrize('page', PAGES, ids=lambda p: str(p.relative_to(REPO)))
