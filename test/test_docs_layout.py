@@ -1,4 +1,6 @@
-"""The README's ``## Package layout`` tree against the package's files, so it cannot drift."""
+"""docs/architecture.md's ``## Package layout`` tree against the package's files, so it cannot
+drift.
+"""
 
 from pathlib import Path
 import re
@@ -10,8 +12,10 @@ ENTRY = re.compile(r'^( {2}| {4}| {6})(\S+(?:\.py|/))(?:\s|$)')
 
 
 def layout_tree() -> list[str]:
-    """The paths under ``pma_model_ros/`` that the README's layout tree lists, in order."""
-    text = (ROOT / 'README.md').read_text(encoding='utf-8')
+    """The paths under ``pma_model_ros/`` that docs/architecture.md's layout tree lists, in
+    order.
+    """
+    text = (ROOT / 'docs' / 'architecture.md').read_text(encoding='utf-8')
     section = text.split('\n## Package layout\n', 1)[1].split('\n## ', 1)[0]
     block = section.split('```\n', 2)[1].splitlines()
     start = block.index(f'{PACKAGE}/')
@@ -59,7 +63,8 @@ def test_the_tree_lists_every_module_and_folder_once():
 
 
 def test_the_parser_reads_nesting():
-    # The parser itself: core/data/ under core/, and a wrapped description is no entry.
+    # The parser itself: core/data/ and core/physics/geometry.py under core/, and a wrapped
+    # description is no entry.
     paths = layout_tree()
-    assert 'core/geometry.py' in paths and 'core/data/' in paths
+    assert 'core/physics/geometry.py' in paths and 'core/data/' in paths
     assert paths.index('core/') < paths.index('core/data/') < paths.index('nodes/')
