@@ -31,7 +31,7 @@ setup(
     zip_safe=True,
     entry_points={
         'console_scripts': [
-            'pma-model = pma_model_ros.cli:main',
+            'pma-model = pma_model_ros.cli.main:main',
             'model_node = pma_model_ros.nodes.model_node:main',
             'simulator_node = pma_model_ros.nodes.simulator_node:main',
             'joint_node = pma_model_ros.nodes.joint_node:main',

@@ -7,7 +7,7 @@ from __future__ import annotations
 import contextlib
 import io
 
-from pma_model_ros.cli import main as pma_model
+from pma_model_ros.cli.main import main as pma_model
 
 
 def run(argv: list[str]) -> str:

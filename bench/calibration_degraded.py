@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from pma_model_ros.cli import describe_geometry
+from pma_model_ros.cli.identify import describe_geometry
 from pma_model_ros.core.calibration import Calibration, OFF
 from pma_model_ros.core.force_map import ForceMap
 from pma_model_ros.core.geometry import MuscleSpec

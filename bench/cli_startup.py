@@ -23,7 +23,7 @@ CONFIG = ROOT / 'config' / 'dmsp_10_250.yaml'
 CLI = (
     [str(Path(sys.executable).with_name('pma-model'))]
     if Path(sys.executable).with_name('pma-model').exists()
-    else [sys.executable, '-m', 'pma_model_ros.cli']
+    else [sys.executable, '-m', 'pma_model_ros.cli.main']
 )
 COMMANDS = {
     'baseline': [sys.executable, '-c', 'import numpy, yaml'],
@@ -32,7 +32,7 @@ COMMANDS = {
 }
 #: Whether a query loads scipy: the same query with the check appended.
 SCIPY_CHECK = (
-    'import sys; from pma_model_ros.cli import main; main({argv!r}); '
+    'import sys; from pma_model_ros.cli.main import main; main({argv!r}); '
     "print('scipy' in sys.modules, file=sys.stderr)"
 )
 

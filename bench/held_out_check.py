@@ -21,7 +21,7 @@ import io
 from pathlib import Path
 import tempfile
 
-from pma_model_ros.cli import main as pma_model
+from pma_model_ros.cli.main import main as pma_model
 from pma_model_ros.core.force_map import read_force_map_csv
 from pma_model_ros.core.param_file import read_parameters
 

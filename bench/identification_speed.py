@@ -115,7 +115,7 @@ def command_table(repeat: int) -> None:
             times.append(time.perf_counter() - start)
         return min(times)
 
-    base = best([python, '-c', 'import pma_model_ros.cli'])
+    base = best([python, '-c', 'import pma_model_ros.cli.main'])
     print(
         f'\npma-model fit, wall time best of {repeat} [s]; import of the CLI alone: {base:.2f} s'
     )
@@ -125,7 +125,7 @@ def command_table(repeat: int) -> None:
             stem = muscle.lower().replace('-', '_')
             for model in ('martens', 'all'):
                 argv = [
-                    python, '-m', 'pma_model_ros.cli', 'fit',
+                    python, '-m', 'pma_model_ros.cli.main', 'fit',
                     '--data', str(data / f'{stem}_force_map.csv'),
                     '--muscle', str(data / f'{stem}.yaml'),
                     '--model', model, '--out', str(Path(tmp) / 'fit.yaml'), '--overwrite',

@@ -24,7 +24,7 @@ from pma_model_ros.bags.calibrate import (
     window_slopes,
 )
 from pma_model_ros.bags.synthetic import record_simulation
-from pma_model_ros.cli import main
+from pma_model_ros.cli.main import main
 from pma_model_ros.core.identification import fit_best, max_error_percent, physical_force
 from pma_model_ros.core.models import get_model
 from pma_model_ros.core.param_file import muscle_model, read_parameters

@@ -12,7 +12,8 @@ import pytest
 import yaml
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.cli import length_headers, main, rows_to_add
+from pma_model_ros.cli.identify import length_headers, rows_to_add
+from pma_model_ros.cli.main import main
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
@@ -97,7 +98,7 @@ def test_make_config_does_not_depend_on_the_cpu_kernels(tmp_path):
             [
                 sys.executable,
                 '-m',
-                'pma_model_ros.cli',
+                'pma_model_ros.cli.main',
                 'make-config',
                 muscle,
                 '--out',
@@ -220,7 +221,7 @@ def test_a_query_imports_no_optimizer(query):
     """
     argv = [*query, '--config', str(CONFIGS['DMSP-10-250']), '--length', '0.23']
     code = (
-        f'import sys; from pma_model_ros.cli import main; code = main({argv!r}); '
+        f'import sys; from pma_model_ros.cli.main import main; code = main({argv!r}); '
         "print(code, sorted(m for m in sys.modules if m.split('.')[0] == 'scipy')[:3])"
     )
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=60)
@@ -315,7 +316,7 @@ def test_bad_queries_exit_2_without_traceback(args, message):
     cmd = [
         sys.executable,
         '-m',
-        'pma_model_ros.cli',
+        'pma_model_ros.cli.main',
         *args[:1],
         '--config',
         str(CONFIGS['DMSP-10-250']),
@@ -550,7 +551,7 @@ def test_bad_joint_queries_exit_2_without_traceback(args, message):
     cmd = [
         sys.executable,
         '-m',
-        'pma_model_ros.cli',
+        'pma_model_ros.cli.main',
         'joint',
         args[0],
         '--config',

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import yaml
 
-from pma_model_ros.cli import identify_muscle, main, PAPER_TABLE3
+from pma_model_ros.cli.identify import identify_muscle, PAPER_TABLE3
+from pma_model_ros.cli.main import main
 from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
 from pma_model_ros.core.param_file import muscle_model, read_parameters
 from pma_model_ros.core.shipped_data import (

@@ -6,7 +6,7 @@ import sys
 
 def test_core_imports_without_ros():
     code = (
-        'import sys, pkgutil, importlib, pma_model_ros.core as c, pma_model_ros.cli\n'
+        'import sys, pkgutil, importlib, pma_model_ros.core as c, pma_model_ros.cli.main\n'
         "for m in pkgutil.iter_modules(c.__path__): importlib.import_module('pma_model_ros.core.' "
         '+ m.name)\n'
         "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', "

@@ -20,11 +20,11 @@ except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install wi
     )
 
 from conftest import CONFIGS
-from pma_model_ros import cli, figures
+from pma_model_ros import figures
 from pma_model_ros.bags.bag_io import BagError
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation
-from pma_model_ros.cli import main
+from pma_model_ros.cli.main import main
 from pma_model_ros.core.param_file import muscle_model, node_settings, read_parameters
 from pma_model_ros.core.shipped_data import shipped_force_map
 
@@ -152,8 +152,8 @@ def test_plot_all_makes_what_its_inputs_allow(tmp_path, capsys, monkeypatch):
     """Without --bag: both map figures per config and the model comparison (its identification
     stubbed: Table 3 itself is tested in test_cli).
     """
-    monkeypatch.setattr(cli, 'identify_muscle', lambda muscle: None)
-    monkeypatch.setattr(cli, 'table3', lambda results: {'table3': TABLE})
+    monkeypatch.setattr('pma_model_ros.cli.identify.identify_muscle', lambda muscle: None)
+    monkeypatch.setattr('pma_model_ros.cli.plot.table3', lambda results: {'table3': TABLE})
     assert (
         main(
             [
@@ -196,7 +196,15 @@ def test_plot_all_makes_what_its_inputs_allow(tmp_path, capsys, monkeypatch):
 def test_plot_cli_errors_are_one_line_exit_2(tmp_path, estimated_bag, args, message):
     args = [a.replace('BAG', str(estimated_bag)) for a in args]
     proc = subprocess.run(
-        [sys.executable, '-m', 'pma_model_ros.cli', 'plot', *args, '--out-dir', str(tmp_path)],
+        [
+            sys.executable,
+            '-m',
+            'pma_model_ros.cli.main',
+            'plot',
+            *args,
+            '--out-dir',
+            str(tmp_path),
+        ],
         capture_output=True,
         text=True,
         timeout=120,

@@ -1,4 +1,5 @@
-"""The ``pma-model bag ...`` subcommands and ``pma-model fit --bag``.
+"""``pma-model bag estimate|play`` and the options of ``pma-model fit --bag``; the bag tools
+themselves are :mod:`pma_model_ros.bags`.
 
 Only argparse here: rosbags (and rclpy, for ``bag play``) are imported when a command runs,
 so the rest of ``pma-model`` works without them; without rosbags (pip-only, no rosdep key) a bag
@@ -14,6 +15,7 @@ import shutil
 import tempfile
 from typing import Iterator
 
+from .checks import add_overwrite_option
 from ..core.force_map import ForceMap
 from ..core.geometry import MuscleSpec, STANDARD_ATMOSPHERE
 from ..core.node_parameters import PRESSURE_REFERENCES
@@ -21,8 +23,6 @@ from ..core.node_parameters import PRESSURE_REFERENCES
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
     """Add ``bag estimate`` and ``bag play`` to the ``pma-model`` subparsers."""
-    from ..cli import add_overwrite_option
-
     bag = sub.add_parser(
         'bag', help='rosbag2 recordings (mcap, sqlite3): offline estimation, replay'
     )
@@ -118,7 +118,7 @@ def _needs_rosbags() -> None:
 
 def cmd_bag_estimate(args: argparse.Namespace) -> None:
     _needs_rosbags()
-    from .estimate import estimate_bag
+    from ..bags.estimate import estimate_bag
     from ..core.param_file import all_node_settings, node_pairing, read_parameters
 
     parameters = read_parameters(args.config)
@@ -184,7 +184,7 @@ def cmd_bag_play(args: argparse.Namespace) -> None:
     ):
         raise ValueError('--rate and --clock must be > 0, --delay and --wait-for-subscribers >= 0')
     _needs_rosbags()
-    from .play import play
+    from ..bags.play import play
 
     count = play(
         args.bag,
@@ -244,7 +244,7 @@ def bag_force_map(
     hysteresis branch with ``two_branches``).
     """
     _needs_rosbags()
-    from .calibrate import force_map_from_bag, QuasiStatic
+    from ..bags.calibrate import force_map_from_bag, QuasiStatic
 
     criterion = QuasiStatic(args.window, args.max_length_rate, args.max_pressure_rate)
     # reading - ambient = gauge

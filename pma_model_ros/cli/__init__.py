@@ -1,0 +1,3 @@
+"""pma-model, the command line: the parser and entry point (:mod:`.main`), one module per command
+group.
+"""

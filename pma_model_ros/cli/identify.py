@@ -1,0 +1,527 @@
+"""``pma-model reproduce``, ``make-config``, ``fit``, ``scale`` and ``evaluate``: the paper's
+Table 3, shipped and identified parameter files, and a fit judged on a measured map.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import math
+from pathlib import Path
+from typing import Sequence, TYPE_CHECKING
+
+import numpy as np
+
+from .bags import add_fit_bag_options, bag_force_map
+from .checks import add_overwrite_option, CliError
+from ..core.calibration import Calibration
+from ..core.flags import describe
+from ..core.force_map import read_force_map_csv
+from ..core.models import get_model, TABLE3_MODELS
+from ..core.param_file import load_muscle, read_parameters
+from ..core.progress import step
+from ..core.shipped_data import (
+    dmsp_10_100_hysteresis,
+    MAPPED_MUSCLES,
+    shipped_force_map,
+    shipped_spec,
+)
+from ..core.user_files import read_spec_yaml
+from ..core.validation import fold_lengths, length_folds, OBJECTIVES
+
+if TYPE_CHECKING:  # imported where used: force and pressure need no identification (scipy)
+    from ..core.identification import Fit, Identification, ModelReport
+
+
+#: Martens & Boblan 2017, Table 3: err [%] of each model.
+PAPER_TABLE3 = {
+    'DMSP-10-250': {
+        'mckibben': 46.1,
+        'andrikopoulos': 20.05,
+        'wickramatunge': 13.49,
+        'hildebrandt': 10.12,
+        'sarosi': 5.1,
+        'martens': 4.4,
+    },
+    'DMSP-20-300': {
+        'mckibben': 30.0,
+        'andrikopoulos': 13.04,
+        'wickramatunge': 8.2,
+        'hildebrandt': 5.75,
+        'sarosi': 3.59,
+        'martens': 2.35,
+    },
+}
+
+
+@functools.cache
+def identify_muscle(muscle: str) -> Identification:
+    """All Table 3 models identified on a shipped map, judged by nested held-out error."""
+    from ..core.identification import identify_all
+
+    return identify_all(
+        shipped_spec(muscle), shipped_force_map(muscle), tuple(get_model(m) for m in TABLE3_MODELS)
+    )
+
+
+def table3(results: dict[str, Identification]) -> dict:
+    """The ``reproduce --json`` object."""
+    out = {}
+    for muscle, found in results.items():
+        out[muscle] = {'default': found.default, 'held_out': round(_worst(found.held_out), 4)}
+        for name, rep in found.reports.items():
+            out[muscle][name] = {
+                'paper': PAPER_TABLE3[muscle][name],
+                'paper_protocol': round(rep.paper.err, 4),
+                'best': round(rep.best_err, 4),
+                'cv': round(rep.cv_err, 4),
+            }
+    return {'table3': out}
+
+
+def _worst(errors: np.ndarray) -> float:
+    """The worst of per-fold errors [%], NaN if no fold could be judged."""
+    return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else math.nan
+
+
+def _print_tables(results: dict[str, Identification]) -> None:
+    for muscle, found in results.items():
+        print(
+            f'\n{muscle}: err (eq. 23) in %; held_out: worst nested leave-one-length-out err '
+            f'(objective chosen again without each length)'
+        )
+        print(
+            f'{"model":<14}{"paper":>8}{"paper_protocol":>16}{"best_lsq":>10}{"best_minimax":>14}'
+            f'{"best":>8}{"held_out":>10}  objective (by held-out err)'
+        )
+        for name, rep in found.reports.items():
+            print(
+                f'{name:<14}{PAPER_TABLE3[muscle][name]:>8.2f}{rep.paper.err:>16.2f}'
+                f'{rep.best["least_squares"].err:>10.2f}{rep.best["minimax"].err:>14.2f}'
+                f'{rep.best_err:>8.2f}{rep.cv_err:>10.2f}  {rep.shipped_objective}'
+            )
+        print(
+            f'\n{muscle}: nested held-out err in % per held-out length [m] (each length fitted '
+            f'without it)'
+        )
+        _held_out_table(shipped_force_map(muscle).lengths, found.reports)
+        print(_default_line(found))
+
+
+def _default_line(found: Identification) -> str:
+    """How the default model was chosen, with the nested figure of that choice."""
+    picks = ', '.join(
+        f'{name} x{found.chosen.count(name)}' for name in dict.fromkeys(found.chosen)
+    )
+    return (
+        f'default model (lowest worst held-out err): {found.default}; the choice made again '
+        f'without each length ({picks}) errs by {_worst(found.held_out):.2f} % at worst'
+    )
+
+
+def identify_shipped(muscles: Sequence[str]) -> dict[str, Identification]:
+    """:func:`identify_muscle` of each muscle, one progress line each (stderr)."""
+    results = {}
+    for k, muscle in enumerate(muscles, 1):
+        step(
+            k, len(muscles), f'identifying {muscle} ({len(TABLE3_MODELS)} models, nested held-out)'
+        )
+        results[muscle] = identify_muscle(muscle)
+    return results
+
+
+def cmd_reproduce(args: argparse.Namespace) -> None:
+    results = identify_shipped(MAPPED_MUSCLES)
+    if args.json:
+        print(json.dumps(table3(results)))
+    else:
+        _print_tables(results)
+
+
+def cmd_make_config(args: argparse.Namespace) -> None:
+    from ..core.identification import domain_of
+    from ..core.param_writer import build_parameters, model_entry, write_parameters
+
+    header = (
+        f'Identified {args.muscle}: generated by `pma-model make-config {args.muscle} --out ...`\n'
+        "from the package's shipped data; regenerate rather than edit. SI units throughout."
+    )
+    if args.muscle == 'DMSP-10-100':
+        hyst = dmsp_10_100_hysteresis()
+        models = {'sarosi_hysteresis': {'params': [float(v) for v in hyst.theta]}}
+        params = build_parameters(hyst.spec, 'sarosi_hysteresis', hyst.domain, models)
+        header += (
+            '\nSárosi eq. 3, upper branch Table 2, lower branch Table 4 (0-600 kPa), '
+            'converted to SI.'
+        )
+    else:
+        found = identify_shipped([args.muscle])[args.muscle]
+        fmap = shipped_force_map(args.muscle)
+        models = {name: model_entry(rep, fmap) for name, rep in found.reports.items()}
+        params = build_parameters(
+            shipped_spec(args.muscle), found.default, domain_of(fmap), models
+        )
+        header += f'\n{_FILE_LEGEND}'
+    write_parameters(args.out, params, header)
+    print(f'wrote {args.out}')
+
+
+_FILE_LEGEND = (
+    'err: eq. 23 on the whole map [%]; cv_err: worst nested leave-one-length-out err [%] (the '
+    'fit, calibration\nand choices included, re-run without each length); held_out: that err '
+    'per held-out length.'
+)
+
+
+def cmd_scale(args: argparse.Namespace) -> None:
+    from ..core.param_writer import write_parameters
+    from ..core.transfer import scale_parameters
+    from ..core.user_files import load_yaml_mapping, read_user_file
+
+    data = load_yaml_mapping(read_user_file(args.config, 'parameter file'), str(args.config))
+    nodes = [k for k, v in data.items() if isinstance(v, dict) and 'ros__parameters' in v]
+    if len(nodes) > 1:
+        raise CliError(f"{args.config}: {len(nodes)} nodes in one file; scale one muscle's file")
+    parameters = read_parameters(args.config)
+    try:
+        scaled, notes = scale_parameters(parameters, args.length)
+    except ValueError as err:
+        raise CliError(f'{args.config}: {err}') from None
+    source, target = parameters['muscle'], scaled['muscle']
+    ratio = args.length / source['nominal_length']
+    header = (
+        f'{target["name"]}: {source["name"]} of {args.config} cut to L0 = {args.length:g} m by '
+        f"`pma-model scale` (s = L0' / L0 = {ratio:.6g}).\n"
+        "At equal contraction (L0 - L) / L0 and pressure it serves the source's force; lengths\n"
+        "are s times the source's (docs/calibration.md). err, rmse, r2, cv_err and held_out err\n"
+        "are the source map's figures, at equal contraction."
+    )
+    write_parameters(args.out, {nodes[0]: {'ros__parameters': scaled}}, header)
+    low, high = scaled['length_range']
+    print(
+        f'wrote {args.out}: {target["name"]} ({source["name"]} x {ratio:.6g}), length_range '
+        f'[{low:.6g}, {high:.6g}] m'
+    )
+    for note in notes:
+        print(f'  {note}')
+
+
+def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
+    labels = length_headers(lengths)
+    print(f'{"model":<14}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
+    for name, rep in reports.items():
+        print(
+            f'{name:<14}'
+            + ''.join(f'{e:>9.2f}' for e in rep.nested)
+            + f'{_worst(rep.nested):>9.2f}'
+        )
+
+
+def length_headers(lengths: Sequence[float]) -> list[str]:
+    """Column headers of lengths [m]: 3 decimals, or as many more (up to 6) as make neighbouring
+    ones differ (bands of a recording's lengths round alike at 3).
+    """
+    for digits in range(3, 7):
+        texts = [f'{L:.{digits}f}' for L in lengths]
+        if len(set(texts)) == len(texts):
+            break
+    return texts
+
+
+def describe_geometry(fit: Fit, given_length: float) -> str:
+    """The identified L0 and pressure offset of a calibrated fit with their uncertainty, or why
+    each stayed as given.
+    """
+    sigma, parts = fit.sigma, []
+    if fit.calibration.length:
+        parts.append(
+            f'L0 {fit.spec.nominal_length:.4f} ±{sigma["nominal_length"]:.4f} m (given '
+            f'{given_length:.4f} m: not longer than the slack length {fit.slack_length:.4f} m)'
+        )
+    elif math.isinf(sigma.get('nominal_length', 0.0)):
+        parts.append(
+            f'L0 kept {given_length:.4f} m: not longer than the slack length '
+            f'{fit.slack_length:.4f} m, but the model absorbs or ignores L0'
+        )
+    elif 'nominal_length' in sigma:
+        parts.append(
+            f'L0 kept {given_length:.4f} m: the slack length, where a threshold (the pressure '
+            'offset) fits the map better than a longer L0'
+        )
+    elif fit.slack_length is not None:
+        parts.append(
+            f'L0 kept {given_length:.4f} m (longer than the slack length {fit.slack_length:.4f} m)'
+        )
+    if 'pressure_offset' in sigma:
+        parts.append(
+            f'pressure offset {fit.pressure_offset / 1e3:+.2f} '
+            f'±{sigma["pressure_offset"] / 1e3:.2f} kPa'
+            if fit.calibration.pressure
+            else 'pressure offset kept 0: not identifiable '
+            f'(1-sigma {sigma["pressure_offset"] / 1e3:.3g} kPa)'
+        )
+    return '; '.join(parts)
+
+
+def cmd_fit(args: argparse.Namespace) -> None:
+    from ..core.identification import check_fit_map, identify_all
+    from ..core.param_writer import build_parameters, model_entry, write_parameters
+
+    spec = read_spec_yaml(args.muscle)
+    if args.model != 'all' and get_model(args.model).hysteresis:
+        return _fit_branches(args, spec)
+    fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
+    check_fit_map(fmap, spec, folds=3)
+    calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
+    print(calibration.describe() + ' (switch off: --no-calibrate-length, --no-calibrate-pressure)')
+    names = TABLE3_MODELS if args.model == 'all' else (args.model,)
+    found = identify_all(
+        spec, fmap, tuple(get_model(m) for m in names), calibration, (args.objective,)
+    )
+    reports = found.reports
+    print(
+        f'\nin-sample err (eq. 23) [%], RMSE [N], R² ({args.objective}); held_out: worst nested '
+        'leave-one-length-out err [%]\n(each length predicted by the whole fit, calibration '
+        'included, re-run without it)'
+    )
+    print(f'{"model":<14}{"err":>8}{"rmse":>9}{"r2":>10}{"held_out":>10}')
+    for name, rep in reports.items():
+        fit = rep.shipped
+        print(f'{name:<14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}')
+    if calibration.any:
+        print('\nidentified geometry (L0 ± its profile 1-sigma; pressure offset ± 1-sigma):')
+        for name, rep in reports.items():
+            print(f'  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}')
+    print(
+        '\nnested held-out err [%] per held-out length [m]'
+        + (
+            ' (groups of neighbouring lengths: their mean)'
+            if len(length_folds(fmap)) < fmap.lengths.size
+            else ''
+        )
+    )
+    _held_out_table(fold_lengths(fmap), reports)
+    chosen = reports[found.default].shipped
+    write_parameters(
+        args.out,
+        build_parameters(
+            chosen.spec,
+            found.default,
+            chosen.domain,
+            {name: model_entry(rep, fmap) for name, rep in reports.items()},
+        ),
+        f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
+        f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
+        + _FILE_LEGEND,
+    )
+    rows = rows_to_add(found.held_out, fold_lengths(fmap), chosen.spec)
+    if rows:
+        print('\n' + rows)
+    if len(reports) > 1:
+        print('\n' + _default_line(found))
+        how = f'by held-out err; {reports[found.default].cv_err:.2f} % is a selection figure'
+    else:
+        how = 'the one fitted'
+    print(
+        f'\ndefault model ({how}): {found.default}  err {chosen.err:.3f} %  rmse '
+        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  {held_out_parts(found.held_out)}'
+        f'  -> {args.out}'
+    )
+
+
+#: [%, pp] An edge figure above EDGE_LARGE and above the interior one by EDGE_MARGIN is large.
+EDGE_LARGE, EDGE_MARGIN = 5.0, 1.0
+
+
+def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec) -> str:
+    """What to measure when the fit's edge figure (nested held-out err per fold [%] at the fold
+    ``lengths`` [m], longest first) is large against its interior one: the rows that make the
+    lengths served there interpolation, the rest-length row (L0) and the shortest working length;
+    '' when it is not large.
+    """
+    from ..core.geometry import shortest_length
+    from ..core.identification import edge_err, interior_err
+
+    edge, interior = edge_err(nested), interior_err(nested)
+    if not (edge > EDGE_LARGE and edge > interior + EDGE_MARGIN):
+        return ''
+    rest, longest, shortest = spec.nominal_length, float(lengths[0]), float(lengths[-1])
+    side = 'longest' if nested[0] >= nested[-1] else 'shortest'
+    at_rest = abs(longest - rest) <= 0.005 * rest  # within a calibrated L0's reach
+    return (
+        f'beyond the measured lengths the fit errs by {edge:.2f} % (the {side}, predicted from '
+        f'the others) against {interior:.2f} % between them; '
+        'rows to measure: the rest-length row at L0 '
+        + (
+            f'{rest:.4g} m (measured: it is the edge; a row between {float(lengths[1]):.4g} and '
+            f'{rest:.4g} m makes it less of an extrapolation)'
+            if at_rest
+            else f'{rest:.4g} m (not measured: the longest is {longest:.4g} m)'
+        )
+        + ', and the shortest working length (the shortest is '
+        f'{shortest:.4g} m; the braid pulls down to {shortest_length(spec):.4g} m)'
+    )
+
+
+def held_out_parts(nested: np.ndarray) -> str:
+    """``held-out worst X % (between measured lengths Y %, beyond them Z %)``: the worst nested
+    held-out err per fold [%] (longest first), on the lengths between the map's shortest and
+    longest (interpolation) and on those two (extrapolation, as served there).
+    """
+    from ..core.identification import edge_err, interior_err
+
+    return (
+        f'held-out worst {_worst(nested):.2f} % (between measured lengths '
+        f'{interior_err(nested):.2f} %, beyond them {edge_err(nested):.2f} %)'
+    )
+
+
+def _fit_branches(args: argparse.Namespace, spec) -> None:
+    """``fit`` of a two-branch (hysteresis) model: each branch on its direction's points,
+    uncalibrated.
+    """
+    from ..core.identification import check_fit_map, fit_best, judge_branches
+    from ..core.param_writer import build_parameters, fit_entry, held_out_entry, write_parameters
+
+    model = get_model(args.model)
+    fmap = (
+        read_force_map_csv(args.data)
+        if args.data
+        else bag_force_map(args, spec, two_branches=True)
+    )
+    check_fit_map(fmap, spec, folds=2)
+    if len(length_folds(fmap)) < 3:  # no length between others to judge it on
+        fit, figures = fit_best(model, spec, fmap, args.objective), ''
+        entry = fit_entry(fit)
+    else:
+        fit, nested = judge_branches(model, spec, fmap, args.objective)
+        entry = fit_entry(fit) | held_out_entry(model.name, nested, fmap)
+        figures = f'  {held_out_parts(nested)}'
+        print(
+            'nested held-out err [%] per held-out length [m] (each point on its branch; each '
+            'length predicted by the fit without it, as served)'
+        )
+        labels = length_headers(fold_lengths(fmap))
+        print(f'{"model":<18}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
+        print(
+            f'{model.name:<18}'
+            + ''.join(f'{e:>9.2f}' for e in nested)
+            + f'{_worst(nested):>9.2f}\n'
+        )
+        rows = rows_to_add(nested, fold_lengths(fmap), spec)
+        if rows:
+            print(rows + '\n')
+    write_parameters(
+        args.out,
+        build_parameters(spec, model.name, fit.domain, {model.name: entry}),
+        f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
+        f'({fit.objective}, '
+        'one branch per direction).',
+    )
+    print(
+        f'{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}{figures}'
+        f'  -> {args.out}'
+    )
+
+
+def cmd_evaluate(args: argparse.Namespace) -> None:
+    from ..core.identification import quality
+
+    muscle = load_muscle(args.config, args.model)
+    fmap = read_force_map_csv(args.data)
+    # a map's direction column picks each point's hysteresis branch, as the fit's figures do
+    result = muscle.force(fmap.pressure, fmap.length, fmap.direction)
+    model = np.nan_to_num(result.force)
+    err, rmse, r2 = quality(fmap.force, model, fmap.max_force)
+    print(
+        f'{muscle.model.name} of {args.config} on {args.data}: err (eq. 23) {err:.2f} %  rmse '
+        f'{rmse:.3f} N  '
+        f'r2 {r2:.5f}  ({fmap.force.size} points)'
+    )
+    print(f'{"length [m]":>10}{"points":>8}{"err [%]":>9}{"rmse [N]":>10}  flags (points)')
+    for length in fmap.lengths:
+        at = fmap.length == length
+        e, r, _ = quality(fmap.force[at], model[at], fmap.max_force)
+        names, counts = np.unique([describe(int(f)) for f in result.flags[at]], return_counts=True)
+        print(
+            f'{length:>10.4f}{int(at.sum()):>8}{e:>9.2f}{r:>10.3f}  '
+            + ', '.join(f'{n} ({c})' for n, c in zip(names, counts))
+        )
+    if args.csv:
+        rows = ''.join(
+            f'{p:.9g},{L:.9g},{F:.9g},{f:.9g},{f - F:.9g},{describe(int(flag))}\n'
+            for p, L, F, f, flag in zip(
+                fmap.pressure, fmap.length, fmap.force, model, result.flags
+            )
+        )
+        Path(args.csv).write_text(
+            'pressure_pa,length_m,force_n,model_n,error_n,flags\n' + rows, encoding='utf-8'
+        )
+        print(f'wrote {args.csv}')
+
+
+def add_identify_commands(sub: argparse._SubParsersAction) -> None:
+    """Add ``reproduce``, ``make-config``, ``fit``, ``scale`` and ``evaluate`` to the
+    ``pma-model`` subparsers.
+    """
+    p = sub.add_parser(
+        'reproduce', help="the paper's Table 3: paper, our paper protocol, our best fit, CV"
+    )
+    p.add_argument('--json', action='store_true', help='print one JSON object instead of tables')
+    p.set_defaults(func=cmd_reproduce)
+    p = sub.add_parser('make-config', help='write the ROS parameter file of a shipped muscle')
+    p.add_argument('muscle', choices=(*MAPPED_MUSCLES, 'DMSP-10-100'))
+    p.add_argument('--out', required=True, help='output YAML path')
+    add_overwrite_option(p, {'--out': 'file'})
+    p.set_defaults(func=cmd_make_config)
+    p = sub.add_parser(
+        'fit', help='identify a model from a force map CSV (pressure_pa,length_m,force_n) or a bag'
+    )
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument('--data', help='force map CSV')
+    source.add_argument('--bag', help='rosbag2 recording of pressure, length and measured force')
+    p.add_argument('--muscle', required=True, help='muscle spec YAML (SI units)')
+    p.add_argument(
+        '--model',
+        required=True,
+        help="model name, e.g. martens; 'all': every Table 3 model, the default by held-out error",
+    )
+    p.add_argument(
+        '--objective',
+        choices=OBJECTIVES,
+        default='least_squares',
+        help="of one model (with --model all: each model's by held-out error)",
+    )
+    p.add_argument(
+        '--no-calibrate-length',
+        action='store_true',
+        help="keep the spec's rest length L0 as given",
+    )
+    p.add_argument(
+        '--no-calibrate-pressure', action='store_true', help='assume no pressure-sensor offset'
+    )
+    p.add_argument('--out', required=True, help='output ROS parameter YAML')
+    add_overwrite_option(p, {'--out': 'file'})
+    add_fit_bag_options(p)
+    p.set_defaults(func=cmd_fit)
+    p = sub.add_parser(
+        'scale',
+        help="a parameter file's muscle type cut to another rest length (equal force at equal "
+        'contraction and pressure)',
+    )
+    p.add_argument('--config', required=True, help='parameter file of one identified muscle')
+    p.add_argument('--length', required=True, type=float, help="the new rest length L0' [m]")
+    p.add_argument('--out', required=True, help='output ROS parameter YAML')
+    add_overwrite_option(p, {'--out': 'file'})
+    p.set_defaults(func=cmd_scale)
+    p = sub.add_parser(
+        'evaluate',
+        help='a fitted model against a measured force map: eq. 23, RMSE, per length, flags',
+    )
+    p.add_argument('--config', required=True, help='parameter file, e.g. of pma-model fit')
+    p.add_argument('--data', required=True, help='force map CSV (pressure_pa,length_m,force_n)')
+    p.add_argument('--model', default=None, help="override the file's default model")
+    p.add_argument('--csv', help='write each point: measured, model, error [N] and flags')
+    add_overwrite_option(p, {'--csv': 'file'})
+    p.set_defaults(func=cmd_evaluate)

@@ -1,0 +1,113 @@
+"""``pma-model force`` and ``pressure``: one muscle of a parameter file queried at one point, with
+the expected error of the answer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from .checks import CliError, finite, gauge_pressure
+from ..core.flags import describe, Flag
+from ..core.param_file import held_out_band, load_muscle, read_parameters
+from ..core.units import length_hint
+
+
+def _length(value: float, rest_length: float) -> float:
+    """A muscle length [m] of the command line; refused where its magnitude says mm or cm (the
+    unit that makes it nearest to the muscle's ``rest_length`` [m]).
+    """
+    if math.isfinite(value) and 10 < value <= 1e4:
+        raise CliError(
+            f'--length {value:g} m is longer than any muscle: lengths are in metres; '
+            + length_hint(value, rest_length)
+        )
+    return finite('--length', value, 1e-4, 10.0, 'm', 'lengths are in metres')
+
+
+def _load(args: argparse.Namespace, parameters: dict | None = None):
+    return load_muscle(args.config, args.model, parameters)
+
+
+def _check_geometry(flags: int, length: float, muscle) -> None:
+    if flags & Flag.INVALID_INPUT:
+        raise CliError(
+            f'length {length:g} m is beyond what the geometry of {muscle.spec.name} allows: '
+            f'0 < L < {muscle.max_length:.6g} m (L0/cos(Theta0), its fibre length)'
+        )
+
+
+def cmd_force(args: argparse.Namespace) -> None:
+    pressure = gauge_pressure('--pressure', args.pressure)
+    parameters = read_parameters(args.config)
+    muscle = _load(args, parameters)
+    length = _length(args.length, muscle.spec.nominal_length)
+    result = muscle.force(pressure, length, args.length_rate)
+    _check_geometry(int(result.flags), length, muscle)
+    print(
+        f'force {float(result.force):.6g} N  raw {float(result.raw):.6g} N  flags '
+        f'{describe(int(result.flags))}'
+    )
+    band = held_out_band(parameters, args.model)
+    print(expected_error(band, muscle.domain, pressure, length, int(result.flags)))
+
+
+def expected_error(band, domain, pressure: float, length: float, flags: int) -> str:
+    """The ``expected error:`` line of ``force``: within the identified pressures (served as such,
+    up to ``domain.pressure_max`` [Pa]), the held-out band's figure at ``length`` [m]: between the
+    measured lengths the interpolation's, beyond them the extrapolation's; else why it is unknown.
+    """
+    if band is None:
+        return 'expected error: unknown (the parameter file has no held_out errors)'
+    if flags & Flag.PRESSURE_OUT_OF_RANGE or pressure > domain.pressure_max:
+        return (
+            f'expected error: unknown: {pressure:g} Pa is outside the identified pressures '
+            f'0..{domain.pressure_max:g} Pa (the held-out errors hold within them)'
+        )
+    percent, inside = band.at(length)
+    of = f'{percent:.2f} % of {band.max_force:.4g} N'
+    lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
+    if band.slack_at(length):
+        why = (
+            "the map's worst held-out err: the held-out lengths that judge it measured no force, "
+            'so their own 0 % says only that the model is slack where the muscle was'
+        )
+    elif inside:
+        why = f'between the measured lengths {lengths}: the worst held-out err of those inside'
+    else:
+        why = (
+            f'extrapolation: {length:g} m is beyond the measured lengths {lengths}; the worst '
+            'held-out err of the shortest and longest, each served from a fit without it'
+        )
+    return f'expected error: about ±{percent * band.max_force / 100:.3g} N ({of}: {why})'
+
+
+def cmd_pressure(args: argparse.Namespace) -> None:
+    force = finite('--force', args.force, -1e7, 1e7, 'N', 'force in newtons')
+    muscle = _load(args)
+    length = _length(args.length, muscle.spec.nominal_length)
+    result = muscle.pressure(force, length, args.length_rate)
+    _check_geometry(int(result.flags), length, muscle)
+    print(f'pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}')
+
+
+def add_query_commands(sub: argparse._SubParsersAction) -> None:
+    """Add ``force`` and ``pressure`` to the ``pma-model`` subparsers."""
+    for name, quantity, unit, func in (
+        ('force', 'pressure', 'Pa gauge', cmd_force),
+        ('pressure', 'force', 'N', cmd_pressure),
+    ):
+        p = sub.add_parser(name, help=f'{name} from {quantity} [{unit}] and length [m]')
+        p.add_argument(
+            '--config', required=True, help='ROS parameter file, e.g. config/dmsp_10_250.yaml'
+        )
+        p.add_argument(f'--{quantity}', required=True, type=float, help=f'[{unit}]')
+        p.add_argument('--length', required=True, type=float, help='muscle length [m]')
+        p.add_argument(
+            '--length-rate',
+            type=float,
+            default=None,
+            help='length rate [m/s]; its sign picks the hysteresis branch',
+        )
+        p.add_argument('--model', default=None, help="override the file's default model")
+        p.set_defaults(func=func)
