@@ -133,7 +133,7 @@ def test_cli_fit_from_bag(tmp_path, capsys):
 
 
 def test_cli_fit_from_bad_bag(tmp_path, capsys):
-    """30 s of the default sweep (the README's old recording): 6 samples pass, at the ends of the
+    """30 s of the default sweep trajectory: 6 samples pass, at the ends of the
     pressure ramps (65 kPa/s, over the bound), which used to fail inside the fit ('a force map
     needs at least 3 points'); the error says which bounds fail and which settings record a run
     that fits.

@@ -383,7 +383,7 @@ JOINT = str(REPO / 'config' / 'example_joint.yaml')
 
 
 def test_joint_torque_prints_the_worked_example(capsys):
-    """The README's worked example; the numbers are checked by hand in test/test_core_joint.py."""
+    """docs/joints.md's worked example, checked by hand in test/test_core_joint.py."""
     assert (
         main(
             [

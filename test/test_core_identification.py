@@ -31,8 +31,8 @@ def test_paper_protocol_reproduces_table3(results):
         for name, rep in found.reports.items():
             if abs(rep.paper.err - PAPER_TABLE3[muscle][name]) > 0.05:
                 misses.append((muscle, name, round(rep.paper.err, 2)))
-    # One entry does not reproduce (README: fminsearch stops at MaxFunEvals mid-descent): 7.39 % vs
-    # 5.1 %.
+    # One entry does not reproduce (docs/models.md: fminsearch stops at MaxFunEvals
+    # mid-descent): 7.39 % vs 5.1 %.
     assert misses == [('DMSP-10-250', 'sarosi', 7.39)]
 
 
@@ -47,7 +47,7 @@ def test_paper_protocol_finds_table2(results):
     assert math.degrees(results['DMSP-20-300'].reports['martens'].paper.theta[4]) == pytest.approx(
         -4.18, abs=0.01
     )
-    # Table 2 prints -5.73 deg for the DMSP-10-250; the same fit lands at -5.87 deg (README).
+    # Table 2 prints -5.73 deg for the DMSP-10-250; the fit lands at -5.87 deg (docs/models.md).
     assert math.degrees(results['DMSP-10-250'].reports['martens'].paper.theta[4]) == pytest.approx(
         -5.87, abs=0.01
     )
@@ -95,7 +95,7 @@ def test_held_out_edge_figure_is_what_is_served_there(results):
     1 % of the max force; at 650 kPa Table A2 measured 542.5 N at 0.250 m and 282.83 N at 0.234 m,
     so the held-out err at 0.250 m is about 100 (542.5 - 282.83) / 542.5 = 47.9 %, not the
     exponential's own extrapolation (over 1000 %).  Martens, served extrapolated, is judged by its
-    own value there (below 10 %, README).
+    own value there (below 10 %, docs/models.md).
     """
     reports = results['DMSP-10-250'].reports
     hand = 100 * (542.5 - 282.8333) / 542.5

@@ -21,7 +21,7 @@ EXAMPLE = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
 #: The highest pressure the example's muscles are commanded: the rated 800 kPa (hildebrandt is
 #: served extrapolated beyond its map's 650 kPa).
 TOP = EXAMPLE.muscles[0].limits.command_top
-#: The README's worked example: the example joint at 0.5 rad, flexor 400 kPa, extensor 300 kPa
+#: docs/joints.md's worked example: the example joint at 0.5 rad, flexor 400 kPa, extensor 300 kPa
 #: (gauge).
 THETA, P_FLEXOR, P_EXTENSOR = 0.5, 400e3, 300e3
 
@@ -63,7 +63,7 @@ def test_worked_example_by_hand():
     result = EXAMPLE.forward(THETA, P_FLEXOR, P_EXTENSOR)
     assert float(result.torque) == pytest.approx(torque(THETA), rel=1e-12)
     assert float(result.stiffness) == pytest.approx(stiffness, rel=1e-6)
-    assert (round(torque(THETA), 3), round(stiffness, 2)) == (-0.692, 3.84)  # the README's numbers
+    assert (round(torque(THETA), 3), round(stiffness, 2)) == (-0.692, 3.84)  # docs/joints.md
     assert not result.flags.any()
 
 

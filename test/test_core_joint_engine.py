@@ -141,7 +141,7 @@ def test_three_joints_estimate_r_times_the_force_difference():
     )
     assert e.index == {'elbow': 0, 'wrist': 1, 'knee': 2}
     cases = [  # joint, θ [rad], gauge pressures [Pa], the hand torque
-        # the README's worked example: r = 0.015 m, flexor 0.2265 m, extensor 0.2415 m
+        # docs/joints.md's worked example: r = 0.015 m, flexor 0.2265 m, extensor 0.2415 m
         (0, 0.5, (400e3, 300e3), elbow_torque),
         # r = 0.012 + 0.003·0.4 = 0.0132 m; s = 0.0048 + 0.0015·0.16 = 0.00504 m:
         # flexor 0.226 - 0.00504 = 0.22096 m, extensor 0.228 + 0.00504 = 0.23304 m
@@ -156,7 +156,7 @@ def test_three_joints_estimate_r_times_the_force_difference():
         assert tau == pytest.approx(torque(theta, *pair), rel=1e-9)
         assert stiffness == pytest.approx(stiffness_of(torque, theta, *pair), rel=1e-6)
         assert e.status(k, 10.02)[:2] == (Level.OK, 'estimating')
-    # the README's rounded numbers of the worked example
+    # docs/joints.md's rounded numbers of the worked example
     assert (round(e.state[0].torque, 3), round(e.state[0].stiffness_estimate, 2)) == (-0.692, 3.84)
     # counts of joint 1 alone: its two pressures, one angle, one estimate
     values = e.status(1, 10.02)[2]
@@ -352,7 +352,7 @@ def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_
 @pytest.mark.parametrize(
     'muscle, gauge, served, flags',
     [
-        # README flag table: within the 10 kPa vented band below 0 a muscle is vented, unflagged
+        # docs/nodes.md flags: within the 10 kPa vented band below 0 a muscle is vented, unflagged
         (HELD, -5e3, 0.0, set()),
         (HELD, 0.0, 0.0, set()),
         (HELD, 650e3, 650e3, set()),  # the map's top (Table A2)
@@ -367,7 +367,7 @@ def test_a_muscle_outside_its_identified_lengths_flags_the_joint_until_the_hold_
 )
 def test_pressure_flags_follow_the_readme_rule(muscle, gauge, served, flags):
     """Muscle 1 at ``gauge`` [Pa]: the torque is that of the ``served`` pressure; the joint warns
-    with the README flag table's ``flags``, or is OK without any.
+    with docs/nodes.md's flag table's ``flags``, or is OK without any.
     """
     joint = Joint(
         'j', (muscle, muscle), ('a', 'b'), (0.234, 0.234), Transmission((0.015,)), (-1, 1)

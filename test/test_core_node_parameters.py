@@ -1,5 +1,5 @@
-"""The one parameter table of model_node: the README shows it, the core and the node apply the same
-ranges.
+"""The one parameter table of model_node: docs/nodes.md shows it, the core and the node apply
+the same ranges.
 """
 
 import pytest
@@ -9,9 +9,9 @@ from pma_model_ros.core.engine import Config
 from pma_model_ros.core.node_parameters import markdown_table, PARAMETERS, SPECS
 
 
-def test_readme_table_is_the_schema():
-    assert markdown_table() in (REPO / 'README.md').read_text(), (
-        "README's model_node parameter table differs from core/node_parameters.py; paste:\n"
+def test_docs_table_is_the_schema():
+    assert markdown_table() in (REPO / 'docs' / 'nodes.md').read_text(encoding='utf-8'), (
+        "docs/nodes.md's parameter table differs from core/node_parameters.py; paste:\n"
         + markdown_table()
     )
 

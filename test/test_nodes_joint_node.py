@@ -386,10 +386,10 @@ def test_gauge_pressure_reference_reads_and_commands_gauge_pressures(make_node):
         node._on_pressure(0, 0, raw(pressure(node, offset + 400e3)))
         node._on_pressure(0, 1, raw(pressure(node, offset + 300e3)))
         node._on_states(raw(joint_state(node, 0.5)))
-        assert torques[-1].effort[0] == pytest.approx(-0.691819, abs=5e-6)  # README, by hand
+        assert torques[-1].effort[0] == pytest.approx(-0.691819, abs=5e-6)  # docs/joints.md
         node._on_torque(raw(command(elbow=1.0)))
         commanded[reference] = flexor[-1].fluid_pressure
-    assert commanded['gauge'] == pytest.approx(574986, abs=1)  # README: flexor 574986 Pa gauge
+    assert commanded['gauge'] == pytest.approx(574986, abs=1)  # docs/joints.md: flexor, gauge
     assert commanded['absolute'] - commanded['gauge'] == pytest.approx(AMBIENT, rel=1e-12)
 
 

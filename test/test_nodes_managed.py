@@ -308,7 +308,7 @@ def lifecycle(ros, node_name: str):
 @pytest.mark.parametrize('executor', ['events', 'single'])
 def test_lifecycle_services_from_another_process(ros, processes, namespace, executor):
     """model_node (a process, autostart false) answers only while active, driven through
-    ``<node>/change_state`` (by label, as the README shows) and ``<node>/get_state``.
+    ``<node>/change_state`` (by label, as docs/nodes.md shows) and ``<node>/get_state``.
     """
     from geometry_msgs.msg import WrenchStamped
     from sensor_msgs.msg import FluidPressure, JointState
@@ -390,10 +390,10 @@ def test_lifecycle_services_from_another_process(ros, processes, namespace, exec
     assert proc.poll() is None, why()
 
 
-def test_the_readme_names_the_lifecycle_services():
-    """The README's "Managed nodes" section gives the service calls of ``ros2 lifecycle set``."""
-    text = (REPO / 'README.md').read_text()
-    section = text.split('### Managed nodes\n', 1)[1].split('\n### ', 1)[0]
+def test_the_docs_name_the_lifecycle_services():
+    """docs/nodes.md, "Managed nodes", gives the service calls of ``ros2 lifecycle set``."""
+    text = (REPO / 'docs' / 'nodes.md').read_text(encoding='utf-8')
+    section = text.split('## Managed nodes\n', 1)[1].split('\n## ', 1)[0]
     for transition in ('configure', 'activate', 'deactivate', 'cleanup', 'shutdown'):
         assert f'ros2 lifecycle set /left_biceps/model_node {transition}' in section
     assert 'lifecycle_msgs/srv/ChangeState' in section

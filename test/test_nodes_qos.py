@@ -59,7 +59,7 @@ def test_model_node_override_changes_only_the_entity_it_names(make):
 
 
 def test_joint_node_and_simulator_take_overrides_from_a_parameter_file(make, tmp_path):
-    """The parameter-file form of the README: nested under ``qos_overrides:``, topic by topic."""
+    """The parameter-file form of docs/nodes.md: under ``qos_overrides:``, topic by topic."""
     overrides = tmp_path / 'qos.yaml'
     overrides.write_text(
         yaml.safe_dump(

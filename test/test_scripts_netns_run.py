@@ -1,5 +1,5 @@
 """scripts/netns-run --shell: several processes in one private network, apart from every other
-scripts/netns-run (the README's way to replay a bag into a running node).
+scripts/netns-run (docs/cli.md's way to replay a bag into a running node).
 """
 
 import subprocess
