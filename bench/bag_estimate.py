@@ -38,7 +38,7 @@ from pma_model_ros.bags.bag_io import (
 )
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation
-from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.core.files.param_file import node_settings, read_parameters
 from pma_model_ros.wire.cdr import wrench_stamped
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'dmsp_10_250.yaml'

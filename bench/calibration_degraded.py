@@ -24,12 +24,16 @@ import numpy as np
 import yaml
 
 from pma_model_ros.cli.identify import describe_geometry
-from pma_model_ros.core.calibration import Calibration, OFF
-from pma_model_ros.core.force_map import ForceMap
-from pma_model_ros.core.geometry import MuscleSpec
-from pma_model_ros.core.identification import Identification, identify_all, max_error_percent
-from pma_model_ros.core.models import get_model, TABLE3_MODELS
-from pma_model_ros.core.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from pma_model_ros.core.files.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from pma_model_ros.core.identification.calibration import Calibration, OFF
+from pma_model_ros.core.identification.force_map import ForceMap
+from pma_model_ros.core.identification.protocols import (
+    Identification,
+    identify_all,
+    max_error_percent,
+)
+from pma_model_ros.core.physics.geometry import MuscleSpec
+from pma_model_ros.core.physics.models import get_model, TABLE3_MODELS
 
 
 @dataclass(frozen=True)

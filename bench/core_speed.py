@@ -18,10 +18,10 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import brentq, newton
 
-from pma_model_ros.core.models import force_raw
-from pma_model_ros.core.muscle_model import MuscleModel
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import SHIPPED_MUSCLES
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import SHIPPED_MUSCLES
+from pma_model_ros.core.physics.models import force_raw
+from pma_model_ros.core.physics.muscle_model import MuscleModel
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 

@@ -41,10 +41,10 @@ import time
 from _cli import run
 import numpy as np
 
-from pma_model_ros.core.force_map import ForceMap, read_force_map_csv
-from pma_model_ros.core.models import extrapolates, TABLE3_MODELS
-from pma_model_ros.core.param_file import load_muscle, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.param_file import load_muscle, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.identification.force_map import ForceMap, read_force_map_csv
+from pma_model_ros.core.physics.models import extrapolates, TABLE3_MODELS
 
 REPO = Path(__file__).resolve().parents[1]
 INDEPENDENT = REPO.parent / 'shared' / 'data' / 'independent-muscles'
@@ -226,9 +226,9 @@ def lomo(results: list[dict]) -> None:
 
 
 def rules_by_model(maps: dict, tmp: Path) -> None:
-    """The served rule of each model (:func:`~pma_model_ros.core.models.extrapolates`) against
-    its leave-one-muscle-out choice between holding and extrapolating, by the served edge err of
-    ``fit --model <model>`` on every map.
+    """The served rule of each model (:func:`~pma_model_ros.core.physics.models.extrapolates`)
+    against its leave-one-muscle-out choice between holding and extrapolating, by the served edge
+    err of ``fit --model <model>`` on every map.
     """
     print('\nserved edge err [%] per model: hold / extrapolate; the leave-one-muscle-out choice')
     print('for each map judged (chosen on the other maps); the rule the package serves')

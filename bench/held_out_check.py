@@ -22,8 +22,8 @@ from pathlib import Path
 import tempfile
 
 from pma_model_ros.cli.main import main as pma_model
-from pma_model_ros.core.force_map import read_force_map_csv
-from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.files.param_file import read_parameters
+from pma_model_ros.core.identification.force_map import read_force_map_csv
 
 
 def run(argv: list[str]) -> str:

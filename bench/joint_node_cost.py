@@ -26,7 +26,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 import yaml
 
-from pma_model_ros.core.param_file import read_parameters
+from pma_model_ros.core.files.param_file import read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 
 REPO = Path(__file__).resolve().parents[1]

@@ -62,8 +62,8 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile  # noqa: E402
 from rclpy.serialization import deserialize_message  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
-from pma_model_ros.core.geometry import STANDARD_ATMOSPHERE  # noqa: E402
-from pma_model_ros.core.param_file import read_parameters  # noqa: E402
+from pma_model_ros.core.files.param_file import read_parameters  # noqa: E402
+from pma_model_ros.core.physics.geometry import STANDARD_ATMOSPHERE  # noqa: E402
 from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
 from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
 from pma_model_ros.nodes.qos import SENSOR_INPUT  # noqa: E402

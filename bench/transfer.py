@@ -32,10 +32,10 @@ import tempfile
 from _cli import run
 import numpy as np
 
-from pma_model_ros.core.force_map import ForceMap, read_force_map_csv
-from pma_model_ros.core.muscle_model import MuscleModel
-from pma_model_ros.core.param_file import load_muscle, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.param_file import load_muscle, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.identification.force_map import ForceMap, read_force_map_csv
+from pma_model_ros.core.physics.muscle_model import MuscleModel
 
 REPO = Path(__file__).resolve().parents[1]
 INDEPENDENT = REPO.parent / 'shared' / 'data' / 'independent-muscles'

@@ -24,10 +24,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
 
-from .core.geometry import STANDARD_ATMOSPHERE
-from .core.muscle_model import MuscleModel
-from .core.param_file import muscle_model, read_parameters
-from .core.shipped_data import MAPPED_MUSCLES, share_directory, shipped_force_map
+from .core.files.param_file import muscle_model, read_parameters
+from .core.files.shipped_data import MAPPED_MUSCLES, share_directory, shipped_force_map
+from .core.physics.geometry import STANDARD_ATMOSPHERE
+from .core.physics.muscle_model import MuscleModel
 from .tools import node_process
 
 NAMESPACE = '/pma_demo'

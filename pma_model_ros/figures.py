@@ -28,11 +28,11 @@ from .bags.bag_io import (
     WRENCH_STAMPED,
 )
 from .bags.estimate import muscle_namespace
-from .core.flags import Flag
-from .core.force_map import ForceMap
-from .core.identification import max_error_percent
-from .core.joint import envelope, Joint
-from .core.muscle_model import MuscleModel
+from .core.identification.force_map import ForceMap
+from .core.identification.protocols import max_error_percent
+from .core.physics.flags import Flag
+from .core.physics.joint import envelope, Joint
+from .core.physics.muscle_model import MuscleModel
 
 FORMATS = ('png', 'svg')
 DPI = 120  #: PNG resolution; the 8 in wide figures are 960 px, README width

@@ -1,9 +1,9 @@
 """model_node's callbacks over a recording, message by message: the reference that ``bag
 estimate``'s one pass is compared with.
 
-Each recorded message's bytes go, in log-time order, through the calls the node's raw
-subscriptions make (the wire layer, :class:`~pma_model_ros.wire.muscle_inputs.MuscleInputs`, on
-one :class:`~pma_model_ros.core.engine.Engine`), with "now" = the message's log time, the 1 Hz
+Each recorded message's bytes go, in log-time order, through the calls the node's raw subscriptions
+make (the wire layer, :class:`~pma_model_ros.wire.muscle_inputs.MuscleInputs`, on one
+:class:`~pma_model_ros.core.runtime.engine.Engine`), with "now" = the message's log time, the 1 Hz
 status timer firing on bag time and a status on every change the engine reports due.  This was
 ``bag estimate`` until its one pass; the nodes still decide so.
 """
@@ -22,10 +22,10 @@ from pma_model_ros.bags.offline_node import (
     INPUTS,
     OUTPUTS,
 )
-from pma_model_ros.core.flags import describe
-from pma_model_ros.core.health import DIAGNOSTIC_PERIOD_NS
-from pma_model_ros.core.node_parameters import topic_prefixes
-from pma_model_ros.core.param_file import node_engine
+from pma_model_ros.core.files.node_parameters import topic_prefixes
+from pma_model_ros.core.files.param_file import node_engine
+from pma_model_ros.core.physics.flags import describe
+from pma_model_ros.core.runtime.health import DIAGNOSTIC_PERIOD_NS
 from pma_model_ros.wire.cdr import fluid_pressure
 from pma_model_ros.wire.muscle_inputs import MuscleInputs
 

@@ -12,7 +12,7 @@ import uuid
 
 import pytest
 
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.tools import node_process
 
 REPO = Path(__file__).resolve().parents[1]

@@ -24,9 +24,9 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS, NO_DISCOVERY, Processes, REPO, Ros
 from node_messages import AMBIENT, JOINT, model_statuses, RELIABLE_QOS, stamp_key, status_values
-from pma_model_ros.core.engine import Engine, Level
-from pma_model_ros.core.muscle_model import MuscleModel
-from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.core.files.param_file import node_settings, read_parameters
+from pma_model_ros.core.physics.muscle_model import MuscleModel
+from pma_model_ros.core.runtime.engine import Engine, Level
 from pma_model_ros.nodes.model_node import DESERIALIZE
 from pma_model_ros.tools import node_process
 from pma_model_ros.wire.muscle_inputs import MuscleInputs
@@ -670,7 +670,7 @@ def test_package_loads_no_code_from_data():
     'name', ['../data/dmsp_10_250', '/etc/passwd', 'dmsp_10_250.yaml', 'DMSP-10-250/..']
 )
 def test_simulator_muscle_is_a_name_not_a_path(name):
-    from pma_model_ros.core.shipped_data import shipped_force_map
+    from pma_model_ros.core.files.shipped_data import shipped_force_map
 
     with pytest.raises(ValueError, match='no shipped force map for'):
         shipped_force_map(name)

@@ -25,10 +25,10 @@ from pma_model_ros.bags.calibrate import (
 )
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.cli.main import main
-from pma_model_ros.core.identification import fit_best, max_error_percent, physical_force
-from pma_model_ros.core.models import get_model
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.identification.protocols import fit_best, max_error_percent, physical_force
+from pma_model_ros.core.physics.models import get_model
 
 SPEC = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml'
 #: A calibration run: 4 held lengths over the map's range, 30 s each, while the pressure sweeps the

@@ -36,9 +36,9 @@ from pma_model_ros.bags.bag_io import (
 )
 from pma_model_ros.bags.estimate import CHUNK, estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
-from pma_model_ros.core.engine import Engine
-from pma_model_ros.core.hysteresis import branches
-from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.core.files.param_file import node_settings, read_parameters
+from pma_model_ros.core.physics.hysteresis import branches
+from pma_model_ros.core.runtime.engine import Engine
 
 T = TYPESTORE.types
 SETTINGS = node_settings(read_parameters(CONFIGS['DMSP-10-250']))
@@ -304,7 +304,7 @@ def multi_muscle_bag(path, combined: bool, names: list[str], ticks: int = 200):
 
 
 def muscle_model(parameters, name):
-    from pma_model_ros.core.param_file import muscle_model as build
+    from pma_model_ros.core.files.param_file import muscle_model as build
 
     return build(parameters[name])
 
@@ -314,7 +314,7 @@ def test_multi_muscle_parameter_file(tmp_path, mode):
     """Bag estimate of a muscles: file in both input modes: each muscle's force, at each tick's
     pressures, is its own model's at that tick's inputs (the core, muscle by muscle).
     """
-    from pma_model_ros.core.param_file import all_node_settings
+    from pma_model_ros.core.files.param_file import all_node_settings
 
     parameters = read_parameters(EXAMPLE)
     names = parameters['muscles']
@@ -663,7 +663,7 @@ def test_random_multi_muscle_recordings_published_as_the_node_message_by_message
     mismatched or empty arrays) or each muscle's own topics (another joint, big-endian): the
     output bag is the node's, byte for byte and in order; the same counters and CSV rows.
     """
-    from pma_model_ros.core.param_file import all_node_settings
+    from pma_model_ros.core.files.param_file import all_node_settings
 
     tmp = tmp_path_factory.mktemp('bag')
     parameters = read_parameters(EXAMPLE)

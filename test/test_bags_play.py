@@ -23,7 +23,7 @@ from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
 from pma_model_ros.bags.bag_io import read, storage_of
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
-from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.core.files.param_file import node_settings, read_parameters
 from pma_model_ros.tools import node_process
 
 pytestmark = pytest.mark.ros

@@ -13,7 +13,7 @@ except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install wi
 
 from pma_model_ros.bags.bag_io import read
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.shipped_data import shipped_force_map
 
 
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])

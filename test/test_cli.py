@@ -14,8 +14,8 @@ import yaml
 from conftest import CONFIGS, REPO
 from pma_model_ros.cli.identify import length_headers, rows_to_add
 from pma_model_ros.cli.main import main
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
 
 TABLE3_MODELS = {'mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens'}
 

@@ -102,7 +102,10 @@ def test_pma_model_help(build):
 
 def test_share_directory_of_the_install(build):
     """The package finds its share directory through ament_index, from any working directory."""
-    code = 'from pma_model_ros.core.shipped_data import share_directory; print(share_directory())'
+    code = (
+        'from pma_model_ros.core.files.shipped_data import share_directory; '
+        'print(share_directory())'
+    )
     proc = _run_installed([sys.executable, '-c', code], build)
     assert proc.returncode == 0, explain(proc)
     assert Path(proc.stdout.strip()) == build['prefix'] / 'share' / PKG

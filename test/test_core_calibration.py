@@ -12,20 +12,20 @@ import sys
 import numpy as np
 import pytest
 
-from pma_model_ros.core import calibration as cal
-from pma_model_ros.core.calibration import Calibration, OFF
-from pma_model_ros.core.force_map import ForceMap
-from pma_model_ros.core.identification import (
+from pma_model_ros.core.files.param_file import muscle_model
+from pma_model_ros.core.files.param_writer import build_parameters, fit_entry
+from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.identification import calibration as cal
+from pma_model_ros.core.identification.calibration import Calibration, OFF
+from pma_model_ros.core.identification.force_map import ForceMap
+from pma_model_ros.core.identification.protocols import (
     domain_of,
     fit_best,
     identify_all,
     max_error_percent,
 )
-from pma_model_ros.core.models import force_raw, get_model, MODELS
-from pma_model_ros.core.muscle_bank import MuscleBank
-from pma_model_ros.core.param_file import muscle_model
-from pma_model_ros.core.param_writer import build_parameters, fit_entry
-from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.physics.models import force_raw, get_model, MODELS
+from pma_model_ros.core.physics.muscle_bank import MuscleBank
 
 MARTENS = get_model('martens')
 
@@ -256,10 +256,10 @@ def test_the_fit_does_not_depend_on_blas_threads():
     OpenBLAS on 1 and on 2 threads, in fresh processes: the same geometry and parameters to 1e-12.
     """
     script = (
-        'from pma_model_ros.core.identification import fit_best\n'
-        'from pma_model_ros.core.calibration import Calibration\n'
-        'from pma_model_ros.core.models import get_model\n'
-        'from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec\n'
+        'from pma_model_ros.core.identification.protocols import fit_best\n'
+        'from pma_model_ros.core.identification.calibration import Calibration\n'
+        'from pma_model_ros.core.physics.models import get_model\n'
+        'from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec\n'
         "m = 'DMSP-10-250'\n"
         "f = fit_best(get_model('martens'), shipped_spec(m), shipped_force_map(m), "
         'calibration=Calibration())\n'

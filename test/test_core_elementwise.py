@@ -1,5 +1,5 @@
-"""numpy's elementwise functions with a plain-float path (core/elementwise.py): the same values
-as numpy, floats for floats.
+"""numpy's elementwise functions with a plain-float path (core/physics/elementwise.py): the same
+values as numpy, floats for floats.
 """
 
 import math
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pma_model_ros.core import elementwise as ew
+from pma_model_ros.core.physics import elementwise as ew
 
 
 @pytest.mark.parametrize('name', ['sqrt', 'exp', 'cbrt', 'cos', 'sin', 'tan'])

@@ -11,20 +11,26 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS
-from pma_model_ros.core.engine import Config, Engine, Level
-from pma_model_ros.core.estimation import (
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import dmsp_10_100_hysteresis
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.hysteresis import Follow
+from pma_model_ros.core.physics.muscle_model import force_at
+from pma_model_ros.core.runtime.engine import Config, Engine, Level
+from pma_model_ros.core.runtime.estimation import (
     command_problem,
     commands_ok,
     lengths_ok,
     Muscles,
     pressures_ok,
 )
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.hysteresis import Follow
-from pma_model_ros.core.muscle_model import force_at
-from pma_model_ros.core.pairing import fresh, NEVER, SECOND, stale_command_stamps, UNSTAMPED
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import dmsp_10_100_hysteresis
+from pma_model_ros.core.runtime.pairing import (
+    fresh,
+    NEVER,
+    SECOND,
+    stale_command_stamps,
+    UNSTAMPED,
+)
 
 AMBIENT = 101325.0
 P = 300e3  # gauge [Pa]

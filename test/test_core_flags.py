@@ -1,6 +1,6 @@
-"""Per-sample status flags (core/flags.py): distinct bits and their readable form."""
+"""Per-sample status flags (core/physics/flags.py): distinct bits and their readable form."""
 
-from pma_model_ros.core.flags import describe, Flag
+from pma_model_ros.core.physics.flags import describe, Flag
 
 
 def test_each_flag_is_its_own_bit():

@@ -1,9 +1,13 @@
-"""Force maps and their CSV files (core/force_map.py)."""
+"""Force maps and their CSV files (core/identification/force_map.py)."""
 
 import numpy as np
 import pytest
 
-from pma_model_ros.core.force_map import ForceMap, parse_force_map_csv, read_force_map_csv
+from pma_model_ros.core.identification.force_map import (
+    ForceMap,
+    parse_force_map_csv,
+    read_force_map_csv,
+)
 
 CSV = """# two lengths, two pressures
 pressure_pa,length_m,force_n

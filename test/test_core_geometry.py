@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from pma_model_ros.core import geometry as geo
-from pma_model_ros.core.geometry import MuscleSpec
-from pma_model_ros.core.shipped_data import SHIPPED_MUSCLES, shipped_spec
-from pma_model_ros.core.user_files import read_spec_yaml
+from pma_model_ros.core.files.shipped_data import SHIPPED_MUSCLES, shipped_spec
+from pma_model_ros.core.files.user_files import read_spec_yaml
+from pma_model_ros.core.physics import geometry as geo
+from pma_model_ros.core.physics.geometry import MuscleSpec
 
 
 @pytest.mark.parametrize('name', SHIPPED_MUSCLES)

@@ -1,10 +1,10 @@
-"""The play operator (core/hysteresis.py) on hand-traced series."""
+"""The play operator (core/physics/hysteresis.py) on hand-traced series."""
 
 import math
 
 import numpy as np
 
-from pma_model_ros.core.hysteresis import branches, play
+from pma_model_ros.core.physics.hysteresis import branches, play
 
 
 def test_a_branch_changes_only_after_a_reversal_beyond_the_deadband():

@@ -9,13 +9,13 @@ import yaml
 
 from pma_model_ros.cli.identify import identify_muscle, PAPER_TABLE3
 from pma_model_ros.cli.main import main
-from pma_model_ros.core.identification import _environment, _WORKER_ENVIRONMENT
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import (
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import (
     dmsp_10_100_hysteresis,
     MAPPED_MUSCLES,
     shipped_force_map,
 )
+from pma_model_ros.core.identification.protocols import _environment, _WORKER_ENVIRONMENT
 
 FITTED = ('andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 

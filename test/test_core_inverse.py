@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.models import MODELS
-from pma_model_ros.core.muscle_model import MuscleModel, pressure_for_one
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.models import MODELS
+from pma_model_ros.core.physics.muscle_model import MuscleModel, pressure_for_one
 
 MUSCLES = [
     muscle_model(read_parameters(path), name)

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.joint import envelope, Joint, Transmission
-from pma_model_ros.core.joint_file import load_joints
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.joint_file import load_joints
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.joint import envelope, Joint, Transmission
 
 EXAMPLE = load_joints(REPO / 'config' / 'example_joint.yaml')[0]
 #: The highest pressure the example's muscles are commanded: the rated 800 kPa (hildebrandt is
@@ -150,7 +150,7 @@ def _scale(joint, theta):
 
 def _top(joint) -> float:
     """The highest pressure commanded to either muscle [Pa]
-    (:class:`~pma_model_ros.core.muscle_model.Limits`).
+    (:class:`~pma_model_ros.core.physics.muscle_model.Limits`).
     """
     return min(m.limits.command_top for m in joint.muscles)
 

@@ -4,7 +4,7 @@
 the command path's round trips, and inputs it must reject.
 
 The forces come from each muscle's own parameter file (``MuscleModel.force``, the vector path), not
-from the joint file or :class:`~pma_model_ros.core.joint.MuscleAt`; stiffnesses are central
+from the joint file or :class:`~pma_model_ros.core.physics.joint.MuscleAt`; stiffnesses are central
 differences of those hand torques.
 """
 
@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.core.engine import Config, Engine, Level
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.hysteresis import Follow
-from pma_model_ros.core.joint import Joint, Transmission
-from pma_model_ros.core.joint_engine import JointEngine, Settings
-from pma_model_ros.core.joint_file import joints, load_joints
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.joint_file import joints, load_joints
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.hysteresis import Follow
+from pma_model_ros.core.physics.joint import Joint, Transmission
+from pma_model_ros.core.runtime.engine import Config, Engine, Level
+from pma_model_ros.core.runtime.joint_engine import JointEngine, Settings
 
 AMBIENT = 101325.0  # [Pa]
 AGE = 0.125  # [s] max_input_age (a binary fraction: the freshness edge is exact)

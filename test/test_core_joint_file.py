@@ -6,10 +6,10 @@ import pytest
 import yaml
 
 from conftest import CONFIGS, docstring_yaml, REPO
-from pma_model_ros.core import joint_file
-from pma_model_ros.core.hysteresis import DEFAULT_FOLLOW, Follow
-from pma_model_ros.core.joint_file import joints, load_joints
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files import joint_file
+from pma_model_ros.core.files.joint_file import joints, load_joints
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.hysteresis import DEFAULT_FOLLOW, Follow
 
 EXAMPLE = REPO / 'config' / 'example_joint.yaml'
 

@@ -7,8 +7,8 @@ import re
 
 import pytest
 
-from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.simulation.joint import PARAMETERS, SimulatedJoint
 
 AMBIENT = 101325.0
 

@@ -6,14 +6,18 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS, with_martens_end
-from pma_model_ros.core import elementwise as ew
-from pma_model_ros.core import geometry as geo
-from pma_model_ros.core.calibration import Calibration, shifted
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.identification import domain_of, identify_all, max_error_percent
-from pma_model_ros.core.models import coefficient_slopes, force_raw, get_model, MODELS
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import dmsp_10_100_hysteresis, shipped_force_map, shipped_spec
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import (
+    dmsp_10_100_hysteresis,
+    shipped_force_map,
+    shipped_spec,
+)
+from pma_model_ros.core.identification.calibration import Calibration, shifted
+from pma_model_ros.core.identification.protocols import domain_of, identify_all, max_error_percent
+from pma_model_ros.core.physics import elementwise as ew
+from pma_model_ros.core.physics import geometry as geo
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.models import coefficient_slopes, force_raw, get_model, MODELS
 
 # Martens & Boblan 2017, Table 2 (as printed).
 TABLE2 = {

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS, with_martens_end
-from pma_model_ros.core.models import MODELS
-from pma_model_ros.core.muscle_bank import MuscleBank
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.models import MODELS
+from pma_model_ros.core.physics.muscle_bank import MuscleBank
 
 
 def shipped_muscles() -> list:

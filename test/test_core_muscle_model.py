@@ -1,4 +1,5 @@
-"""What is served outside the identified data (core/muscle_model.py, Domain in core/models.py).
+"""What is served outside the identified data (core/physics/muscle_model.py, Domain in
+core/physics/models.py).
 
 Judged on the measured maps themselves: a model is fitted without an edge length of a map, then
 served at that left-out length.  Where it extrapolates credibly (Martens) its own value is far
@@ -14,12 +15,12 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.identification import fit_best, max_error_percent
-from pma_model_ros.core.models import extrapolates, get_model
-from pma_model_ros.core.muscle_model import MuscleModel
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.identification.protocols import fit_best, max_error_percent
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.models import extrapolates, get_model
+from pma_model_ros.core.physics.muscle_model import MuscleModel
 
 
 def served_at_left_out(muscle: str, model: str, objective: str, edge: int, extrapolates: bool):

@@ -5,13 +5,13 @@ the same ranges.
 import pytest
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.core.engine import Config
-from pma_model_ros.core.node_parameters import markdown_table, PARAMETERS, SPECS
+from pma_model_ros.core.files.node_parameters import markdown_table, PARAMETERS, SPECS
+from pma_model_ros.core.runtime.engine import Config
 
 
 def test_docs_table_is_the_schema():
     assert markdown_table() in (REPO / 'docs' / 'nodes.md').read_text(encoding='utf-8'), (
-        "docs/nodes.md's parameter table differs from core/node_parameters.py; paste:\n"
+        "docs/nodes.md's parameter table differs from core/files/node_parameters.py; paste:\n"
         + markdown_table()
     )
 

@@ -1,12 +1,14 @@
-"""Reading parameter files (core/param_file.py): the identified muscle and the node's settings."""
+"""Reading parameter files (core/files/param_file.py): the identified muscle and the node's
+settings.
+"""
 
 import copy
 
 import pytest
 
 from conftest import docstring_yaml, REPO
-from pma_model_ros.core import param_file
-from pma_model_ros.core.param_file import (
+from pma_model_ros.core.files import param_file
+from pma_model_ros.core.files.param_file import (
     all_node_settings,
     identification,
     muscle_model,

@@ -1,14 +1,16 @@
-"""Writing parameter files (core/param_writer.py): what is written reads back as the muscle."""
+"""Writing parameter files (core/files/param_writer.py): what is written reads back as the
+muscle.
+"""
 
 import math
 
 import pytest
 import yaml
 
-from pma_model_ros.core.models import Domain
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.param_writer import build_parameters, write_parameters
-from pma_model_ros.core.shipped_data import shipped_spec
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_writer import build_parameters, write_parameters
+from pma_model_ros.core.files.shipped_data import shipped_spec
+from pma_model_ros.core.physics.models import Domain
 
 
 def test_written_file_reads_back_with_comment_header(tmp_path):

@@ -36,11 +36,11 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.geometry import MuscleSpec
-from pma_model_ros.core.models import Domain, MODELS
-from pma_model_ros.core.muscle_model import MuscleModel, VENTED_BAND
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.geometry import MuscleSpec
+from pma_model_ros.core.physics.models import Domain, MODELS
+from pma_model_ros.core.physics.muscle_model import MuscleModel, VENTED_BAND
 
 PARAMETERS = {muscle: read_parameters(path) for muscle, path in CONFIGS.items()}
 MUSCLES = [

@@ -1,16 +1,21 @@
-"""The Sárosi DMSP-10-100 parameters (core/sarosi.py, its muscle in core/shipped_data.py): the SI
-conversion against eq. 3 in published units, and the two hysteresis branches.
+"""The Sárosi DMSP-10-100 parameters (core/physics/sarosi.py, its muscle in
+core/files/shipped_data.py): the SI conversion against eq. 3 in published units, and the two
+hysteresis branches.
 """
 
 import math
 
 import pytest
 
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.identification import domain_of
-from pma_model_ros.core.models import force_raw, get_model
-from pma_model_ros.core.sarosi import to_si
-from pma_model_ros.core.shipped_data import dmsp_10_100_hysteresis, shipped_force_map, shipped_spec
+from pma_model_ros.core.files.shipped_data import (
+    dmsp_10_100_hysteresis,
+    shipped_force_map,
+    shipped_spec,
+)
+from pma_model_ros.core.identification.protocols import domain_of
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.models import force_raw, get_model
+from pma_model_ros.core.physics.sarosi import to_si
 
 
 def test_sarosi_si_conversion_matches_published_units():

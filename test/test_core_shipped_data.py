@@ -1,4 +1,4 @@
-"""The shipped muscle data (core/shipped_data.py) against the catalogue and the CSV files."""
+"""The shipped muscle data (core/files/shipped_data.py) against the catalogue and the CSV files."""
 
 import csv
 from importlib import resources
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from pma_model_ros.core.shipped_data import (
+from pma_model_ros.core.files.shipped_data import (
     MAPPED_MUSCLES,
     sarosi_tables,
     share_directory,

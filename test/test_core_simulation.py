@@ -1,5 +1,5 @@
-"""The simulated muscle (core/simulation.py): its ground truth is a pchip interpolation of the
-shipped measured map, and its hysteresis follows model_node's play-operator rule.
+"""The simulated muscle (core/simulation/muscle.py): its ground truth is a pchip interpolation of
+the shipped measured map, and its hysteresis follows model_node's play-operator rule.
 """
 
 import math
@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from pma_model_ros.core.force_map import ForceMap
-from pma_model_ros.core.shipped_data import shipped_force_map
-from pma_model_ros.core.simulation import defaults, GroundTruth, SimulatedMuscle
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.identification.force_map import ForceMap
+from pma_model_ros.core.simulation.muscle import defaults, GroundTruth, SimulatedMuscle
 
 GAP, DEADBAND = 5.0, 1e-3  # [N], [m]
 LOW, HIGH, PERIOD = 0.21, 0.24, 4.0  # sine between 0.21 and 0.24 m, 4 s

@@ -1,4 +1,6 @@
-"""Cut-to-length transfer (core/transfer.py): the same muscle type at another rest length."""
+"""Cut-to-length transfer (core/identification/transfer.py): the same muscle type at another rest
+length.
+"""
 
 import copy
 import math
@@ -7,11 +9,11 @@ import numpy as np
 import pytest
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.core import transfer
-from pma_model_ros.core.flags import Flag
-from pma_model_ros.core.models import force_raw, get_model, MODELS
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.transfer import EXPONENTS, scale_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.identification import transfer
+from pma_model_ros.core.identification.transfer import EXPONENTS, scale_parameters
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.physics.models import force_raw, get_model, MODELS
 
 #: New rest lengths [m]: far shorter, a little shorter, longer.
 NEW_LENGTHS = (0.05, 0.274, 1.7)

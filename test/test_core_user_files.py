@@ -1,11 +1,13 @@
-"""Reading the files a user names (core/user_files.py): one regular UTF-8 file of bounded size."""
+"""Reading the files a user names (core/files/user_files.py): one regular UTF-8 file of bounded
+size.
+"""
 
 import os
 
 import pytest
 
 from conftest import REPO
-from pma_model_ros.core.user_files import (
+from pma_model_ros.core.files.user_files import (
     load_yaml_mapping,
     MAX_FILE_BYTES,
     read_spec_yaml,

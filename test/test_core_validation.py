@@ -1,13 +1,13 @@
-"""Nested held-out judgement (core/validation.py): folds, cached fits, choices re-made per fold,
-the error band of a length.
+"""Nested held-out judgement (core/identification/validation.py): folds, cached fits, choices
+re-made per fold, the error band of a length.
 """
 
 import numpy as np
 import pytest
 
-from pma_model_ros.core.force_map import ForceMap
-from pma_model_ros.core.shipped_data import shipped_force_map
-from pma_model_ros.core.validation import (
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.identification.force_map import ForceMap
+from pma_model_ros.core.identification.validation import (
     fold_lengths,
     HeldOut,
     HeldOutBand,

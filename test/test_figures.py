@@ -25,8 +25,8 @@ from pma_model_ros.bags.bag_io import BagError
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.cli.main import main
-from pma_model_ros.core.param_file import muscle_model, node_settings, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.param_file import muscle_model, node_settings, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
 
 TABLE = {
     'DMSP-10-250': {

@@ -13,8 +13,8 @@ from sensor_msgs.msg import FluidPressure
 
 from conftest import CONFIGS
 from node_messages import AMBIENT, force_command, SENSOR_QOS
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
 
 pytestmark = pytest.mark.ros
 

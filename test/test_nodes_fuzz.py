@@ -25,7 +25,7 @@ from node_messages import (
     state,
     status_values,
 )
-from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.core.files.param_file import node_settings, read_parameters
 
 pytestmark = pytest.mark.ros
 

@@ -10,7 +10,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import FluidPressure, JointState
 
 from node_messages import AMBIENT, pressure, state
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 
 pytestmark = pytest.mark.ros
 

@@ -16,7 +16,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import REPO
 from node_messages import SENSOR_QOS
-from pma_model_ros.core.joint_simulation import PARAMETERS, SimulatedJoint
+from pma_model_ros.core.simulation.joint import PARAMETERS, SimulatedJoint
 
 pytestmark = pytest.mark.ros
 

@@ -18,9 +18,9 @@ import yaml
 
 from conftest import REPO
 from node_messages import AMBIENT, raw, record
-from pma_model_ros.core.hysteresis import Follow
-from pma_model_ros.core.joint_file import load_joints
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.joint_file import load_joints
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.physics.hysteresis import Follow
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.startup import StartupError
 from pma_model_ros.tools import node_process

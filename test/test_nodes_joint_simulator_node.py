@@ -19,8 +19,8 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import lines_of_failed_start, REPO
 from node_messages import AMBIENT, record
-from pma_model_ros.core.shipped_data import shipped_force_map
-from pma_model_ros.core.simulation import GroundTruth
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.simulation.muscle import GroundTruth
 from pma_model_ros.nodes.joint_simulator_node import JointSimulatorNode
 from pma_model_ros.nodes.startup import StartupError
 

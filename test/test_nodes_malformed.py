@@ -25,8 +25,8 @@ from node_messages import (
     SENSOR_QOS,
     state,
 )
-from pma_model_ros.core.joint_file import load_joints
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.joint_file import load_joints
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.model_node import ModelNode
 from pma_model_ros.wire.cdr import MALFORMED

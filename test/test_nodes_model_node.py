@@ -16,7 +16,7 @@ from sensor_msgs.msg import JointState
 
 from conftest import CONFIGS, REPO
 from node_messages import AMBIENT, force_command, JOINT, pressure, raw, record, state
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
 
 EXAMPLE = REPO / 'config' / 'example_multi_muscle.yaml'
@@ -269,8 +269,8 @@ def test_runtime_model_swap_is_used_by_the_next_estimate(make_node):
 
 
 def test_the_node_does_not_load_the_identification_tools():
-    # scipy.optimize serves only the offline fits (core/identification.py); loading it cost the
-    # node ~0.3 s of start-up (bench/startup.py).
+    # scipy.optimize serves only the offline fits (core/identification/protocols.py); loading it
+    # cost the node ~0.3 s of start-up (bench/startup.py).
     code = "import sys, pma_model_ros.nodes.model_node; print('scipy.optimize' in sys.modules)"
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == 'False'

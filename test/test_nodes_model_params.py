@@ -11,8 +11,8 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS, edited_copy
 from node_messages import AMBIENT, pressure, raw, record, state
-from pma_model_ros.core.node_parameters import IDENTIFICATION
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.node_parameters import IDENTIFICATION
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
 from pma_model_ros.nodes.model_params import expected_undeclared
 

@@ -12,7 +12,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import REPO
 from node_messages import AMBIENT, pressure, state, status_prefix
-from pma_model_ros.core.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.tools import node_process
 
 pytestmark = pytest.mark.ros

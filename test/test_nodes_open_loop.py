@@ -21,9 +21,9 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS
 from node_messages import AMBIENT, RELIABLE_QOS, SENSOR_QOS, stamp_key
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
-from pma_model_ros.core.simulation import GroundTruth
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.simulation.muscle import GroundTruth
 
 pytestmark = pytest.mark.ros
 

@@ -129,7 +129,7 @@ def test_a_key_copied_into_every_block_is_one_warning(make, warnings, tmp_path):
     key, naming the blocks and the node-wide name (its cost at start-up: bench/startup.py, the
     row with 192 unknown parameters).
     """
-    from pma_model_ros.core.param_file import read_parameters
+    from pma_model_ros.core.files.param_file import read_parameters
 
     shipped = read_parameters(CONFIGS['DMSP-10-250'])
     block = {key: shipped[key] for key in ('muscle', 'model', 'length_range', 'models')}

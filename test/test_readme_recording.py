@@ -9,9 +9,9 @@ import pytest
 
 from conftest import REPO
 from pma_model_ros.bags.calibrate import SIMULATOR_SETTINGS
-from pma_model_ros.core.identification import max_error_percent
-from pma_model_ros.core.param_file import muscle_model, read_parameters
-from pma_model_ros.core.shipped_data import shipped_force_map
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.identification.protocols import max_error_percent
 
 pytestmark = pytest.mark.ros
 

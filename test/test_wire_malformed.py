@@ -18,8 +18,8 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS
 from node_messages import AMBIENT, damage, HARMS, malformed, refused, stamped
-from pma_model_ros.core.engine import Engine, Level
-from pma_model_ros.core.param_file import node_settings, read_parameters
+from pma_model_ros.core.files.param_file import node_settings, read_parameters
+from pma_model_ros.core.runtime.engine import Engine, Level
 from pma_model_ros.nodes.model_node import DESERIALIZE
 from pma_model_ros.wire.cdr import MALFORMED, MalformedMessage
 from pma_model_ros.wire.columns import joint_columns, stamped_floats

@@ -15,15 +15,15 @@ pressure changes (air temperature, sensor lag), and the slope over a window, unl
 difference of neighbours, is not dominated by sensor noise.
 
 Each sample also carries the hysteresis branch it was reached on (the play operator of the length,
-:mod:`~pma_model_ros.core.hysteresis`, with model_node's default deadband): the direction of the
-last motion, so a two-branch model can be identified from the held points (``two_branches``: then
-the samples from before the muscle's first motion, branch unknown, are left out).
+:mod:`~pma_model_ros.core.physics.hysteresis`, with model_node's default deadband): the direction
+of the last motion, so a two-branch model can be identified from the held points (``two_branches``:
+then the samples from before the muscle's first motion, branch unknown, are left out).
 
 The kept samples are averaged in cells of ``PRESSURE_CELL`` x ``LENGTH_CELL`` x branch (equal
 weight per region of the map however long the recording stayed there; far fewer points for the
 fit), measured forces below 0 N (noise on a slack muscle) are set to 0 N, and the result is a
-:class:`~pma_model_ros.core.force_map.ForceMap`: identification is then exactly that of a force-map
-CSV (:func:`~pma_model_ros.core.identification.fit_best`).
+:class:`~pma_model_ros.core.identification.force_map.ForceMap`: identification is then exactly that
+of a force-map CSV (:func:`~pma_model_ros.core.identification.protocols.fit_best`).
 """
 
 from __future__ import annotations
@@ -45,11 +45,11 @@ from .bag_io import (
     WRENCH_STAMPED,
 )
 from .estimate import muscle_namespace
-from ..core.force_map import ForceMap
-from ..core.geometry import STANDARD_ATMOSPHERE
-from ..core.hysteresis import branches
-from ..core.node_parameters import SPECS
-from ..core.progress import Meter
+from ..core.files.node_parameters import SPECS
+from ..core.identification.force_map import ForceMap
+from ..core.identification.progress import Meter
+from ..core.physics.geometry import STANDARD_ATMOSPHERE
+from ..core.physics.hysteresis import branches
 from ..wire.cdr import stamp_ns
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope

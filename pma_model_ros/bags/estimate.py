@@ -5,11 +5,11 @@ The model node's decisions over the recording in one pass, with "now" = each mes
 (what the node's clock reads when the bag is played with ``--clock`` into a node with
 ``use_sim_time``): the recording is read in stretches; each input topic's messages are decoded into
 arrays at once (:mod:`~pma_model_ros.wire.columns`), the engine's rules run over each muscle's
-arrays (:class:`~pma_model_ros.core.recording.Recording`), and the answers are written from
+arrays (:class:`~pma_model_ros.core.runtime.recording.Recording`), and the answers are written from
 templates, in the order the node publishes them (:class:`.offline_node.OfflineNode`).
 ``test/test_bags_estimate.py`` pins the output to the node's callbacks driven message by message
-(the wire layer and :class:`~pma_model_ros.core.engine.Engine`), byte for byte. The topics are
-those of the parameter file's muscles, under the recording's namespace:
+(the wire layer and :class:`~pma_model_ros.core.runtime.engine.Engine`), byte for byte. The topics
+are those of the parameter file's muscles, under the recording's namespace:
 
 * one muscle: ``<ns>/pressure`` (FluidPressure), ``<ns>/muscle_state`` (JointState) and, if
   recorded, ``<ns>/force_command`` (WrenchStamped); with ``muscles:`` and ``input_mode:
@@ -58,8 +58,8 @@ from .offline_node import (
     OfflineNode,
     Summary,
 )
-from ..core.node_parameters import SPECS
-from ..core.param_file import NodeSettings
+from ..core.files.node_parameters import SPECS
+from ..core.files.param_file import NodeSettings
 
 CHUNK = 100_000  # messages read, decided and written per step
 

@@ -1,6 +1,6 @@
 """A stretch of a recording's input messages decoded into each muscle's
-:class:`~pma_model_ros.core.recording.Inputs`, for the offline model node (:mod:`.offline_node`):
-each topic's messages at once by the wire layer's column readers
+:class:`~pma_model_ros.core.runtime.recording.Inputs`, for the offline model node
+(:mod:`.offline_node`): each topic's messages at once by the wire layer's column readers
 (:mod:`~pma_model_ros.wire.columns`), what they do not read by rosbags' deserializer.
 """
 
@@ -12,7 +12,7 @@ from typing import Sequence
 import numpy as np
 
 from .bag_io import decode_cdr, FLUID_PRESSURE, JOINT_STATE, WRENCH_STAMPED
-from ..core.recording import COMMAND_IN, Inputs, LENGTH_IN, PRESSURE_IN
+from ..core.runtime.recording import COMMAND_IN, Inputs, LENGTH_IN, PRESSURE_IN
 from ..wire.cdr import MALFORMED
 from ..wire.columns import joint_columns, stamped_floats
 

@@ -2,7 +2,7 @@
 
 :class:`OfflineNode` takes the recording in stretches: each input topic's messages are decoded into
 arrays at once (:mod:`~pma_model_ros.wire.columns`), the engine's rules run over each muscle's
-arrays (:class:`~pma_model_ros.core.recording.Recording`), and what the node would publish
+arrays (:class:`~pma_model_ros.core.runtime.recording.Recording`), and what the node would publish
 (estimates, pressure commands, /diagnostics) is written from templates beside the copies, in the
 order the node publishes it. The node's topics, as the nodes name them, are defined here.
 """
@@ -27,16 +27,17 @@ from .bag_io import (
     WRENCH_STAMPED,
 )
 from .offline_inputs import decode, pick
-from ..core.flags import describe
-from ..core.node_parameters import SPECS, topic_prefixes
-from ..core.param_file import node_engine, NodeSettings
-from ..core.recording import COMMAND_IN, Estimates, Recording
-from ..core.timeline import Report
+from ..core.files.node_parameters import SPECS, topic_prefixes
+from ..core.files.param_file import node_engine, NodeSettings
+from ..core.physics.flags import describe
+from ..core.runtime.recording import COMMAND_IN, Estimates, Recording
+from ..core.runtime.timeline import Report
 from ..wire.cdr import fluid_pressure, joint_state, Template, wrench_stamped
 from ..wire.diagnostics import diagnostic_array
 
 #: The node's input topics of one muscle (relative names) and their types, in the order of the
-#: input kinds of :mod:`~pma_model_ros.core.recording` (PRESSURE_IN, LENGTH_IN, COMMAND_IN).
+#: input kinds of :mod:`~pma_model_ros.core.runtime.recording` (PRESSURE_IN, LENGTH_IN,
+#: COMMAND_IN).
 INPUTS = {'pressure': FLUID_PRESSURE, 'muscle_state': JOINT_STATE, 'force_command': WRENCH_STAMPED}
 #: The node's input topics in combined mode, all JointStates (same order).
 COMBINED_INPUTS = ('muscle_pressures', 'muscle_states', 'force_commands')
@@ -104,8 +105,8 @@ class _Outputs:
 
 class OfflineNode:
     """The model node over a recording: its inputs decoded into arrays per topic, the engine's
-    decisions made over them at once (:class:`~pma_model_ros.core.recording.Recording`), and what
-    the node would publish written beside the copies, in the node's order.
+    decisions made over them at once (:class:`~pma_model_ros.core.runtime.recording.Recording`),
+    and what the node would publish written beside the copies, in the node's order.
     """
 
     def __init__(

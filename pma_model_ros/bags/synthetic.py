@@ -2,7 +2,7 @@
 faster than real time.
 
 For tests, benchmarks and demos on a machine without DDS: the same physics
-(:class:`~pma_model_ros.core.simulation.SimulatedMuscle`), the same topics, types,
+(:class:`~pma_model_ros.core.simulation.muscle.SimulatedMuscle`), the same topics, types,
 QoS and stamps as the node (log time = header stamp), at exact sample times.
 """
 
@@ -21,7 +21,7 @@ from .bag_io import (
     TYPESTORE,
     WRENCH_STAMPED,
 )
-from ..core.simulation import defaults, SimulatedMuscle
+from ..core.simulation.muscle import defaults, SimulatedMuscle
 
 #: 2026-01-01T00:00:00Z [ns]: the first stamp of a synthetic recording.
 START_NS = 1_767_225_600_000_000_000

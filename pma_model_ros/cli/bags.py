@@ -16,9 +16,9 @@ import tempfile
 from typing import Iterator
 
 from .checks import add_overwrite_option
-from ..core.force_map import ForceMap
-from ..core.geometry import MuscleSpec, STANDARD_ATMOSPHERE
-from ..core.node_parameters import PRESSURE_REFERENCES
+from ..core.files.node_parameters import PRESSURE_REFERENCES
+from ..core.identification.force_map import ForceMap
+from ..core.physics.geometry import MuscleSpec, STANDARD_ATMOSPHERE
 
 
 def add_bag_commands(sub: argparse._SubParsersAction) -> None:
@@ -119,7 +119,7 @@ def _needs_rosbags() -> None:
 def cmd_bag_estimate(args: argparse.Namespace) -> None:
     _needs_rosbags()
     from ..bags.estimate import estimate_bag
-    from ..core.param_file import all_node_settings, node_pairing, read_parameters
+    from ..core.files.param_file import all_node_settings, node_pairing, read_parameters
 
     parameters = read_parameters(args.config)
     if args.pressure_reference:

@@ -10,8 +10,8 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from ..core.geometry import STANDARD_ATMOSPHERE
-from ..core.units import pressure_hint
+from ..core.hints import pressure_hint
+from ..core.physics.geometry import STANDARD_ATMOSPHERE
 
 
 class CliError(Exception):

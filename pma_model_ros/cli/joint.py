@@ -8,13 +8,13 @@ import math
 import numpy as np
 
 from .checks import CliError, finite, gauge_pressure
-from ..core.flags import describe
-from ..core.param_file import read_parameters
+from ..core.files.param_file import read_parameters
+from ..core.physics.flags import describe
 
 
 def _joint(args: argparse.Namespace):
     """The joint of ``--config`` named by ``--joint`` (default: the file's only joint)."""
-    from ..core.joint_file import load_joints
+    from ..core.files.joint_file import load_joints
 
     joints = {j.name: j for j in load_joints(args.config)}
     name = args.joint or (next(iter(joints)) if len(joints) == 1 else None)
@@ -91,7 +91,7 @@ def cmd_joint_pressures(args: argparse.Namespace) -> None:
 
 
 def cmd_joint_envelope(args: argparse.Namespace) -> None:
-    from ..core.joint import envelope
+    from ..core.physics.joint import envelope
 
     joint = _joint(args)
     if not 2 <= args.steps <= 10000:

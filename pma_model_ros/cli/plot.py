@@ -10,9 +10,9 @@ from pathlib import Path
 
 from .checks import add_overwrite_option, CliError, refuse_existing
 from .identify import identify_shipped, table3
-from ..core.param_file import load_muscle, read_parameters
-from ..core.progress import step
-from ..core.shipped_data import MAPPED_MUSCLES, shipped_force_map
+from ..core.files.param_file import load_muscle, read_parameters
+from ..core.files.shipped_data import MAPPED_MUSCLES, shipped_force_map
+from ..core.identification.progress import step
 
 #: Figures of ``pma-model plot`` and what each needs; ``all`` makes every one whose input is given.
 PLOTS = {
@@ -44,7 +44,7 @@ def cmd_plot(args: argparse.Namespace) -> None:
         if 'joints' in read_parameters(config):  # a joint file: its joint figures
             if 'joint' not in wanted:
                 continue
-            from ..core.joint_file import load_joints
+            from ..core.files.joint_file import load_joints
 
             for joint in load_joints(config):
                 jobs[f'joint_{source}_{joint.name}'] = functools.partial(

@@ -8,9 +8,9 @@ import argparse
 import math
 
 from .checks import CliError, finite, gauge_pressure
-from ..core.flags import describe, Flag
-from ..core.param_file import held_out_band, load_muscle, read_parameters
-from ..core.units import length_hint
+from ..core.files.param_file import held_out_band, load_muscle, read_parameters
+from ..core.hints import length_hint
+from ..core.physics.flags import describe, Flag
 
 
 def _length(value: float, rest_length: float) -> float:

@@ -1,9 +1,9 @@
 """joint_node: torque and stiffness estimates and pressure commands of antagonistic joints.
 
 Parameters: a joint file (``config/example_joint.yaml``, layout in
-:mod:`pma_model_ros.core.joint_file`), read by the ``configure`` transition: all read-only.  The
-node is managed (:mod:`.managed`) and answers only while active.  Topics (relative, so
-a namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge``):
+:mod:`pma_model_ros.core.files.joint_file`), read by the ``configure`` transition: all read-only.
+The node is managed (:mod:`.managed`) and answers only while active.  Topics (relative, so a
+namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge``):
 
 * in ``joint_states`` (sensor_msgs/JointState: position θ [rad], entries by joint name; the
   velocity is not used: a hysteresis muscle's branch follows its length or pressure with memory)
@@ -24,7 +24,7 @@ a namespace applies; pressures absolute, or gauge with ``pressure_reference: gau
   ``forward_command_order``, for ros2_control's forward_command_controller
   (:mod:`pma_model_ros.wire.forward_commands`: the others' last values; nothing until every muscle
   had a command).  Every decision is the
-  :class:`~pma_model_ros.core.joint_engine.JointEngine`'s.
+  :class:`~pma_model_ros.core.runtime.joint_engine.JointEngine`'s.
 """
 
 from __future__ import annotations
@@ -44,15 +44,15 @@ from .managed import ManagedNode
 from .model_node import DESERIALIZE
 from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
-from ..core.health import node_timing
-from ..core.joint_engine import JointEngine, Settings
-from ..core.joint_file import forward_order, identification, joints
-from ..core.node_parameters import (
+from ..core.files.joint_file import forward_order, identification, joints
+from ..core.files.node_parameters import (
     JOINT_MUSCLE_PARAMETERS,
     JOINT_NODE_PARAMETERS,
     JOINT_PARAMETERS,
 )
-from ..core.shipped_data import share_directory
+from ..core.files.shipped_data import share_directory
+from ..core.runtime.health import node_timing
+from ..core.runtime.joint_engine import JointEngine, Settings
 from ..wire.cdr import fluid_pressure, joint_state, MALFORMED, MalformedMessage
 from ..wire.forward_commands import ForwardCommands
 from ..wire.joint_state import JointStateArrays, JointStateReader

@@ -8,7 +8,7 @@ Publishes, at ``rate``, ``joint_states`` (sensor_msgs/JointState: position θ [r
 held``: the angle moves only to the position of an ``angle_command`` (JointState, the joint's
 entry), as on a test bench; ``mode: link``: a link with inertia and damping.  Parameters are read
 at start-up; the physics is
-:mod:`pma_model_ros.core.joint_simulation`.
+:mod:`pma_model_ros.core.simulation.joint`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from .parameters import declare_table, warn_unknown
 from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription
 from .ros_time import now_seconds
 from .startup import refusing, run
-from ..core.joint_simulation import PARAMETERS, SimulatedJoint
+from ..core.simulation.joint import PARAMETERS, SimulatedJoint
 
 
 class JointSimulatorNode(Node):

@@ -43,8 +43,8 @@ from .diagnostics import diagnostic_array
 from .parameters import declare
 from .rclpy_private import clock_handle, RCLError
 from .startup import refusing, StartupError
-from ..core.health import DIAGNOSTIC_PERIOD, Level
-from ..core.node_parameters import SPECS
+from ..core.files.node_parameters import SPECS
+from ..core.runtime.health import DIAGNOSTIC_PERIOD, Level
 
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 

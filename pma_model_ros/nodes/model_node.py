@@ -13,7 +13,7 @@ length, one ``muscle_pressures`` JointState with every absolute pressure [Pa] in
 answered by one ``force_estimates`` JointState (effort = tension [N]); commands come in one
 ``force_commands`` JointState (effort = wanted tension [N]) and go out in one ``pressure_commands``
 JointState (position = absolute pressure [Pa]).  Every decision is the
-:class:`~pma_model_ros.core.engine.Engine`'s.  Subscriptions are raw: the wire layer
+:class:`~pma_model_ros.core.runtime.engine.Engine`'s.  Subscriptions are raw: the wire layer
 (:mod:`pma_model_ros.wire.muscle_inputs`) reads the bytes into its calls and writes the answers'
 bytes; every entity is created in :meth:`ModelNode.create_interfaces`, by the ``configure``
 transition: the node is managed (:mod:`.managed`) and answers only while active.
@@ -37,9 +37,9 @@ from .managed import ManagedNode
 from .parameters import warn_unknown
 from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
-from ..core.engine import Engine
-from ..core.node_parameters import topic_prefixes
-from ..core.param_file import node_engine, node_pairing, NodeSettings
+from ..core.files.node_parameters import topic_prefixes
+from ..core.files.param_file import node_engine, node_pairing, NodeSettings
+from ..core.runtime.engine import Engine
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
 

@@ -1,5 +1,5 @@
-"""Parameters of the model node: ROS declarations of :mod:`pma_model_ros.core.node_parameters`,
-the model blocks, and validation.
+"""Parameters of the model node: ROS declarations of
+:mod:`pma_model_ros.core.files.node_parameters`, the model blocks, and validation.
 
 One node serves one muscle (the per-muscle parameters at the top level, as in
 ``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per name with the
@@ -8,8 +8,8 @@ node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`, ``au
 :mod:`pma_model_ros.nodes.managed`.
 
 Of a muscle's ``models.<model>.*`` entries only the selected ``model``'s block
-(:data:`~pma_model_ros.core.node_parameters.MODEL_BLOCK`) is declared; the other models' blocks
-and every identification result stay where the file put them (:class:`ModelBlocks`), so that
+(:data:`~pma_model_ros.core.files.node_parameters.MODEL_BLOCK`) is declared; the other models'
+blocks and every identification result stay where the file put them (:class:`ModelBlocks`), so that
 switching ``model`` at runtime declares the new model's block and a whole parameter file still
 loads atomically.
 """
@@ -24,15 +24,15 @@ from rclpy.parameter import Parameter
 
 from .parameters import declare as declare_spec
 from .parameters import descriptor, nest, overrides, plain, TYPES, values
-from ..core.models import ALIASES, get_model, MODELS
-from ..core.node_parameters import (
+from ..core.files.node_parameters import (
     IDENTIFICATION,
     MODEL_BLOCK,
     PARAMETERS,
     PROCESS_PARAMETERS,
     SPECS,
 )
-from ..core.param_file import all_node_settings, NodeSettings
+from ..core.files.param_file import all_node_settings, NodeSettings
+from ..core.physics.models import ALIASES, get_model, MODELS
 
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
 REQUIRED = [p.name for p in PARAMETERS if p.default is None and not p.name.startswith('models.')]
@@ -207,8 +207,8 @@ def all_settings(
     flat: dict[str, object], names: list[str], instance: str = ''
 ) -> list[NodeSettings]:
     """Settings of every muscle of a would-be parameter set (one without ``names``; see
-    :func:`~pma_model_ros.core.param_file.all_node_settings`, and its ``instance``).  ValueError
-    names the muscle and parameter.
+    :func:`~pma_model_ros.core.files.param_file.all_node_settings`, and its ``instance``).
+    ValueError names the muscle and parameter.
     """
     for prefix in prefixes(names):
         where = f"muscle '{prefix[:-1]}': " if prefix else ''

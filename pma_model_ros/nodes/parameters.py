@@ -1,7 +1,7 @@
 """ROS parameters of every node from the core's :class:`ParameterSpec` tables.
 
 One mechanism for the four nodes: each declares the rows of its table
-(:mod:`pma_model_ros.core.node_parameters` and the tables it names) with :func:`declare` or
+(:mod:`pma_model_ros.core.files.node_parameters` and the tables it names) with :func:`declare` or
 :func:`declare_table`, each with its descriptor (description, unit, range, read-only flag), and
 warns about the names of its parameter files that it does not know (:func:`warn_unknown`).
 ``automatically_declare_parameters_from_overrides`` is not used: it would declare whatever a file
@@ -20,8 +20,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from .rclpy_private import parameter_overrides
-from ..core.node_parameters import ParameterSpec, PROCESS_PARAMETERS
-from ..core.typos import did_you_mean
+from ..core.files.node_parameters import ParameterSpec, PROCESS_PARAMETERS
+from ..core.hints import did_you_mean
 
 TYPES = {
     'double': Parameter.Type.DOUBLE,

@@ -5,7 +5,7 @@ Publishes, at ``rate``, ``pressure`` (sensor_msgs/FluidPressure, absolute Pa),
 rate [m/s], effort = measured tension [N]) and ``force`` (geometry_msgs/WrenchStamped,
 force.x = measured tension [N]), all with the same stamp.  The pressure follows
 ``pressure_command`` (FluidPressure, absolute Pa) with first-order dynamics.
-Parameters are read at start-up; the physics is :mod:`pma_model_ros.core.simulation`.
+Parameters are read at start-up; the physics is :mod:`pma_model_ros.core.simulation.muscle`.
 
 ``simulator_node --record OUT [--storage mcap|sqlite3] --ros-args ...`` also writes
 what it publishes to a new rosbag2 bag OUT (log time = the stamp; storage from
@@ -28,7 +28,7 @@ from .parameters import declare_table, warn_unknown
 from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription
 from .ros_time import now_seconds
 from .startup import refusing, run
-from ..core.simulation import PARAMETERS, SimulatedMuscle
+from ..core.simulation.muscle import PARAMETERS, SimulatedMuscle
 
 
 class SimulatorNode(Node):

@@ -27,8 +27,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from .parameters import declare
 from .rclpy_private import RCLError
-from ..core.node_parameters import SPECS
-from ..core.param_file import check_params_file
+from ..core.files.node_parameters import SPECS
+from ..core.files.param_file import check_params_file
 
 #: [s] Longest wait of one spin; bounded because this rclpy build's EventsExecutor may never return
 #: from ``spin()`` or an unbounded ``spin_once()`` (seen: busy-waiting, deaf to SIGINT and
@@ -38,7 +38,7 @@ SPIN_TIMEOUT = 0.5
 #: SIGTERM 5 s after SIGINT.
 TEARDOWN_TIMEOUT = 5.0
 #: The executors of the ``executor`` parameter
-#: (:data:`~pma_model_ros.core.node_parameters.EXECUTORS`).
+#: (:data:`~pma_model_ros.core.files.node_parameters.EXECUTORS`).
 EXECUTORS: dict[str, Callable[..., Executor]] = {
     'single': SingleThreadedExecutor,
     'events': EventsExecutor,
@@ -66,7 +66,7 @@ def init(args: list[str] | None) -> None:
 
     rcl's own "Failed to parse global arguments" line is muted during init so the
     caller's single line is the only one.  A muscle spec given as ``--params-file`` is named so
-    before rcl reads it (:func:`~..core.param_file.check_params_file`).
+    before rcl reads it (:func:`~..core.files.param_file.check_params_file`).
     """
     given = sys.argv if args is None else args
     try:

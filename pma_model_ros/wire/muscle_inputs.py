@@ -1,5 +1,6 @@
-"""model_node's input messages, as bytes, into its :class:`~pma_model_ros.core.engine.Engine`, and
-its answers as bytes: the one translation the node and ``bag estimate`` share.
+"""model_node's input messages, as bytes, into its
+:class:`~pma_model_ros.core.runtime.engine.Engine`, and its answers as bytes: the one translation
+the node and ``bag estimate`` share.
 
 Per muscle ``k``: ``pressure`` (FluidPressure), ``muscle_state`` (JointState, the entry of the
 muscle's joint name) and ``force_command`` (WrenchStamped).  Combined: ``muscle_pressures`` and
@@ -29,7 +30,7 @@ from .cdr import (
     wrench_stamped,
 )
 from .joint_state import JointIndex, JointStateReader
-from ..core.engine import Engine
+from ..core.runtime.engine import Engine
 
 Deserializers = dict[str, Callable[[bytes], object]]
 _IN_ORDER = slice(None)  #: a JointState's values are the muscles', in their order

@@ -1,0 +1,100 @@
+"""Writing ROS 2 parameter files of identified muscles (layout: :mod:`.param_file`)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .param_file import NODE_DEFAULTS
+from ..identification.force_map import ForceMap
+from ..identification.protocols import edge_err, Fit, interior_err, ModelReport
+from ..identification.validation import fold_lengths
+from ..physics.geometry import MuscleSpec
+from ..physics.models import Domain, extrapolates
+
+_ROUND = 12  # significant digits written; far below any fit's resolution
+
+
+def _num(value: float) -> float:
+    return float(f'{value:.{_ROUND}g}')
+
+
+def fit_entry(fit: Fit) -> dict:
+    """The ``models.<name>`` mapping of one fit: params (if any), the calibrated nominal_length [m]
+    and pressure_offset [Pa] (if calibrated), objective, err, rmse, r2.
+    """
+    entry = {'params': [_num(v) for v in fit.theta]} if fit.theta.size else {}
+    if fit.calibration.length:
+        entry['nominal_length'] = _num(fit.spec.nominal_length)
+    if fit.calibration.pressure:
+        entry['pressure_offset'] = _num(fit.pressure_offset)
+    entry.update(objective=fit.objective, err=_num(fit.err), rmse=_num(fit.rmse), r2=_num(fit.r2))
+    return entry
+
+
+def model_entry(report: ModelReport, fmap: ForceMap) -> dict:
+    """:func:`fit_entry` of the shipped fit plus its worst nested held-out errors, overall
+    (``cv_err``), on the lengths between the map's shortest and longest (``interior_cv_err``,
+    interpolation) and on those two (``edge_cv_err``, extrapolation), whether it is served beyond
+    the identified lengths by its own value
+    (:func:`~pma_model_ros.core.physics.models.extrapolates`, the rule those figures judge), and
+    the error per held-out length (``held_out``: ``lengths`` [m], ``err`` [%] and the ``max_force``
+    [N] they are a share of), when every length was judged.
+    """
+    return fit_entry(report.shipped) | held_out_entry(report.shipped.model, report.nested, fmap)
+
+
+def held_out_entry(model: str, nested: np.ndarray, fmap: ForceMap) -> dict:
+    """The held-out keys of a model entry from its nested held-out err per fold [%] of ``fmap``
+    (:func:`model_entry`).
+    """
+    interior, edge = interior_err(nested), edge_err(nested)
+    entry = {
+        'cv_err': _num(float(np.nanmax(nested))),
+        **({'interior_cv_err': _num(interior)} if math.isfinite(interior) else {}),
+        'edge_cv_err': _num(edge),
+        'extrapolates': extrapolates(model),
+    }
+    if nested.size and np.all(np.isfinite(nested)):
+        entry['held_out'] = {
+            'lengths': [_num(v) for v in fold_lengths(fmap)],
+            'err': [_num(v) for v in nested],
+            'max_force': _num(fmap.max_force),
+        }
+    return entry
+
+
+def build_parameters(
+    spec: MuscleSpec, default: str, domain: Domain, models: dict[str, dict]
+) -> dict:
+    """The full parameter-file mapping for one muscle."""
+    return {
+        '/**': {
+            'ros__parameters': {
+                'muscle': {
+                    k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()
+                },
+                'model': default,
+                'length_range': [_num(domain.length_min), _num(domain.length_max)],
+                **(
+                    {'pressure_range': [0.0, _num(domain.pressure_max)]}
+                    if math.isfinite(domain.pressure_max)
+                    else {}
+                ),
+                'models': models,
+                **NODE_DEFAULTS,
+                'joint_name': spec.name,
+                'frame_id': spec.name.lower().replace('-', '_'),
+            }
+        }
+    }
+
+
+def write_parameters(path: str | Path, parameters: dict, header: str) -> None:
+    text = yaml.safe_dump(parameters, sort_keys=False, default_flow_style=None, width=120)
+    Path(path).write_text(
+        ''.join(f'# {line}\n' for line in header.splitlines()) + text, encoding='utf-8'
+    )

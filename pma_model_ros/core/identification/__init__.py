@@ -1,0 +1,1 @@
+"""From measured force maps to identified models, judged by nested held-out error."""

@@ -1,0 +1,1 @@
+"""The muscle: geometry, the force models, hysteresis, flags, identified muscles and joints."""

@@ -1,0 +1,1 @@
+"""The simulators' physics: a muscle and a joint on the measured maps."""
