@@ -161,7 +161,8 @@ def test_package_xml_declares_every_import():
 
 #: What test_colcon_build_and_test_in_a_clean_workspace runs with `colcon test`: the ament lint
 #: tests, the ruff gate and the bag tests (they skip: their pip-only libraries are hidden), the bag
-#: commands without rosbags, the nodes' parameters in-process, the README's layout tree (no git).
+#: commands without rosbags, the nodes' parameters in-process, docs/architecture.md's layout tree
+#: (no git).
 COLCON_TESTS = [
     'test/test_flake8.py',
     'test/test_pep257.py',
@@ -169,7 +170,7 @@ COLCON_TESTS = [
     'test/test_bags_synthetic.py',
     'test/test_bags_commands.py',
     'test/test_core_node_parameters.py',
-    'test/test_readme_layout.py',
+    'test/test_docs_layout.py',
 ]
 #: Hides rosbags and ruff from every Python process of the run, as on a ROS install without them.
 HIDE_PIP_ONLY = 'import sys\nsys.modules.update(rosbags=None, ruff=None)\n'
