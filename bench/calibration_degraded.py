@@ -27,11 +27,8 @@ from pma_model_ros.cli.identify import describe_geometry
 from pma_model_ros.core.files.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
 from pma_model_ros.core.identification.calibration import Calibration, OFF
 from pma_model_ros.core.identification.force_map import ForceMap
-from pma_model_ros.core.identification.protocols import (
-    Identification,
-    identify_all,
-    max_error_percent,
-)
+from pma_model_ros.core.identification.protocols import max_error_percent
+from pma_model_ros.core.identification.selection import Identification, identify_all
 from pma_model_ros.core.physics.geometry import MuscleSpec
 from pma_model_ros.core.physics.models import get_model, TABLE3_MODELS
 

@@ -17,12 +17,9 @@ import tempfile
 import time
 
 from pma_model_ros.core.files.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
-from pma_model_ros.core.identification.protocols import (
-    fit_best_all,
-    identify_all,
-    OBJECTIVES,
-    physical_force,
-)
+from pma_model_ros.core.identification.protocols import fit_best_all, physical_force
+from pma_model_ros.core.identification.selection import identify_all
+from pma_model_ros.core.identification.validation import OBJECTIVES
 from pma_model_ros.core.physics.models import get_model, TABLE3_MODELS
 
 MODELS = tuple(get_model(name) for name in TABLE3_MODELS)

@@ -18,12 +18,8 @@ from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spe
 from pma_model_ros.core.identification import calibration as cal
 from pma_model_ros.core.identification.calibration import Calibration, OFF
 from pma_model_ros.core.identification.force_map import ForceMap
-from pma_model_ros.core.identification.protocols import (
-    domain_of,
-    fit_best,
-    identify_all,
-    max_error_percent,
-)
+from pma_model_ros.core.identification.protocols import domain_of, fit_best, max_error_percent
+from pma_model_ros.core.identification.selection import identify_all
 from pma_model_ros.core.physics.models import force_raw, get_model, MODELS
 from pma_model_ros.core.physics.muscle_bank import MuscleBank
 

@@ -15,7 +15,7 @@ from pma_model_ros.core.files.shipped_data import (
     MAPPED_MUSCLES,
     shipped_force_map,
 )
-from pma_model_ros.core.identification.protocols import _environment, _WORKER_ENVIRONMENT
+from pma_model_ros.core.identification.selection import _environment, _WORKER_ENVIRONMENT
 
 FITTED = ('andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens')
 

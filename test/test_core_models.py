@@ -13,7 +13,8 @@ from pma_model_ros.core.files.shipped_data import (
     shipped_spec,
 )
 from pma_model_ros.core.identification.calibration import Calibration, shifted
-from pma_model_ros.core.identification.protocols import domain_of, identify_all, max_error_percent
+from pma_model_ros.core.identification.protocols import domain_of, max_error_percent
+from pma_model_ros.core.identification.selection import identify_all
 from pma_model_ros.core.physics import elementwise as ew
 from pma_model_ros.core.physics import geometry as geo
 from pma_model_ros.core.physics.flags import Flag

@@ -31,7 +31,8 @@ from ..core.physics.flags import describe
 from ..core.physics.models import get_model, TABLE3_MODELS
 
 if TYPE_CHECKING:  # imported where used: force and pressure need no identification (scipy)
-    from ..core.identification.protocols import Fit, Identification, ModelReport
+    from ..core.identification.protocols import Fit
+    from ..core.identification.selection import Identification, ModelReport
 
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
@@ -58,7 +59,7 @@ PAPER_TABLE3 = {
 @functools.cache
 def identify_muscle(muscle: str) -> Identification:
     """All Table 3 models identified on a shipped map, judged by nested held-out error."""
-    from ..core.identification.protocols import identify_all
+    from ..core.identification.selection import identify_all
 
     return identify_all(
         shipped_spec(muscle), shipped_force_map(muscle), tuple(get_model(m) for m in TABLE3_MODELS)
@@ -266,7 +267,8 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
 
 def cmd_fit(args: argparse.Namespace) -> None:
     from ..core.files.param_writer import build_parameters, model_entry, write_parameters
-    from ..core.identification.protocols import check_fit_map, identify_all
+    from ..core.identification.protocols import check_fit_map
+    from ..core.identification.selection import identify_all
 
     spec = read_spec_yaml(args.muscle)
     if args.model != 'all' and get_model(args.model).hysteresis:
@@ -340,7 +342,7 @@ def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec) -> str:
     lengths served there interpolation, the rest-length row (L0) and the shortest working length;
     '' when it is not large.
     """
-    from ..core.identification.protocols import edge_err, interior_err
+    from ..core.identification.selection import edge_err, interior_err
     from ..core.physics.geometry import shortest_length
 
     edge, interior = edge_err(nested), interior_err(nested)
@@ -369,7 +371,7 @@ def held_out_parts(nested: np.ndarray) -> str:
     held-out err per fold [%] (longest first), on the lengths between the map's shortest and
     longest (interpolation) and on those two (extrapolation, as served there).
     """
-    from ..core.identification.protocols import edge_err, interior_err
+    from ..core.identification.selection import edge_err, interior_err
 
     return (
         f'held-out worst {_worst(nested):.2f} % (between measured lengths '

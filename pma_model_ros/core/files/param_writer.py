@@ -10,7 +10,8 @@ import yaml
 
 from .param_file import NODE_DEFAULTS
 from ..identification.force_map import ForceMap
-from ..identification.protocols import edge_err, Fit, interior_err, ModelReport
+from ..identification.protocols import Fit
+from ..identification.selection import edge_err, interior_err, ModelReport
 from ..identification.validation import fold_lengths
 from ..physics.geometry import MuscleSpec
 from ..physics.models import Domain, extrapolates

@@ -1,4 +1,5 @@
-"""Identification of model parameters from a measured force map.
+"""The fits of one model to a measured force map: the two protocols, their quality figures and the
+checks of a map before any fit.
 
 Two protocols:
 
@@ -13,36 +14,32 @@ Two protocols:
 
 ``best``
     What ships: the physical, clipped model fitted on the whole map by variable
-    projection (:mod:`~pma_model_ros.core.identification.separable`: the parameters a model is
+    projection (:mod:`.separable`: the parameters a model is
     affine in solved exactly, the others searched on a grid and refined), with
     either objective ``least_squares`` (eq. 22) or ``minimax`` (eq. 23 itself).
-    Optionally with geometry calibration (:mod:`~pma_model_ros.core.identification.calibration`):
+    Optionally with geometry calibration (:mod:`.calibration`):
     the rest length L0 where the map proves the given one too short, a pressure
     offset where the map identifies it.
 
-Every fit is judged by nested leave-one-length-out errors
-(:mod:`~pma_model_ros.core.identification.validation`): the whole protocol, calibration and
-choices included, re-run without each measured length.
+Every fit is judged by nested leave-one-length-out errors (:mod:`.selection`,
+:mod:`.validation`): the whole protocol, calibration and choices included, re-run without each
+measured length.
 """
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 import functools
 import math
-import os
-import time
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
 
 from . import calibration as cal
 from .calibration import Calibration, OFF
 from .force_map import ForceMap
-from .progress import Meter
 from .separable import Separable, Solution
-from .validation import fit_or_none, HeldOut, length_folds, OBJECTIVES, select, within_tie
+from .validation import HeldOut, length_folds, OBJECTIVES, within_tie
 from ..hints import length_hint
 from ..physics import geometry as geo
 from ..physics.geometry import MuscleSpec, STANDARD_ATMOSPHERE
@@ -51,11 +48,6 @@ from ..physics.muscle_model import MuscleModel
 
 #: The single-branch model each branch of a hysteresis model is.
 BRANCH_MODEL = {'sarosi_hysteresis': 'sarosi'}
-#: Set in the worker processes of :func:`identify_all` (unless the user set them).  OpenBLAS's idle
-#: threads spin 2^28 cycles (~0.1 s) after each threaded call before they sleep: in a worker that
-#: spinning takes the shared cores from the other workers.  2^4 cycles: they sleep at once (same
-#: threads, same partition of the work, so the same numbers).
-_WORKER_ENVIRONMENT = {'OPENBLAS_THREAD_TIMEOUT': '4'}
 
 
 @dataclass(frozen=True)
@@ -117,7 +109,7 @@ class Fit:
 
 def domain_of(fmap: ForceMap) -> Domain:
     """The identified length and pressure ranges of a map (not extrapolating until judged:
-    :class:`ModelReport`); a fit needs at least two lengths.
+    :class:`~.selection.ModelReport`); a fit needs at least two lengths.
     """
     if fmap.lengths.size < 2:
         raise ValueError(f'a fit needs a force map of at least two lengths, got {fmap.lengths}')
@@ -534,179 +526,3 @@ def _offset_sigma(fitted: Separable, solution: Solution) -> float:
     with np.errstate(all='ignore'):
         errors = cal.standard_errors(cal.jacobian(residuals, theta, scale), residuals(theta))
     return float(errors[-1])
-
-
-@dataclass(frozen=True)
-class ModelReport:
-    """Everything the paper's Table 3 and the held-out judgement say about one model."""
-
-    paper: Fit  #: the paper protocol
-    best: dict[str, Fit]  #: best protocol on the whole map, per objective
-    #: leave-one-length-out err per fold [%], per objective: the whole protocol (calibration
-    #: included) re-run without each fold
-    cv: dict[str, np.ndarray]
-    #: the objective with the lower worst ``cv`` err (a selection: its figure is ``nested``'s)
-    shipped_objective: str
-    #: nested held-out err per fold [%]: the objective chosen again without each fold
-    nested: np.ndarray
-
-    @property
-    def shipped(self) -> Fit:
-        return self.best[self.shipped_objective]
-
-    @property
-    def best_err(self) -> float:
-        """Lowest in-sample err of the best protocol [%]."""
-        return min(fit.err for fit in self.best.values())
-
-    @property
-    def cv_err(self) -> float:
-        """Worst nested held-out err [%]."""
-        return float(np.nanmax(self.nested))
-
-    @property
-    def edge_cv_err(self) -> float:
-        """Worst nested held-out err on the map's shortest and longest length [%]: beyond the
-        lengths it was fitted on, what the fit serves there (:attr:`Fit.served`).
-        """
-        return edge_err(self.nested)
-
-    @property
-    def interior_cv_err(self) -> float:
-        """Worst nested held-out err on the lengths between the shortest and the longest [%]."""
-        return interior_err(self.nested)
-
-
-def edge_err(nested: np.ndarray) -> float:
-    """The worst of nested held-out errors per fold [%] (longest first) on the map's shortest and
-    longest length: an extrapolation's figure.
-    """
-    return float(max(nested[0], nested[-1]))
-
-
-def interior_err(nested: np.ndarray) -> float:
-    """The worst of nested held-out errors per fold [%] (longest first) on the lengths between the
-    map's shortest and longest: an interpolation's figure (NaN for fewer than 3 folds).
-    """
-    inner = nested[1:-1]
-    return float(np.nanmax(inner)) if inner.size and np.any(np.isfinite(inner)) else math.nan
-
-
-@dataclass(frozen=True)
-class Identification:
-    """Every model of a map identified and judged, and the default model."""
-
-    reports: dict[str, ModelReport]
-    #: the model with the lowest worst held-out err (a selection on the whole map)
-    default: str
-    #: nested held-out err per fold of the whole protocol [%]: the model chosen again without
-    #: each fold, judged on it (the honest figure of ``default``)
-    held_out: np.ndarray
-    #: the model chosen in each fold
-    chosen: tuple[str, ...]
-
-
-def identify_all(
-    spec: MuscleSpec,
-    fmap: ForceMap,
-    models: tuple[Model, ...],
-    calibration: Calibration = OFF,
-    objectives: tuple[str, ...] = OBJECTIVES,
-    truth: np.ndarray | None = None,
-) -> Identification:
-    """Identify every model, judge each by nested held-out error and pick the default.
-
-    Each model's objective (among ``objectives``) and the default model are chosen by the worst
-    leave-one-length-out error, and every such choice is made again inside each fold for the
-    held-out figures (:func:`~pma_model_ros.core.identification.validation.select`).
-    ``calibration`` applies to the ``best`` protocol only; the paper protocol keeps the given
-    geometry.  ``truth``: forces [N] at the map's points to report held-out errors against (choices
-    use the map's own).
-    """
-    held = {
-        model.name: HeldOut(
-            fmap,
-            functools.partial(
-                fit_best_all, model, spec, objectives=objectives, calibration=calibration
-            ),
-            truth,
-        )
-        for model in models
-    }
-    pairs = len(models) * len(objectives) > 1
-    jobs = [(name, s) for name, h in held.items() for s in h.needed(pairs)]
-    papers = _fit_everything(held, jobs, models, spec, fmap)
-    reports, candidates = {}, {}
-    against = truth is not None
-    for model, paper in zip(models, papers):
-        h = held[model.name]
-        shipped, nested, _ = select({obj: (h, obj) for obj in objectives}, against)
-        reports[model.name] = ModelReport(
-            paper,
-            h.fits_without(frozenset()),
-            {obj: h.errors(obj, against) for obj in objectives},
-            shipped,
-            nested,
-        )
-        candidates |= {(model.name, obj): (h, obj) for obj in objectives}
-    (default, _), held_out, chosen = select(candidates, against)
-    return Identification(reports, default, held_out, tuple(name for name, _ in chosen))
-
-
-#: Expected fitting time [s] above which an identification spreads its fits over the cores.
-_PARALLEL_ABOVE = 1.0
-
-
-def _fit_everything(
-    held: dict[str, HeldOut],
-    jobs: list[tuple[str, frozenset[int]]],
-    models: tuple[Model, ...],
-    spec: MuscleSpec,
-    fmap: ForceMap,
-) -> list[Fit]:
-    """Every fit the judgement needs, into each model's :class:`HeldOut`; returns the paper fits.
-
-    The whole-map fits run here; if they announce more than :data:`_PARALLEL_ABOVE` of work for the
-    rest (as long, per model, times the fits left), the rest run in worker processes, one per core
-    (spawned, not forked: the caller may hold threads).  The fits are the same either way.
-    """
-    started = time.perf_counter()
-    for name in held:
-        held[name].fits_without(frozenset())
-    rest = [(name, s) for name, s in jobs if s]
-    meter = Meter(len(rest), f'{len(held)} model(s), fits without held-out lengths')
-    expected = (time.perf_counter() - started) * len(rest) / len(held)
-    workers = os.cpu_count() or 1
-    if workers > 1 and expected > _PARALLEL_ABOVE:
-        from concurrent.futures import ProcessPoolExecutor
-        import multiprocessing
-
-        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn'))
-        with _environment(_WORKER_ENVIRONMENT), pool:
-            fits = pool.map(
-                fit_or_none,
-                [held[n].identify for n, _ in rest],
-                [held[n].training_map(s) for n, s in rest],
-            )
-            for done, ((n, s), result) in enumerate(zip(rest, fits), 1):
-                held[n].store(s, result)
-                meter.update(done)
-            return list(pool.map(fit_paper, models, *zip(*[(spec, fmap)] * len(models))))
-    for done, (n, s) in enumerate(rest, 1):
-        held[n].fits_without(s)
-        meter.update(done)
-    return [fit_paper(model, spec, fmap) for model in models]
-
-
-@contextmanager
-def _environment(values: dict[str, str]) -> Iterator[None]:
-    """``os.environ`` with ``values`` where unset, for the processes started inside; restored on
-    exit.
-    """
-    added = {key: value for key, value in values.items() if key not in os.environ}
-    os.environ.update(added)
-    try:
-        yield
-    finally:
-        for key in added:
-            del os.environ[key]
