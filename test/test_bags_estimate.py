@@ -7,7 +7,7 @@ import math
 import subprocess
 import sys
 
-from hypothesis import event, example, given, settings
+from hypothesis import event, example, given
 from hypothesis import strategies as st
 import numpy as np
 import pytest
@@ -23,6 +23,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from bag_reference import csv_rows, per_message, raw_messages, same
+from budget import examples
 from conftest import CONFIGS, edited_copy
 from pma_model_ros.bags.bag_io import (
     BagWriter,
@@ -485,7 +486,7 @@ def record_coverage(counts: dict[str, int], estimates: int) -> None:
 
 @pytest.mark.parametrize('outputs_only', [True, False], ids=['outputs-only', 'copying'])
 @pytest.mark.parametrize('pairing', ['every_input', 'approximate_time'])
-@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@examples(60)
 @given(
     steps=messages_strategy,
     storage=st.sampled_from(['mcap', 'sqlite3']),
@@ -647,7 +648,7 @@ def random_multi_bag(path, storage, steps, settings, names, combined):
 
 @pytest.mark.parametrize('pairing', ['every_input', 'approximate_time'])
 @pytest.mark.parametrize('mode', ['combined', 'per_muscle'])
-@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@examples(40)
 @given(
     ticks=st.integers(0, 10),
     steps=st.lists(multi_step_strategy, min_size=1, max_size=30),

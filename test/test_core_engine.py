@@ -5,11 +5,12 @@ two entry forms (one muscle's input, every muscle's input) making the same decis
 import itertools
 import math
 
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from budget import examples
 from conftest import CONFIGS
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.files.shipped_data import dmsp_10_100_hysteresis
@@ -356,7 +357,7 @@ def _physical(kind: str, unit: float, model) -> float:
 
 
 @pytest.mark.parametrize('pairing', ['every_input', 'approximate_time'])
-@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+@examples(150)
 @given(start=st.booleans(), stream=st.lists(steps, min_size=1, max_size=25))
 def test_muscle_by_muscle_equals_all_at_once(pairing, start, stream):
     """A stream of messages of every muscle (or of some: the others rejected as absent), fed
@@ -628,7 +629,7 @@ def test_each_edge_of_a_message_is_decided_as_the_elementwise_rules():
             check_message(pressures, lengths[:k] + [edge] + lengths[k + 1 :], ambients, alike)
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@examples(300)
 @given(
     pressures=column(PRESSURE_EDGES),
     lengths=column(LENGTH_EDGES),

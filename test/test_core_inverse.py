@@ -5,11 +5,12 @@ test_core_properties.py).
 import math
 from pathlib import Path
 
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from budget import examples
 from conftest import CONFIGS
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.physics.flags import Flag
@@ -116,7 +117,7 @@ _SHIPPED = {(m.model.name, m.spec.name): m for m in MUSCLES}
 GRID = np.linspace(0.0, 1.0, 4001)
 
 
-@settings(max_examples=1500, deadline=None, derandomize=True, database=None)
+@examples(1500)
 @given(
     st.sampled_from(SHAPES),
     st.lists(st.floats(-3.0, 3.0), min_size=12, max_size=12),

@@ -6,11 +6,12 @@ vector path.
 import dataclasses
 import math
 
-from hypothesis import assume, given, HealthCheck, settings
+from hypothesis import assume, given, HealthCheck
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 
+from budget import examples
 from conftest import CONFIGS, REPO
 from pma_model_ros.core.files.joint_file import load_joints
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
@@ -164,7 +165,7 @@ def _check_round_trip(joint, theta, wanted, solution):
 
 
 @pytest.mark.parametrize('joint', JOINTS, ids=IDS)
-@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@examples(60)
 @given(theta=st.floats(-1.0, 1.0), share=st.floats(0.0, 1.0), level=st.floats(0.0, 1.0))
 def test_round_trip_lower_pressure(joint, theta, share, level):
     p_max = _top(joint)
@@ -181,7 +182,7 @@ def test_round_trip_lower_pressure(joint, theta, share, level):
 
 
 @pytest.mark.parametrize('joint', JOINTS, ids=IDS)
-@settings(max_examples=60, deadline=None, derandomize=True, database=None)
+@examples(60)
 @given(theta=st.floats(-1.0, 1.0), share=st.floats(0.0, 1.0), total=st.floats(0.0, 2.0))
 def test_round_trip_pressure_sum(joint, theta, share, total):
     p_max = _top(joint)
@@ -195,13 +196,7 @@ def test_round_trip_pressure_sum(joint, theta, share, total):
 
 
 @pytest.mark.parametrize('joint', JOINTS, ids=IDS)
-@settings(
-    max_examples=40,
-    deadline=None,
-    derandomize=True,
-    database=None,
-    suppress_health_check=[HealthCheck.filter_too_much],
-)
+@examples(40, suppress_health_check=[HealthCheck.filter_too_much])
 @given(theta=st.floats(-1.0, 1.0), u0=st.floats(0.3, 1.0), u1=st.floats(0.3, 1.0))
 def test_round_trip_stiffness(joint, theta, u0, u1):
     """A pair where both muscles pull gives (τ, K); asking for them gets a pair with that τ and

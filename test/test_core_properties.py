@@ -1,7 +1,7 @@
 """Property-based tests (hypothesis) of the core, over every model of every shipped parameter file.
 
 Each generated example checks a small array of points in one vectorised call; the examples are
-derandomised (the same on every run, as CI needs). In all, 13,000 examples, 10,000 of them on the
+derandomised (the same on every run). Under CI=true (test/budget.py), 13,000 examples, 10,000 of them on the
 force and its inverse:
 
 - served force >= 0 after clipping, and the flags that say why (2,500);
@@ -29,12 +29,13 @@ import copy
 import math
 import warnings
 
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import array_shapes, arrays
 import numpy as np
 import pytest
 
+from budget import examples
 from conftest import CONFIGS
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.physics.flags import Flag
@@ -49,10 +50,6 @@ MUSCLES = [
     for name in parameters['models']
 ]
 RATES = (-0.01, 0.0, 0.01)  # length rate [m/s]: shortening, unknown, lengthening
-
-
-def examples(n: int) -> settings:
-    return settings(max_examples=n, deadline=None, derandomize=True, database=None)
 
 
 def coefficients(muscle: MuscleModel, length: np.ndarray, rate: float) -> tuple[np.ndarray, ...]:

@@ -6,13 +6,14 @@ back; and it writes the bytes rosbags' serializer writes.
 import math
 
 from geometry_msgs.msg import WrenchStamped
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
+from budget import examples
 from node_messages import stamped
 from pma_model_ros.bags.bag_io import JOINT_STATE, TYPESTORE
 from pma_model_ros.wire.cdr import (
@@ -56,7 +57,7 @@ def same(got, msg) -> None:
         np.testing.assert_array_equal(getattr(got, field), np.asarray(getattr(msg, field)))
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES)
 @given(
     first=joint_states(),
     stream=st.lists(st.tuples(st.booleans(), joint_states()), min_size=1, max_size=6),
@@ -81,7 +82,7 @@ def test_reader_equals_rclpy_deserialize(first, stream):
         previous = msg
 
 
-@settings(max_examples=EXAMPLES // 3, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES // 3)
 @given(msg=joint_states())
 def test_big_endian_messages_are_deserialized(msg):
     """A big-endian message (another encapsulation): decoded by the deserializer every time."""
@@ -104,7 +105,7 @@ def test_big_endian_messages_are_deserialized(msg):
     assert reader.fast == 0 and reader.decoded == 2
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES)
 @given(
     names=st.lists(texts, max_size=6),
     field=st.sampled_from(['position', 'velocity', 'effort']),
@@ -134,7 +135,7 @@ def arrays_of(msg) -> JointStateArrays:
     )
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES)
 @given(frame=texts, value=floats, stamp=stamps)
 def test_stamped_float_reads_and_writes_like_rclpy(frame, value, stamp):
     for kind, template, field in (
@@ -215,7 +216,7 @@ def ignored_bytes(data: bytes) -> list[int]:
     return ignored
 
 
-@settings(max_examples=EXAMPLES // 3, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES // 3)
 @given(msg=joint_states(), garbage=st.binary(min_size=64, max_size=64), data=st.data())
 def test_garbage_in_the_padding_keeps_the_cached_layout(msg, garbage, data):
     """The serializer of rclpy leaves whatever was in memory in the padding (seen: 3 bytes after an
@@ -287,7 +288,7 @@ def big_endian(msg) -> bytes:
     return bytes(TYPESTORE.serialize_cdr(ours, kind, little_endian=False))
 
 
-@settings(max_examples=EXAMPLES // 2, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES // 2)
 @given(
     first=usual_joint_states(),
     stream=st.lists(
@@ -347,7 +348,7 @@ def test_joint_columns_equal_reading_each_message(first, stream, extra, field, d
             )
 
 
-@settings(max_examples=EXAMPLES // 2, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES // 2)
 @given(
     stream=st.lists(
         st.tuples(texts, floats, stamps, st.sampled_from(['le'] * 4 + ['big-endian'])),

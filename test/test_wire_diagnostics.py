@@ -4,10 +4,11 @@ leaves whatever was in memory in the alignment padding, so its bytes differ ther
 """
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message
 
+from budget import examples
 from pma_model_ros.bags.bag_io import TYPESTORE
 from pma_model_ros.wire.cdr import split
 from pma_model_ros.wire.diagnostics import diagnostic_array
@@ -44,7 +45,7 @@ def rclpy_message(stamp_ns: int, entries: list) -> DiagnosticArray:
     return msg
 
 
-@settings(max_examples=300, deadline=None, derandomize=True, database=None)
+@examples(300)
 @given(stamp=stamps, first=entries, second=entries)
 def test_the_bytes_are_rclpys_and_rosbags(stamp, first, second):
     """Two arrays in turn (the second reuses the first's cached keys at other alignments): each

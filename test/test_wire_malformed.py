@@ -9,13 +9,14 @@ input answered.
 import math
 
 from geometry_msgs.msg import WrenchStamped
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
+from budget import examples
 from conftest import CONFIGS
 from node_messages import AMBIENT, damage, HARMS, malformed, refused, stamped
 from pma_model_ros.core.files.param_file import node_settings, read_parameters
@@ -49,7 +50,7 @@ def equal_float(a: float, b: float) -> bool:
     return a == b or (math.isnan(a) and math.isnan(b))
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES)
 @given(
     kind=st.sampled_from([FluidPressure, WrenchStamped]),
     frame=texts,
@@ -72,7 +73,7 @@ def test_stamped_reader_equals_rclpy_or_refuses(kind, frame, stamp, value, harm)
     assert equal_float(got, want)
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@examples(EXAMPLES)
 @given(
     names=st.lists(texts, max_size=4),
     position=st.lists(floats, max_size=4),
