@@ -1,9 +1,5 @@
 """The pma-model command line: outputs and one-line errors with exit code 2."""
 
-import json
-import os
-import platform
-import re
 import subprocess
 import sys
 
@@ -18,104 +14,6 @@ from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.files.shipped_data import shipped_force_map
 
 TABLE3_MODELS = {'mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens'}
-
-
-def test_reproduce_json(capsys):
-    assert main(['reproduce', '--json']) == 0
-    table = json.loads(capsys.readouterr().out)['table3']
-    assert set(table) == {'DMSP-10-250', 'DMSP-20-300'}
-    for muscle, rows in table.items():
-        assert rows['default'] == 'martens'
-        assert set(rows) - {'default', 'held_out'} == TABLE3_MODELS
-        # the default's nested figure, model choice included, is a figure of one of the models
-        assert any(rows[m]['cv'] <= rows['held_out'] + 1e-9 for m in TABLE3_MODELS)
-        for row in (rows[m] for m in TABLE3_MODELS):
-            assert set(row) == {'paper', 'paper_protocol', 'best', 'cv'}
-            assert row['best'] <= row['paper'] + 0.05
-    assert table['DMSP-20-300']['martens']['paper_protocol'] == pytest.approx(2.35, abs=0.05)
-
-
-#: A number in a parameter file (YAML plain scalar).
-NUMBER = re.compile(r'-?\d+(?:\.\d*)?(?:e[-+]?\d+)?')
-
-
-def assert_same_config(fresh: str, committed: str, muscle: str) -> None:
-    """``fresh`` (a make-config output) is ``committed``, but for the rounding of the numbers.
-
-    Every character outside the numbers is equal (keys, order, models, objectives, verdicts,
-    comments).  Each identified model's ``params`` serve the same force on the map to 1e-6 of its
-    max force (without a map, DMSP-10-100's published parameters: equal to 1e-5); every other
-    number is equal to 1e-5 (relative).  Measured between OpenBLAS kernels
-    (Haswell, SkylakeX, Prescott) and numpy's SIMD paths (AVX-512 or not): statistics to 3e-6,
-    parameters to 1e-4 where the map hardly determines one (Sárosi's c0 on Table A1), served forces
-    to 1e-9 of the max force.
-    """
-    assert NUMBER.sub('#', fresh) == NUMBER.sub('#', committed)
-    ours, theirs = (yaml.safe_load(text)['/**']['ros__parameters'] for text in (fresh, committed))
-    fmap = shipped_force_map(muscle) if muscle in ('DMSP-10-250', 'DMSP-20-300') else None
-    for name, entry in theirs['models'].items():
-        if fmap is not None and 'params' in entry:
-            served = [
-                muscle_model(p, name).force(fmap.pressure, fmap.length).force
-                for p in (ours, theirs)
-            ]
-            assert np.max(np.abs(served[0] - served[1])) <= 1e-6 * fmap.max_force, name
-    numbers = [  # params compared by their forces above, where there is a map
-        [
-            float(x)
-            for x in NUMBER.findall(
-                text if fmap is None else re.sub(r'params: \[[^]]*\]', '', text)
-            )
-        ]
-        for text in (fresh, committed)
-    ]
-    assert numbers[0] == pytest.approx(numbers[1], rel=1e-5, abs=1e-12)
-
-
-@pytest.mark.parametrize('muscle', list(CONFIGS))
-def test_make_config_writes_the_shipped_config(tmp_path, muscle):
-    """config/*.yaml are what make-config writes (after test_reproduce_json: identification is
-    cached, so this costs a file write), to the rounding of :func:`assert_same_config`.
-    """
-    out = tmp_path / 'config.yaml'
-    assert main(['make-config', muscle, '--out', str(out)]) == 0
-    assert_same_config(out.read_text(), CONFIGS[muscle].read_text(), muscle)
-
-
-#: OpenBLAS kernels that every CPU of the architecture runs (the default picks the CPU's own).
-PORTABLE_KERNEL = {'x86_64': 'Prescott', 'aarch64': 'ARMV8'}
-
-
-@pytest.mark.skipif(platform.machine() not in PORTABLE_KERNEL, reason='no portable kernel known')
-def test_make_config_does_not_depend_on_the_cpu_kernels(tmp_path):
-    """make-config in fresh processes with OpenBLAS's most portable kernels (SSE3 on x86-64) writes
-    the shipped configs, to the rounding of :func:`assert_same_config`: no choice of L0, offset,
-    objective or model hops with the kernels (the shipped files were written with another).
-    """
-    env = os.environ | {'OPENBLAS_CORETYPE': PORTABLE_KERNEL[platform.machine()]}
-    runs = {
-        muscle: subprocess.Popen(
-            [
-                sys.executable,
-                '-m',
-                'pma_model_ros.cli.main',
-                'make-config',
-                muscle,
-                '--out',
-                str(tmp_path / f'{muscle}.yaml'),
-            ],
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        for muscle in ('DMSP-10-250', 'DMSP-20-300')
-    }
-    for muscle, run in runs.items():
-        assert run.wait(timeout=300) == 0, run.stderr.read()
-        assert_same_config(
-            (tmp_path / f'{muscle}.yaml').read_text(), CONFIGS[muscle].read_text(), muscle
-        )
 
 
 @pytest.mark.parametrize(
