@@ -35,7 +35,7 @@ from .core.physics.joint import envelope, Joint
 from .core.physics.muscle_model import MuscleModel
 
 FORMATS = ('png', 'svg')
-DPI = 120  #: PNG resolution; the 8 in wide figures are 960 px, README width
+DPI = 120  #: PNG resolution; the 8 in wide figures are 960 px, the width of the docs' figures
 WIDTH = 8.0  #: figure width [in]
 #: Local rc settings (applied with rc_context, never globally); the hash salt makes SVG ids
 #: reproducible.

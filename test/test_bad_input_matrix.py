@@ -507,7 +507,6 @@ FILES = {
 }
 
 
-#: Rows whose core behaviour is a known gap (docs/reliability.md, "recommended changes").
 @pytest.mark.parametrize('row', FILES)
 def test_core_parameter_file(row, tmp_path):
     make, words, _ = FILES[row]

@@ -478,7 +478,7 @@ def _map_csv(path, fmap) -> str:
 
 
 def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_path, capsys):
-    """Issue 13's case: DMSP-20-300 with L0 given 4 mm short (err 5.29 %, against 1.32 % with 0.300
+    """A user's case: DMSP-20-300 with L0 given 4 mm short (err 5.29 %, against 1.32 % with 0.300
     m): 0.296 m, the map's longest length, slack below 42 kPa, so L0 is longer (a 38 kPa threshold
     at 0.296 m fits worse).
     """

@@ -1,5 +1,5 @@
 """Geometry calibration: the pressure shift by hand, files and muscles that apply it, and
-identification on the shipped maps degraded the way a user's are (issue 13's targets).
+identification on the shipped maps degraded the way a user's are.
 """
 
 from dataclasses import replace

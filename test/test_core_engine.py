@@ -167,7 +167,7 @@ def test_branch_unknown_only_before_the_first_motion():
 
 
 def test_velocity_noise_does_not_flip_the_branch():
-    """Issue 11, 4: at L0 = 0.1 m and 6 bar the DMSP-10-100's branches differ by 51 N (~10 %); a
+    """At L0 = 0.1 m and 6 bar the DMSP-10-100's branches differ by 51 N (~10 %); a
     muscle held near L0 with ±0.2 mm of length noise and velocities of either sign stays on the
     branch it came by.
     """
@@ -417,7 +417,7 @@ def test_muscle_by_muscle_equals_all_at_once(pairing, start, stream):
 
 
 def test_gauge_sensor_reading(martens_10_250):
-    """Issue 11, 5: a gauge sensor's 300 kPa read as absolute loses 101 kPa, about 81 N on a
+    """A gauge sensor's 300 kPa read as absolute loses 101 kPa, about 81 N on a
     DMSP-10-250 at L0 (0.8 N/kPa); with pressure_reference gauge it is served at 300 kPa gauge, and
     a command comes back in gauge.
     """

@@ -59,7 +59,7 @@ def test_vectorised_with_invalid_entries(martens_10_250):
     assert res.flags[0] == Flag.OK and np.all(res.flags[1:] & Flag.INVALID_INPUT)
 
 
-# --- every model shape, not only the shipped fits (issue 11)
+# --- every model shape, not only the shipped fits
 # ----------------------------------------------
 
 EXAMPLES = Path(__file__).resolve().parents[1] / 'docs' / 'examples'

@@ -38,7 +38,7 @@ def served_at_left_out(muscle: str, model: str, objective: str, edge: int, extra
     return max_error_percent(fmap.force[left_out], result.force, fmap.max_force), result.flags
 
 
-# The issue's targets for the default model with an edge length left out (9 % / 3 % of max force).
+# Bounds for the default model with an edge length left out (9 % / 3 % of max force).
 @pytest.mark.parametrize(
     'muscle, objective, target',
     [('DMSP-10-250', 'minimax', 9.0), ('DMSP-20-300', 'least_squares', 3.0)],
@@ -78,8 +78,8 @@ def test_shipped_files_serve_each_model_by_its_rule():
             assert entry['extrapolates'] == extrapolates(name)
 
 
-def test_issue_examples_dmsp_20_300_at_nominal_length_and_675_kpa():
-    """Issue 11, 2: at L0 = 0.300 m the model's own 1620.7 N (not the 0.296 m 1446.8 N), flagged;
+def test_dmsp_20_300_at_nominal_length_and_675_kpa():
+    """At L0 = 0.300 m the model's own 1620.7 N (not the 0.296 m 1446.8 N), flagged;
     the measured 675 kPa points are inside the identified data (served the 675 kPa force, not the
     600 kPa one).
     """
@@ -98,8 +98,8 @@ def test_issue_examples_dmsp_20_300_at_nominal_length_and_675_kpa():
     assert float(m.pressure(1e6, 0.296).pressure) == rated
 
 
-def test_issue_example_dmsp_10_250_above_its_map():
-    """Issue 11, 3: the map stops at 650 kPa; 800 kPa at L0 is the model's own 639.6 N, flagged
+def test_dmsp_10_250_above_its_map():
+    """The map stops at 650 kPa; 800 kPa at L0 is the model's own 639.6 N, flagged
     EXTRAPOLATED.
     """
     m = muscle_model(read_parameters(CONFIGS['DMSP-10-250']))

@@ -1,8 +1,8 @@
 """Property-based tests (hypothesis) of the core, over every model of every shipped parameter file.
 
 Each generated example checks a small array of points in one vectorised call; the examples are
-derandomised (the same on every run). Under CI=true (test/budget.py), 13,000 examples, 10,000 of them on the
-force and its inverse:
+derandomised (the same on every run). Under CI=true (test/budget.py), 13,000 examples, 10,000 of
+them on the force and its inverse:
 
 - served force >= 0 after clipping, and the flags that say why (2,500);
 - force non-decreasing in pressure at a fixed length exactly where dF/dp = 2 q2 p + q1 >= 0 on

@@ -53,7 +53,7 @@ from ..core.physics.hysteresis import branches
 from ..wire.cdr import stamp_ns
 
 MIN_SAMPLES = 3  #: fewest samples in a window for a slope
-#: simulator_node's settings of a recording that fits (the README's, run verbatim by a test): five
+#: simulator_node's settings of a recording that fits (docs/cli.md's, run verbatim by a test): five
 #: lengths, each held 7.5 s of every 10 s, while the pressure sweeps the map's range in 14 s
 #: (46 kPa/s); about 70 s.
 SIMULATOR_SETTINGS = '-p trajectory:=steps -p steps:=5 -p period:=10.0 -p sweep_period:=28.0'

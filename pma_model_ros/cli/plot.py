@@ -29,7 +29,7 @@ def cmd_plot(args: argparse.Namespace) -> None:
         from .. import figures
     except ImportError as err:
         raise CliError(
-            f'plot needs matplotlib and rosbags (requirements-dev.txt): {err}'
+            f'plot needs matplotlib and rosbags (pip install matplotlib rosbags): {err}'
         ) from None
     wanted = list(PLOTS) if args.figure == 'all' else [args.figure]
     given = {'--config': args.config, '--bag': args.bag}

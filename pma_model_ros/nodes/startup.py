@@ -2,7 +2,7 @@
 
 Every node spins on the executor named by its read-only ROS parameter ``executor``:
 ``events`` (``rclpy.experimental.EventsExecutor``, the default) or ``single`` (rclpy's
-SingleThreadedExecutor); docs/performance-nodes.md compares them.  Several nodes in one process
+SingleThreadedExecutor); docs/performance.md compares them.  Several nodes in one process
 (``pma_composed``, :mod:`.composed`) share one executor: their ``executor`` parameters must agree.
 """
 
@@ -130,7 +130,7 @@ def run(
     The Jazzy idiom, with one change: a signal stops the spin loop, and the executor and the nodes
     are shut down before the context.  With rclpy's own signal handler the context went first, and
     the EventsExecutor could still run a callback whose ``publish`` then failed
-    (docs/performance-nodes.md).
+    (docs/reliability.md).
     """
     makers = [make_node] if callable(make_node) else list(make_node)
     nodes: list[Node] = []
@@ -154,7 +154,7 @@ def run(
             spinner.add_node(node)
         # start-up's objects (modules, the nodes, their models) to the permanent generation: a
         # full collection then scans only what came since (one of 90,000 objects took 19 ms, a
-        # stall of 19 cycles at 1 kHz; docs/performance-nodes.md)
+        # stall of 19 cycles at 1 kHz; docs/performance.md)
         gc.collect()
         gc.freeze()
         context = nodes[0].context

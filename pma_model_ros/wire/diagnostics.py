@@ -4,7 +4,7 @@ rosbags' serializer, and of rclpy's but for what rclpy leaves in the alignment p
 model_node's 1 Hz report of 64 muscles is 64 statuses of about 35 key-values each, and it stalls
 the executor while it is built: as rclpy messages (2,240 ``KeyValue`` objects converted by
 ``publish``) the whole report took 5.3 ms, written here 1.7-2.0 ms (``bench/node_latency.py``
-prints it; docs/performance-nodes.md).  After the header every field is a string, a uint32 count
+prints it; docs/performance.md).  After the header every field is a string, a uint32 count
 or the one-byte level, so the bytes are the strings' lengths, texts and NULs, with zeros that
 align each uint32 to 4 bytes.  A text's bytes at each of the four alignments are kept: most texts
 repeat from report to report.

@@ -8,7 +8,7 @@ joint_node from :data:`JOINT_NODE_PARAMETERS`, :data:`JOINT_PARAMETERS` and
 :data:`JOINT_MUSCLE_PARAMETERS`, the simulators from :mod:`~pma_model_ros.core.simulation.muscle`'s
 and :mod:`~pma_model_ros.core.simulation.joint`'s.  The core checks values against the same ranges
 (:meth:`ParameterSpec.check`, used by :class:`~pma_model_ros.core.runtime.engine.Config` and the
-engine), and the README's model_node table is :func:`markdown_table` (a test compares them).
+engine), and docs/nodes.md's model_node table is :func:`markdown_table` (a test compares them).
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def read_only(*specs: ParameterSpec) -> tuple[ParameterSpec, ...]:
 
 #: Every name ``model`` accepts: the registry's models and aliases.
 _MODEL_NAMES = ', '.join([*MODELS, *(f'{alias} (= {name})' for alias, name in ALIASES.items())])
-#: Every parameter of model_node, in the README's order.
+#: Every parameter of model_node, in docs/nodes.md's order.
 PARAMETERS: tuple[ParameterSpec, ...] = (
     ParameterSpec(
         'muscles',
@@ -439,7 +439,7 @@ def topic_prefixes(names: list[str]) -> list[str]:
 
 
 def markdown_table() -> str:
-    """The README's table of :data:`PARAMETERS`."""
+    """docs/nodes.md's table of :data:`PARAMETERS`."""
     rows = [
         '| parameter | type | unit | default | range | per muscle | meaning |',
         '|---|---|---|---|---|---|---|',

@@ -65,7 +65,7 @@ from ..runtime.engine import Engine
 from ..runtime.estimation import Config
 from ..runtime.health import node_timing, Status
 
-#: Node settings written into generated files, beside the muscle (documented in the README).
+#: Node settings written into generated files, beside the muscle (documented in docs/nodes.md).
 NODE_DEFAULTS = {
     name: SPECS[name].default
     for name in ('ambient_pressure', 'pressure_reference', 'max_input_age')
