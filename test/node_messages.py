@@ -3,6 +3,7 @@
 import copy
 
 from geometry_msgs.msg import WrenchStamped
+import numpy as np
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
@@ -153,3 +154,31 @@ def malformed(rng, good: bytes, kind, count: int) -> list[bytes]:
         if refused(data, kind):
             out.append(data)
     return out
+
+
+def big_endian(msg) -> bytes:
+    """``msg`` (an rclpy JointState, FluidPressure or WrenchStamped) as big-endian CDR, which the
+    fast readers leave to the deserializer.
+    """
+    from pma_model_ros.bags.bag_io import JOINT_STATE, TYPESTORE  # rosbags: a test library
+
+    T = TYPESTORE.types
+    header = T['std_msgs/msg/Header'](
+        T['builtin_interfaces/msg/Time'](msg.header.stamp.sec, msg.header.stamp.nanosec),
+        msg.header.frame_id,
+    )
+    if isinstance(msg, JointState):
+        kind = JOINT_STATE
+        arrays = [np.array(getattr(msg, f), float) for f in ('position', 'velocity', 'effort')]
+        ours = T[kind](header, list(msg.name), *arrays)
+    elif isinstance(msg, FluidPressure):
+        kind = 'sensor_msgs/msg/FluidPressure'
+        ours = T[kind](header, msg.fluid_pressure, msg.variance)
+    else:
+        kind = 'geometry_msgs/msg/WrenchStamped'
+        vector = T['geometry_msgs/msg/Vector3']
+        wrench = T['geometry_msgs/msg/Wrench'](
+            vector(msg.wrench.force.x, 0.0, 0.0), vector(0.0, 0.0, 0.0)
+        )
+        ours = T[kind](header, wrench)
+    return bytes(TYPESTORE.serialize_cdr(ours, kind, little_endian=False))

@@ -15,6 +15,7 @@ import yaml
 from conftest import CONFIGS, REPO
 from node_messages import (
     AMBIENT,
+    big_endian,
     force_command,
     JOINT,
     malformed,
@@ -75,6 +76,24 @@ def test_model_node_per_muscle(private_node):
     )
     node._on_command(0, raw(force_command(50.0)))
     assert len(commands) == 1 and commands[0].fluid_pressure > AMBIENT
+
+
+def test_model_node_a_known_joint_state_layout_with_no_length(private_node):
+    """A muscle_state with the cached layout's names but no position (big-endian, so decoded):
+    invalid input for the muscle, not a read past an empty array in the callback.
+    """
+    node = private_node(ModelNode, '--params-file', CONFIGS['DMSP-10-250'])
+    estimates, diagnostics = record(node._estimate_pubs[0]), record(node._diag_pub)
+    stamp = node.get_clock().now().to_msg()
+    node._on_state(0, raw(state(stamp, L)))  # the layout of one joint, one length
+    empty = state(stamp, L)
+    empty.position, empty.velocity = [], []
+    node._on_state(0, big_endian(empty))
+    node.publish_status(node.now())
+    assert errors(diagnostics) == ['invalid input: empty name or position array']
+    node._on_state(0, raw(state(stamp, L)))
+    node._on_pressure(0, raw(pressure(stamp, AMBIENT + P)))
+    assert len(estimates) == 1
 
 
 def test_model_node_combined(private_node):

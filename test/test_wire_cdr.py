@@ -14,7 +14,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from budget import examples
-from node_messages import stamped
+from node_messages import big_endian, stamped
 from pma_model_ros.bags.bag_io import JOINT_STATE, TYPESTORE
 from pma_model_ros.wire.cdr import (
     FLOATS,
@@ -262,32 +262,6 @@ def usual_joint_states(draw):
     return msg
 
 
-def big_endian(msg) -> bytes:
-    """``msg`` (an rclpy JointState, FluidPressure or WrenchStamped) as big-endian CDR, which the
-    fast readers leave to the deserializer.
-    """
-    T = TYPESTORE.types
-    header = T['std_msgs/msg/Header'](
-        T['builtin_interfaces/msg/Time'](msg.header.stamp.sec, msg.header.stamp.nanosec),
-        msg.header.frame_id,
-    )
-    if isinstance(msg, JointState):
-        kind = JOINT_STATE
-        arrays = [np.array(getattr(msg, f), float) for f in ('position', 'velocity', 'effort')]
-        ours = T[kind](header, list(msg.name), *arrays)
-    elif isinstance(msg, FluidPressure):
-        kind = 'sensor_msgs/msg/FluidPressure'
-        ours = T[kind](header, msg.fluid_pressure, msg.variance)
-    else:
-        kind = 'geometry_msgs/msg/WrenchStamped'
-        vector = T['geometry_msgs/msg/Vector3']
-        wrench = T['geometry_msgs/msg/Wrench'](
-            vector(msg.wrench.force.x, 0.0, 0.0), vector(0.0, 0.0, 0.0)
-        )
-        ours = T[kind](header, wrench)
-    return bytes(TYPESTORE.serialize_cdr(ours, kind, little_endian=False))
-
-
 @examples(EXAMPLES // 2)
 @given(
     first=usual_joint_states(),
@@ -378,3 +352,29 @@ def test_stamped_floats_equal_reading_each_message(stream, kind):
     expected = [stamped_value(raw, deserialize, field) for raw in messages]
     assert stamps_got.tolist() == [s for s, _ in expected]
     np.testing.assert_array_equal(values_got, [v for _, v in expected])
+
+
+def test_known_names_with_other_array_lengths_are_a_layout_of_their_own():
+    """A message whose names equal the cached layout's but whose arrays have other lengths (big-
+    endian, so decoded rather than read at the layout's offsets) gets its own verdict: the joint
+    has no position (none sent), not the cached layout's index into an empty array.
+    """
+    reader = JointStateReader(lambda raw: deserialize_message(raw, JointState))
+    index = JointIndex(['a'])
+    usual = reader(serialize_message(JointState(name=['a'], position=[0.2])))
+    assert index.of(usual)[1] is None  # present: every joint
+    odd = reader(big_endian(JointState(name=['a'], velocity=[0.0])))
+    take, present, problems = index.of(odd)
+    assert present.tolist() == [False] and problems == ['empty name or position array']
+    again = reader(serialize_message(JointState(name=['a'], position=[0.3])))
+    assert index.of(again)[1] is None and again.position[index.of(again)[0]].tolist() == [0.3]
+    messages = [serialize_message(JointState(name=['a'], position=[0.2]))]
+    messages.append(big_endian(JointState(name=['a'])))
+    got = joint_columns(
+        messages,
+        ['a'],
+        'position',
+        lambda raw: deserialize_message(raw, JointState),
+    )
+    assert got.present.tolist() == [[True], [False]]
+    assert got.problems[1] == ['empty name or position array']

@@ -27,7 +27,8 @@ class JointStateArrays(NamedTuple):
     """One JointState's content: stamp [ns], names and the three arrays (float64)."""
 
     stamp: int
-    #: the names; the same list object for every message of one layout (see :class:`JointIndex`)
+    #: the names; the same list object for every message of one layout, names and array lengths
+    #: (see :class:`JointIndex`)
     names: list[str]
     position: np.ndarray
     velocity: np.ndarray
@@ -83,9 +84,14 @@ class JointStateReader:
         msg = decode(self._deserialize, data)
         names = list(msg.name)
         arrays = [np.asarray(getattr(msg, f), np.float64) for f in _FIELDS]
-        self._layout = _learn(data, msg.header.frame_id, names, arrays) or self._layout
-        if self._layout is not None and self._layout.names == names:
-            names = self._layout.names
+        layout = _learn(data, msg.header.frame_id, names, arrays) or self._layout
+        self._layout = layout
+        if (
+            layout is not None
+            and layout.names == names
+            and all(len(a) == n for a, (_, n) in zip(arrays, layout.arrays))
+        ):
+            names = layout.names  # the same layout: names, and the arrays' lengths
         stamp = msg.header.stamp
         return JointStateArrays(stamp_ns(stamp.sec, stamp.nanosec), names, *arrays)
 
