@@ -1,5 +1,6 @@
-"""How many examples the property tests draw: their full count under ``CI=true`` (``.ci/run``), a
-quarter of it (at least 10) in a developer's run of ``scripts/test``.
+"""How much the long randomised tests draw: the property tests' full count of examples and the
+30 s fuzz under ``CI=true`` (``.ci/run``); a quarter of the examples (at least 10) and half the
+fuzz in a developer's run of ``scripts/test``.
 
 Every example is derandomised: each count draws the same examples on every run and machine.
 """
@@ -10,7 +11,7 @@ import os
 
 from hypothesis import settings
 
-FULL = os.environ.get('CI') == 'true'  #: the full count (CI); else a quarter
+FULL = os.environ.get('CI') == 'true'  #: the full counts (CI)
 
 
 def count(full: int) -> int:

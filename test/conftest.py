@@ -70,6 +70,26 @@ def pytest_configure(config):
         os.environ['ROS_DOMAIN_ID'] = str(1 + (run + int(worker.removeprefix('gw'))) % 100)
 
 
+#: The longest test files (``--durations``), started first: pytest-xdist hands each worker whole
+#: files in collection order, so a long file collected last would run alone at the end.
+LONGEST_FIRST = (
+    'test_readme_recording.py',
+    'test_core_identification.py',
+    'test_colcon_build.py',
+    'test_nodes_fuzz.py',
+    'test_bags_estimate.py',
+    'test_core_calibration.py',
+)
+
+
+def pytest_collection_modifyitems(items):
+    def rank(item) -> int:
+        name = item.path.name
+        return LONGEST_FIRST.index(name) if name in LONGEST_FIRST else len(LONGEST_FIRST)
+
+    items.sort(key=rank)  # stable: the rest in collection order
+
+
 def pytest_collectreport(report):
     _note_library_skip(report)
 

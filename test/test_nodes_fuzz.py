@@ -1,4 +1,4 @@
-"""30 s of random messages over DDS on every input topic of a live model_node.
+"""30 s (15 s outside CI) of random messages over DDS on every input topic of a live model_node.
 
 The fuzz mixes plausible readings (so that estimates and commands flow) with garbage: NaN,
 infinities, huge and tiny magnitudes, negative values, random and unset stamps, JointStates with
@@ -15,6 +15,7 @@ import time
 import numpy as np
 import pytest
 
+from budget import FULL
 from conftest import CONFIGS
 from node_messages import (
     AMBIENT,
@@ -29,9 +30,9 @@ from pma_model_ros.core.files.param_file import node_settings, read_parameters
 
 pytestmark = pytest.mark.ros
 
-DURATION = 30.0  # [s] of fuzzing
+DURATION = 30.0 if FULL else 15.0  # [s] of fuzzing (test/budget.py)
 RATE = 300.0  # [Hz] messages per input topic (900 messages/s in all)
-WARM_UP = 10.0  # [s] before the resident-memory baseline
+WARM_UP = 10.0 if FULL else 5.0  # [s] before the resident-memory baseline
 RSS_BOUND = 1024  # [KiB] allowed resident-memory growth after warm-up ("flat")
 SEED = 20240611
 MODEL = node_settings(read_parameters(CONFIGS['DMSP-10-250'])).config.model
