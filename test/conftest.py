@@ -60,7 +60,7 @@ _skipped_for_libraries: list[str] = []
 
 
 def pytest_configure(config):
-    """Under pytest-xdist (``scripts/test`` runs one worker per core), each worker in a DDS domain
+    """Under pytest-xdist (``scripts/test`` runs two workers per core), each worker in a DDS domain
     of its own (1..100, from the run's), so that one worker's nodes and /diagnostics never reach
     another's tests.
     """
