@@ -144,6 +144,7 @@ def run(module_ros):
     why = lambda: processes.output(node)  # noqa: E731
     ros.spin_until(lambda: model_statuses(diagnostics, ns), 30, 'model_node up', diagnose=why)
     fuzz = Fuzzer(SEED)
+    begin = ros.now().nanoseconds
     start = next_rss = time.monotonic()
     while (elapsed := time.monotonic() - start) < DURATION and node.poll() is None:
         if time.monotonic() >= next_rss:
@@ -162,8 +163,25 @@ def run(module_ros):
         ) > 0:  # take outputs until the next send
             ros.executor.spin_once(timeout_sec=wait)
     out.alive = node.poll() is None
+    end = ros.now().nanoseconds
+
+    def stamp(array) -> int:
+        return array.header.stamp.sec * 10**9 + array.header.stamp.nanosec
+
+    def ours(arrays) -> list:
+        return [a for a in arrays if model_statuses([a], ns)]
+
+    # A loaded test process publishes on schedule and takes outputs when it can: wait until a
+    # status stamped after the fuzz arrives (reliable, in order: every earlier one is in).
+    if out.alive:
+        ros.spin_until(
+            lambda: any(stamp(a) > end for a in ours(diagnostics)),
+            10,
+            'a status after the fuzz',
+            diagnose=why,
+        )
     out.estimates, out.commands = list(estimates), list(commands)
-    out.statuses = model_statuses(diagnostics, ns)
+    out.statuses = model_statuses([a for a in diagnostics if begin <= stamp(a) <= end], ns)
     if out.alive:  # still serving good input
         estimates.clear()
 
