@@ -306,3 +306,9 @@ def test_the_name_checks_pass_what_exists(tmp_path):
         encoding='utf-8',
     )
     assert missing_names(page) == []
+
+
+def test_the_readme_is_a_guide_of_at_most_300_lines():
+    """The README walks a newcomer through; the reference lives in docs/."""
+    lines = (REPO / 'README.md').read_text(encoding='utf-8').count('\n')
+    assert lines <= 300, f'README.md has {lines} lines: move reference material to docs/'
