@@ -224,21 +224,28 @@ def test_a_prepared_model_gives_its_coefficients(path):
             assert not all(np.array_equal(a, b) for a, b in zip(prepared, want))
 
 
+def every_model():
+    """Every model of every shipped parameter file (``martens_end`` added) and the hysteresis
+    model's: every model there is.
+    """
+    for path in CONFIGS.values():
+        parameters = with_martens_end(read_parameters(path))
+        yield from (muscle_model(parameters, name) for name in parameters['models'])
+    yield dmsp_10_100_hysteresis()
+
+
 def test_only_a_quadratic_model_has_a_pressure_squared_term():
     """The nodes skip q2's two operations per message unless a muscle's model is ``quadratic``:
     every other model's q2 is 0 at every length and branch, and a quadratic one's is not (the
     flag is needed), on the shipped parameters and the hysteresis model's: every model there is.
     """
     checked = set()
-    for path in CONFIGS.values():
-        parameters = with_martens_end(read_parameters(path))
-        models = [muscle_model(parameters, name) for name in parameters['models']]
-        for m in [*models, dmsp_10_100_hysteresis()]:
-            L = np.linspace(m.limits.length_low, m.limits.length_high, 9)
-            for branch in (0.0, 1.0, -1.0):
-                q2 = m.model.coefficients(m.theta, m.spec, m.domain, L, branch)[0]
-                assert m.model.quadratic == bool(np.any(q2)), m.model.name
-            checked.add(m.model.name)
+    for m in every_model():
+        L = np.linspace(m.limits.length_low, m.limits.length_high, 9)
+        for branch in (0.0, 1.0, -1.0):
+            q2 = m.model.coefficients(m.theta, m.spec, m.domain, L, branch)[0]
+            assert m.model.quadratic == bool(np.any(q2)), m.model.name
+        checked.add(m.model.name)
     assert checked == set(MODELS)
 
 
@@ -249,32 +256,27 @@ def test_the_force_is_affine_in_each_linear_parameter():
     of a model that lists linear ones (or the list would be short).
     """
     checked = set()
-    for path in CONFIGS.values():
-        parameters = with_martens_end(read_parameters(path))
-        models = [muscle_model(parameters, name) for name in parameters['models']]
-        for m in [*models, dmsp_10_100_hysteresis()]:
-            L = np.linspace(m.limits.length_low, m.limits.length_high, 9)
-            theta = np.asarray(m.theta, float)
-            for i in range(theta.size):
-                step = np.zeros_like(theta)
-                step[i] = 0.37 * max(abs(theta[i]), 1.0)
-                affine = True
-                for branch in (0.0, 1.0, -1.0):
+    for m in every_model():
+        L = np.linspace(m.limits.length_low, m.limits.length_high, 9)
+        theta = np.asarray(m.theta, float)
+        for i in range(theta.size):
+            step = np.zeros_like(theta)
+            step[i] = 0.37 * max(abs(theta[i]), 1.0)
+            affine = True
+            for branch in (0.0, 1.0, -1.0):
 
-                    def q(t, branch=branch):
-                        x = theta + t * step
-                        return np.stack(
-                            np.broadcast_arrays(
-                                *m.model.coefficients(x, m.spec, m.domain, L, branch)
-                            )
-                        )
+                def q(t, branch=branch):
+                    x = theta + t * step
+                    return np.stack(
+                        np.broadcast_arrays(*m.model.coefficients(x, m.spec, m.domain, L, branch))
+                    )
 
-                    base, one, three = q(0.0), q(1.0), q(3.0)
-                    scale = np.abs(base) + np.abs(one) + np.abs(three) + 1e-300
-                    affine &= bool(np.all(np.abs(three - base - 3 * (one - base)) <= 1e-9 * scale))
-                if m.model.linear:  # a model without the list is fitted without separation
-                    assert affine == (i in m.model.linear), (m.model.name, i)
-            checked.add(m.model.name)
+                base, one, three = q(0.0), q(1.0), q(3.0)
+                scale = np.abs(base) + np.abs(one) + np.abs(three) + 1e-300
+                affine &= bool(np.all(np.abs(three - base - 3 * (one - base)) <= 1e-9 * scale))
+            if m.model.linear:  # a model without the list is fitted without separation
+                assert affine == (i in m.model.linear), (m.model.name, i)
+        checked.add(m.model.name)
     assert checked == set(MODELS)
 
 
