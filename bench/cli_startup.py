@@ -23,7 +23,7 @@ CONFIG = ROOT / 'config' / 'dmsp_10_250.yaml'
 CLI = (
     [str(Path(sys.executable).with_name('pma-model'))]
     if Path(sys.executable).with_name('pma-model').exists()
-    else [sys.executable, '-m', 'pma_model_ros.cli.main']
+    else [sys.executable, '-m', 'pma_model_ros.cli']
 )
 COMMANDS = {
     'baseline': [sys.executable, '-c', 'import numpy, yaml'],

@@ -122,7 +122,7 @@ def command_table(repeat: int) -> None:
             stem = muscle.lower().replace('-', '_')
             for model in ('martens', 'all'):
                 argv = [
-                    python, '-m', 'pma_model_ros.cli.main', 'fit',
+                    python, '-m', 'pma_model_ros.cli', 'fit',
                     '--data', str(data / f'{stem}_force_map.csv'),
                     '--muscle', str(data / f'{stem}.yaml'),
                     '--model', model, '--out', str(Path(tmp) / 'fit.yaml'), '--overwrite',

@@ -75,7 +75,7 @@ def test_estimate_replaces_an_existing_output_only_with_force(tmp_path):
     bag = record_simulation(tmp_path / 'run', 1.0, '/m1', rate=50.0)
     out = tmp_path / 'est.mcap'
     out.write_text('an older result')
-    argv = [sys.executable, '-m', 'pma_model_ros.cli.main', 'bag', 'estimate', str(bag)]
+    argv = [sys.executable, '-m', 'pma_model_ros.cli', 'bag', 'estimate', str(bag)]
     argv += ['--config', str(CONFIGS['DMSP-10-250']), '--out', str(out)]
     refused = subprocess.run(argv, capture_output=True, text=True, timeout=60)
     assert refused.returncode == 2 and refused.stderr == (

@@ -161,7 +161,7 @@ def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
 def bag_estimate(bag, *args: str, config=CONFIGS['DMSP-10-250']) -> subprocess.CompletedProcess:
     """``pma-model bag estimate <bag> --config <config> <args>`` as a user runs it."""
     return subprocess.run(
-        [sys.executable, '-m', 'pma_model_ros.cli.main', 'bag', 'estimate', str(bag)]
+        [sys.executable, '-m', 'pma_model_ros.cli', 'bag', 'estimate', str(bag)]
         + ['--config', str(config), *args],
         capture_output=True,
         text=True,

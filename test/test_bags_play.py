@@ -94,7 +94,7 @@ def test_replay_into_the_node_equals_offline_estimate(
         [
             sys.executable,
             '-m',
-            'pma_model_ros.cli.main',
+            'pma_model_ros.cli',
             'bag',
             'play',
             str(bag),

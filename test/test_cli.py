@@ -214,7 +214,7 @@ def test_bad_queries_exit_2_without_traceback(args, message):
     cmd = [
         sys.executable,
         '-m',
-        'pma_model_ros.cli.main',
+        'pma_model_ros.cli',
         *args[:1],
         '--config',
         str(CONFIGS['DMSP-10-250']),
@@ -449,7 +449,7 @@ def test_bad_joint_queries_exit_2_without_traceback(args, message):
     cmd = [
         sys.executable,
         '-m',
-        'pma_model_ros.cli.main',
+        'pma_model_ros.cli',
         'joint',
         args[0],
         '--config',

@@ -291,7 +291,7 @@ def test_make_config_does_not_depend_on_the_cpu_kernels(tmp_path):
             [
                 sys.executable,
                 '-m',
-                'pma_model_ros.cli.main',
+                'pma_model_ros.cli',
                 'make-config',
                 muscle,
                 '--out',

@@ -199,7 +199,7 @@ def test_plot_cli_errors_are_one_line_exit_2(tmp_path, estimated_bag, args, mess
         [
             sys.executable,
             '-m',
-            'pma_model_ros.cli.main',
+            'pma_model_ros.cli',
             'plot',
             *args,
             '--out-dir',
