@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .muscle import GroundTruth
+from .muscle import GroundTruth, PRESSURE_TIME_CONSTANT
 from ..files.node_parameters import ParameterSpec, read_only, SPECS
 from ..files.shipped_data import MAPPED_MUSCLES, shipped_force_map
 from ..physics.joint import Transmission
@@ -70,14 +70,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         (1.0, 1000.0),
     ),
     replace(SPECS['ambient_pressure'], description='ambient pressure'),
-    ParameterSpec(
-        'pressure_time_constant',
-        'double',
-        0.05,
-        'first-order time constant toward the commanded pressure',
-        's',
-        (0.0, 60.0),
-    ),
+    PRESSURE_TIME_CONSTANT,
 )
 
 

@@ -29,6 +29,15 @@ from ..physics.hysteresis import play
 TRAJECTORIES = ('constant', 'sine', 'sweep', 'steps')
 #: Share of each 'steps' period spent moving to the next length (the rest holds it).
 STEP_MOVE = 0.25
+#: Both simulators' pressure lag [s] toward the commanded pressure.
+PRESSURE_TIME_CONSTANT = ParameterSpec(
+    'pressure_time_constant',
+    'double',
+    0.05,
+    'first-order time constant toward the commanded pressure',
+    's',
+    (0.0, 60.0),
+)
 #: simulator_node's parameters, read at start-up (read-only).
 PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     ParameterSpec(
@@ -81,14 +90,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         name='hysteresis_deadband',
         description='the branch changes when the length reverses by more than this',
     ),
-    ParameterSpec(
-        'pressure_time_constant',
-        'double',
-        0.05,
-        'first-order time constant toward the commanded pressure',
-        's',
-        (0.0, 60.0),
-    ),
+    PRESSURE_TIME_CONSTANT,
     ParameterSpec(
         'initial_pressure',
         'double',
