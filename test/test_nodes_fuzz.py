@@ -231,8 +231,12 @@ def test_node_survives_and_still_estimates(run):
 
 
 def test_fuzz_reached_every_path(run):
-    """The fuzz is not all garbage: estimates and commands flowed, and each level was reported."""
-    assert len(run.estimates) > 100 and len(run.commands) > 100
+    """The fuzz is not all garbage: estimates and commands flowed (the node's own counters: a
+    loaded test process may receive only some of them), and each level was reported.
+    """
+    counted = status_values(run.statuses[-1])
+    assert int(counted['estimates']) > 100 and int(counted['pressure commands']) > 100
+    assert run.estimates and run.commands  # and they arrived
     assert {s.level for s in run.statuses} >= {b'\x01', b'\x02'}
 
 
