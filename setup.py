@@ -16,7 +16,7 @@ setup(
     description=('Static force models of Festo pneumatic muscle actuators (DMSP/MAS) for ROS 2.'),
     license='Apache-2.0',
     maintainer='pma_model_ros maintainers',
-    maintainer_email='maintainers@pma-model-ros.invalid',
+    maintainer_email='maintainers@users.noreply.h-seed-b628454b.example',
     packages=find_packages(exclude=['test', 'test.*']),
     package_data={PACKAGE: ['core/data/*.csv', 'core/data/*.yaml']},
     data_files=[

@@ -52,7 +52,7 @@ def ruff_config() -> dict:
     return tomllib.loads((REPO / 'ruff.toml').read_text())
 
 
-#: In the reason of a test skipped for a missing pip-only library (rosbags, ruff: no rosdep key;
+#: In the reason of a test skipped for a missing pip-only library (rosbags, ruff: -pip rosdep keys;
 #: requirements-dev.txt).  scripts/test installs them and sets PMA_TEST_ALL_LIBRARIES=1: there
 #: such a skip fails the run.
 PIP_ONLY = 'a pip-only library'

@@ -97,7 +97,7 @@ def test_estimate_replaces_an_existing_output_only_with_force(tmp_path):
     ],
 )
 def test_without_rosbags_a_bag_command_is_one_line_exit_2(capsys, monkeypatch, tmp_path, argv):
-    """Rosbags is pip-only (no rosdep key): a ROS install may lack it."""
+    """Rosbags is pip-only (a -pip rosdep key): a ROS install may lack it."""
     monkeypatch.setitem(sys.modules, 'rosbags', None)  # import rosbags: ImportError
     monkeypatch.chdir(tmp_path)
     code = main(argv)

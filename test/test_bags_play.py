@@ -11,7 +11,7 @@ import pytest
 
 try:
     import rosbags  # noqa: F401
-except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install without it
+except ImportError:  # pip-only (a -pip rosdep key): colcon test on a ROS install without it
     pytest.skip(
         'needs rosbags, a pip-only library: pip install -r requirements-dev.txt',
         allow_module_level=True,

@@ -122,7 +122,8 @@ def test_ament_index_finds_share_directory(build):
 
 
 #: rosdep keys of the third-party modules this package imports (a ROS package's module is its
-#: name); the pip-only ones (no rosdep key, requirements-dev.txt) are not declared.
+#: name); rosbags and ruff install from pip through their ``-pip`` keys (rosdistro's
+#: rosdep/python.yaml).
 ROSDEP_KEYS = {
     'numpy': 'python3-numpy',
     'scipy': 'python3-scipy',
@@ -130,8 +131,13 @@ ROSDEP_KEYS = {
     'matplotlib': 'python3-matplotlib',
     'pytest': 'python3-pytest',
     'hypothesis': 'python3-hypothesis',
+    'rosbags': 'python3-rosbags-pip',
+    'ruff': 'python3-ruff-pip',
 }
-PIP_ONLY = {'rosbags', 'apsw', 'ruff'}  # apsw: rosbags' SQLite binding
+#: Libraries of one command each, imported where that command runs and named by it when absent
+#: (``plot``: matplotlib, ``bag``: rosbags): test dependencies, not run dependencies.
+OPTIONAL = {'python3-matplotlib', 'python3-rosbags-pip'}
+PIP_ONLY = {'apsw'}  # rosbags' SQLite binding, installed with it
 FIRST_PARTY = {PKG, 'conftest', 'node_messages'}
 
 
@@ -155,7 +161,9 @@ def test_package_xml_declares_every_import():
     test_deps = {e.text for e in root.iter('test_depend')}
     run = {ROSDEP_KEYS.get(name, name) for name in third_party_imports(PKG)}
     tests = {ROSDEP_KEYS.get(name, name) for name in third_party_imports('test')}
-    assert run - exec_deps == set(), 'imported by the package, not an exec_depend'
+    assert run - OPTIONAL - exec_deps == set(), 'imported by the package, not an exec_depend'
+    assert OPTIONAL - test_deps == set(), "one command's library, not a test_depend"
+    assert OPTIONAL & exec_deps == set(), "one command's library, a run dependency of every node"
     assert tests - exec_deps - test_deps == set(), 'imported by the tests, not declared'
 
 

@@ -14,6 +14,12 @@ PACKAGE = REPO / 'pma_model_ros'
 #: The pages: the README and every page under docs/.
 PAGES = [REPO / 'README.md', *sorted((REPO / 'docs').glob('*.md'))]
 
+#: The parameter files a user copies: their comments are documentation too.
+COMMENTED = [
+    *sorted((REPO / 'config').rglob('*.yaml')),
+    *sorted((REPO / 'docs' / 'examples').glob('*.yaml')),
+]
+
 #: The code whose text (comments and docstrings included) is held to the same words.
 CODE = [
     *sorted(PACKAGE.rglob('*.py')),
@@ -72,7 +78,7 @@ def test_a_page_has_no_history_or_machine_words(page):
     assert not found, '\n' + report(page, found)
 
 
-@pytest.mark.parametrize('path', CODE, ids=lambda p: str(p.relative_to(REPO)))
+@pytest.mark.parametrize('path', CODE + COMMENTED, ids=lambda p: str(p.relative_to(REPO)))
 def test_the_code_has_no_history_or_machine_words(path):
     found = history_words(path.read_text(encoding='utf-8'))
     assert not found, '\n' + report(path, found)
@@ -255,9 +261,11 @@ def test_every_file_module_and_link_a_page_names_exists(page):
 
 
 def test_every_page_the_code_names_exists():
-    """The code's docstrings and help texts point at pages (``docs/calibration.md``)."""
+    """The code's docstrings and help texts, and the comments of the parameter files, point at
+    pages (``docs/calibration.md``).
+    """
     problems = []
-    for path in CODE:
+    for path in CODE + COMMENTED:
         for number, mention, target in path_mentions(path.read_text(encoding='utf-8')):
             if mention.startswith('docs/') and not target.exists():
                 problems.append(f'{path.relative_to(REPO)}:{number}: {mention}')

@@ -6,7 +6,7 @@ import pytest
 
 try:
     from ruff.__main__ import find_ruff_bin
-except ImportError:  # pip-only (no rosdep key): colcon test on a ROS install without it
+except ImportError:  # pip-only (a -pip rosdep key): colcon test on a ROS install without it
     pytest.skip(
         'needs ruff, a pip-only library: pip install -r requirements-dev.txt',
         allow_module_level=True,

@@ -2,8 +2,8 @@
 themselves are :mod:`pma_model_ros.bags`.
 
 Only argparse here: rosbags (and rclpy, for ``bag play``) are imported when a command runs,
-so the rest of ``pma-model`` works without them; without rosbags (pip-only, no rosdep key) a bag
-command is one line and exit code 2 (:func:`_needs_rosbags`).
+so the rest of ``pma-model`` works without them; without rosbags (from pip: its rosdep key is
+``python3-rosbags-pip``) a bag command is one line and exit code 2 (:func:`_needs_rosbags`).
 """
 
 from __future__ import annotations
