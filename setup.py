@@ -24,6 +24,8 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
         ('share/' + PACKAGE + '/config/muscles', glob('config/muscles/*.yaml')),
+        ('share/' + PACKAGE + '/config/lifecycle', glob('config/lifecycle/*.yaml')),
+        ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
     ],
     python_requires='>=3.11',
     install_requires=['numpy', 'scipy', 'PyYAML'],

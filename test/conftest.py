@@ -2,6 +2,7 @@
 and a private rclpy context per test.
 """
 
+import math
 import os
 from pathlib import Path
 import subprocess
@@ -10,6 +11,7 @@ import time
 from typing import Callable
 import uuid
 
+import numpy as np
 import pytest
 
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
@@ -39,8 +41,57 @@ def with_martens_end(parameters: dict, end_factor: float = 1.09) -> dict:
     return parameters
 
 
+#: A bound on the rounding error of a force computed by hand from a model's equation, in unit
+#: roundoffs (eps/2) of the sum of its terms' magnitudes: about ten roundings of products and sums,
+#: and a cube root or exponential of up to 4 ulp (numpy's SIMD routines on AVX-512 machines; libm's
+#: within 1 ulp).  The same force on two machines, or on numpy's and the float path, differs by up
+#: to twice this: an error 10⁵ times a double's rounding of the force where eq. 20's terms reach
+#: 10⁷ N and cancel to hundreds (DMSP-20-300).
+ROUNDINGS = 16
+UNIT_ROUNDOFF = float(np.finfo(float).eps) / 2
+
+
+def force_terms(muscle, p: float, length: float) -> float:
+    """The sum of the magnitudes [N] of the terms of ``muscle``'s force at gauge ``p`` [Pa] and
+    ``length`` [m]: Hildebrandt's eq. 20, Sárosi's eq. 19 (the larger of the two hysteresis
+    branches).
+    """
+    theta, name = np.abs(np.asarray(muscle.theta, float)), muscle.model.name
+    if name == 'hildebrandt':
+        c, d = theta[:3], theta[3:]
+        return p * (c @ length ** np.arange(3)) + d[:4] @ length ** np.arange(4) + d[4] * (
+            length ** (2 / 3)
+        )
+    if name in ('sarosi', 'sarosi_hysteresis'):
+        kappa = abs(muscle.spec.nominal_length - length) / muscle.spec.nominal_length
+        return max(
+            (c0 * p + c1) * math.exp(c2 * kappa) + p * (d0 * kappa + d1) + d2
+            for c0, c1, c2, d0, d1, d2 in theta.reshape(-1, 6)
+        )
+    raise NotImplementedError(f'the terms of {name}')
+
+
+def force_rounding(muscle, p: float, length: float) -> float:
+    """A bound [N] on the rounding error of ``muscle``'s force at ``p`` [Pa], ``length`` [m]."""
+    return ROUNDINGS * UNIT_ROUNDOFF * force_terms(muscle, p, length)
+
+
+def central_difference(
+    f: Callable[[float], float], x: float, error: float, h: float = 1e-3
+) -> tuple[float, float]:
+    """f'(x) by a central difference D(h) of step ``h``, and a bound on its error for an ``f``
+    whose values are off by at most ``error``: the rounding error / h, plus the truncation
+    h² |f'''| / 6 read from D(2h) - D(h) = h² f''' / 2 + O(h⁴) (whose own rounding is at most
+    1.5 error / h).
+    """
+    d1 = (f(x + h) - f(x - h)) / (2 * h)
+    d2 = (f(x + 2 * h) - f(x - 2 * h)) / (4 * h)
+    rounding = error / h
+    return d1, rounding + (abs(d2 - d1) + 1.5 * rounding) / 3
+
+
 #: What the lint tests check (test_lint.py: ruff; test_flake8.py, test_pep257.py: ament's).
-LINT_PATHS = ['pma_model_ros', 'test', 'bench', 'setup.py']
+LINT_PATHS = ['pma_model_ros', 'test', 'bench', 'launch', 'setup.py']
 
 
 def ruff_config() -> dict:

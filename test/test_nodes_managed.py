@@ -206,6 +206,42 @@ def test_with_autostart_a_bug_in_configure_is_not_called_invalid_parameters(
     assert len(errors) == 1 and 'Traceback' in errors[0]
 
 
+@pytest.fixture
+def warnings(monkeypatch):
+    """The warning lines the nodes log from now on."""
+    logged = []
+    monkeypatch.setattr(RcutilsLogger, 'warning', lambda self, text, **_: logged.append(text))
+    return logged
+
+
+def change_state(node, transition: str | int) -> bool:
+    """A ``change_state`` service call, as a lifecycle manager's arrives (the callback)."""
+    service = next(s for s in node.services if s.srv_type is ChangeState)
+    request = ChangeState.Request(
+        transition=Transition(label=transition)
+        if isinstance(transition, str)
+        else Transition(id=transition)
+    )
+    return service.callback(request, ChangeState.Response()).success
+
+
+def test_a_refused_transition_says_why(make, warnings):
+    """A manager's ``configure`` of a node that autostart already activated (nav2's default
+    sequence with the node's default) is refused with the state, its transitions and the cure;
+    a transition the state has is not warned about.
+    """
+    node = make(ModelNode, CONFIG)  # autostart: true
+    assert label(node) == 'active'
+    assert change_state(node, 'configure') is False
+    assert len(warnings) == 1
+    assert "change_state 'configure' refused: the node is active" in warnings[0]
+    assert 'deactivate (4)' in warnings[0] and 'autostart: false' in warnings[0]
+    assert change_state(node, Transition.TRANSITION_ACTIVATE) is False  # by id
+    assert 'change_state 3 refused: the node is active' in warnings[1]
+    assert 'autostart' not in warnings[1]
+    assert change_state(node, 'deactivate') is True and len(warnings) == 2
+
+
 def test_autostart_is_read_only_and_defaults_to_true(make):
     node = make(ModelNode, CONFIG)
     assert label(node) == 'active' and node.get_parameter('autostart').value is True

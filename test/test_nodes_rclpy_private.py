@@ -57,9 +57,24 @@ def test_a_transition_the_state_has_not_is_answered_false(private_node):
     assert service.callback(request, ChangeState.Response()).success is True
 
 
+def test_the_state_and_its_transitions_are_read(private_node):
+    """An unconfigured lifecycle node has configure (1) and shutdown (5), lifecycle_msgs'
+    Transition ids.
+    """
+    node = private_node(
+        ModelNode, '--params-file', CONFIGS['DMSP-10-250'], overrides={'autostart': False}
+    )
+    state, transitions = rclpy_private.lifecycle_state(node)
+    assert state == 'unconfigured'
+    assert (Transition.TRANSITION_CONFIGURE, 'configure') in transitions
+    assert (Transition.TRANSITION_UNCONFIGURED_SHUTDOWN, 'shutdown') in transitions
+    assert all(label != 'activate' for _, label in transitions)
+
+
 def test_no_other_module_uses_a_private_rclpy_name():
     private = re.compile(
-        r'rclpy\._|_rclpy_pybind11|_parameter_overrides|_service_change_state|\.handle\b'
+        r'rclpy\._|_rclpy_pybind11|_parameter_overrides|_service_change_state|_state_machine'
+        r'|\.handle\b'
     )
     users = [
         path.relative_to(REPO).as_posix()

@@ -41,7 +41,7 @@ from rclpy.timer import Timer
 
 from .diagnostics import diagnostic_array
 from .parameters import declare
-from .rclpy_private import clock_handle, RCLError
+from .rclpy_private import clock_handle, lifecycle_state, RCLError
 from .startup import refusing, StartupError
 from ..core.files.node_parameters import SPECS
 from ..core.runtime.health import DIAGNOSTIC_PERIOD, Level
@@ -61,7 +61,7 @@ class ManagedNode(LifecycleNode):
     def __init__(self, node_name: str, **kwargs) -> None:
         super().__init__(node_name, **kwargs)
         service = next(s for s in self.services if s.srv_type is ChangeState)
-        service.callback = partial(_refuse_unknown_transitions, service.callback)
+        service.callback = partial(_refuse_unknown_transitions, self, service.callback)
         self.active = False  #: the gate of every input callback
         #: the node's fully qualified name: default hardware_id prefix of its statuses
         self.instance = self.get_fully_qualified_name()
@@ -198,14 +198,39 @@ class ManagedNode(LifecycleNode):
 
 
 def _refuse_unknown_transitions(
-    change_state, request: ChangeState.Request, response: ChangeState.Response
+    node: ManagedNode,
+    change_state,
+    request: ChangeState.Request,
+    response: ChangeState.Response,
 ) -> ChangeState.Response:
     """Rclpy's ``change_state`` service callback, answering ``success: false`` to a transition the
     current state does not have (e.g. ``activate`` while unconfigured), as rclcpp does: rclpy
-    raises RCLError there, out of the executor, which ended the node's process.
+    raises RCLError there, out of the executor, which ended the node's process.  Such a refusal
+    is logged as one WARN line with the state and the transitions it has (a manager's caller
+    sees only ``false``).
     """
+    state, transitions = lifecycle_state(node)
     try:
-        return change_state(request, response)
+        response = change_state(request, response)
     except RCLError:
         response.success = False
-        return response
+    asked = request.transition.label or request.transition.id
+    if not response.success and all(asked not in t for t in transitions):
+        node.get_logger().warning(refused_transition(asked, state, transitions, node.autostart))
+    return response
+
+
+def refused_transition(
+    asked: str | int, state: str, transitions: list[tuple[int, str]], autostart: bool
+) -> str:
+    """Why ``change_state`` refused the transition ``asked`` (a label or an id) in ``state``."""
+    text = (
+        f'change_state {asked!r} refused: the node is {state}, whose transitions are '
+        + ', '.join(f'{label} ({id_})' for id_, label in transitions)
+    )
+    if autostart and asked in ('configure', 1):
+        text += (
+            '; autostart is true, so the node configured and activated itself at start-up: '
+            'under a lifecycle manager start it with autostart: false (docs/nodes.md)'
+        )
+    return text

@@ -10,12 +10,16 @@ fails then).
 * :func:`clock_handle`: the C clock behind an rclpy ``Clock`` (``Clock.handle``, "not to be used
   outside of rclpy"): ``handle.get_now().nanoseconds`` reads the time without building an rclpy
   ``Time`` (:meth:`.managed.ManagedNode.now`, on every input).
+* :func:`lifecycle_state`: a lifecycle node's state and the transitions it has
+  (``LifecycleNode._state_machine``; the public ``get_available_transitions`` is a service),
+  to say why a ``change_state`` call is refused.
 """
 
 from __future__ import annotations
 
 from rclpy._rclpy_pybind11 import RCLError  # noqa: F401 (re-exported)
 from rclpy.clock import Clock
+from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -28,3 +32,9 @@ def parameter_overrides(node: Node) -> dict[str, Parameter]:
 def clock_handle(clock: Clock):
     """The C clock of ``clock``: ``.get_now().nanoseconds`` [ns]."""
     return clock.handle
+
+
+def lifecycle_state(node: LifecycleNode) -> tuple[str, list[tuple[int, str]]]:
+    """The label of ``node``'s current state and the (id, label) of each transition it has."""
+    machine = node._state_machine
+    return machine.current_state[1], [(t[0], t[1]) for t in machine.available_transitions]
