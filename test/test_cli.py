@@ -507,6 +507,34 @@ def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_pa
     assert 'pressure_offset' not in entry and 'pressure offset kept 0: not identifiable' in text
 
 
+def test_fit_raises_an_l0_shorter_than_the_longest_row_and_says_so(tmp_path, capsys):
+    """Table A2 with L0 given 0.24 m (a tape measure 1 cm off): the map has a 0.250 m row, so L0
+    is at least 0.250 m, and the line says it was raised.  With --no-calibrate-length the given L0
+    cannot be kept: one line, exit 2, no file.
+    """
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text(
+        SPEC_10_250.read_text().replace('nominal_length: 0.25 ', 'nominal_length: 0.24 ')
+    )
+    assert 'nominal_length: 0.24 ' in spec.read_text()
+    csv, out = (
+        _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-10-250')),
+        tmp_path / 'f.yaml',
+    )
+    argv = ['fit', '--data', csv, '--muscle', str(spec), '--model', 'martens', '--out', str(out)]
+    assert main([*argv, '--no-calibrate-length']) == 2
+    text, err = capsys.readouterr()
+    assert 'nominal_length 0.24 m is shorter than the longest measured length 0.25 m' in err
+    assert err.count('\n') == 1 and text == '' and not out.exists()
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert 'L0 0.2500 m (given 0.2400 m: raised to the longest measured row 0.25 m' in text
+    assert 'L0 kept' not in text
+    params = read_parameters(out)
+    assert params['muscle']['nominal_length'] >= 0.25
+    assert params['models']['martens']['nominal_length'] >= 0.25
+
+
 def test_fit_all_models_defaults_to_the_best_held_out_error(tmp_path, capsys):
     spec = REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250.yaml'
     csv, out = (

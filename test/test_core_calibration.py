@@ -118,17 +118,17 @@ def test_offset_and_length_recovered_where_the_model_identifies_them():
 
 def test_a_quantity_the_model_does_not_depend_on_is_reported_not_identifiable():
     """Hildebrandt (eq. 20) has no L0, and its counter-force polynomial absorbs a pressure offset
-    (q1 o is a quadratic in L): both stay as given, even with L0 given shorter than the slack
-    0.296 m row.
+    (q1 o is a quadratic in L): the offset stays 0 and L0, given shorter than the slack 0.296 m
+    row, is raised to that row (a muscle is not stretched) and searched no further.
     """
     spec = replace(shipped_spec('DMSP-20-300'), nominal_length=0.29)
     fit = fit_best(
         get_model('hildebrandt'), spec, shipped_force_map('DMSP-20-300'), calibration=Calibration()
     )
-    assert fit.calibration == OFF and fit.pressure_offset == 0.0
+    assert fit.calibration == Calibration(pressure=False) and fit.pressure_offset == 0.0
     assert fit.sigma['nominal_length'] == np.inf
     assert fit.sigma['pressure_offset'] > cal.PRESSURE_BOUND / 4
-    assert fit.spec == spec
+    assert fit.spec == replace(spec, nominal_length=0.296)
 
 
 def test_slack_length_is_where_the_force_line_meets_zero_above_0_pa():
@@ -201,6 +201,27 @@ def test_l0_given_too_short_is_recovered_where_the_map_has_rows_near_it(muscle):
     held_out, plain = (nested(spec, user, c, truth) for c in (Calibration(), OFF))
     assert np.all(held_out[1:] <= plain[1:] + 0.05) and held_out[1:].max() < plain[1:].max() / 2
     assert held_out[0] == pytest.approx(plain[0])
+
+
+@pytest.mark.parametrize(
+    ('muscle', 'given'), [('DMSP-10-250', 0.24), ('DMSP-20-300', 0.29), ('DMSP-20-300', 0.2959)]
+)
+def test_l0_given_shorter_than_a_measured_row_is_raised_to_it(muscle, given):
+    """A muscle is not stretched: L0 given 1 cm (or 0.1 mm) short of the map's longest row (Table
+    A2: 0.250 m, Table A1: 0.296 m) ends at least there, whatever the pressure offset does.  Raised
+    to exactly the row, the fit is the one of the paper's L0 when that equals the row (Table A2).
+    """
+    spec, fmap = shipped_spec(muscle), shipped_force_map(muscle)
+    short = replace(spec, nominal_length=given)
+    for calibration in (Calibration(), Calibration(pressure=False)):
+        fit = fit_best(MARTENS, short, fmap, calibration=calibration)
+        assert fit.calibration.length and fit.spec.nominal_length >= fmap.lengths[0]
+    assert cal.short_of_map(short, fmap) == fmap.lengths[0]
+    assert cal.short_of_map(replace(spec, nominal_length=fmap.lengths[0]), fmap) is None
+    if spec.nominal_length == fmap.lengths[0]:
+        paper = fit_best(MARTENS, spec, fmap, calibration=Calibration())
+        raised = fit_best(MARTENS, short, fmap, calibration=Calibration())
+        assert raised.spec == paper.spec and raised.theta == pytest.approx(paper.theta, rel=1e-12)
 
 
 @pytest.mark.parametrize('muscle', ['DMSP-20-300', 'DMSP-10-250'])

@@ -23,7 +23,7 @@ from ..core.files.shipped_data import (
     shipped_spec,
 )
 from ..core.files.user_files import read_spec_yaml
-from ..core.identification.calibration import Calibration
+from ..core.identification.calibration import Calibration, short_of_map
 from ..core.identification.force_map import read_force_map_csv
 from ..core.identification.progress import step
 from ..core.identification.validation import fold_lengths, length_folds, OBJECTIVES
@@ -235,7 +235,26 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
     each stayed as given.
     """
     sigma, parts = fit.sigma, []
-    if fit.calibration.length:
+    longest, length = fit.domain.length_max, fit.spec.nominal_length
+    if fit.calibration.length and given_length < longest:
+        parts.append(
+            f'L0 {length:.4f} '
+            + (f'±{sigma["nominal_length"]:.4f} ' if length > longest else '')
+            + f'm (given {given_length:.4f} m: raised to the longest measured row {longest:.4g} m'
+            + (
+                f', identified above it where the map is slack (slack length '
+                f'{fit.slack_length:.4f} m)'
+                if length > longest
+                else '; the model absorbs or ignores a longer L0'
+                if math.isinf(sigma.get('nominal_length', 0.0))
+                else '; the slack length, where a threshold (the pressure offset) fits the map '
+                'better than a longer L0'
+                if 'nominal_length' in sigma
+                else ''
+            )
+            + ')'
+        )
+    elif fit.calibration.length:
         parts.append(
             f'L0 {fit.spec.nominal_length:.4f} ±{sigma["nominal_length"]:.4f} m (given '
             f'{given_length:.4f} m: not longer than the slack length {fit.slack_length:.4f} m)'
@@ -276,6 +295,14 @@ def cmd_fit(args: argparse.Namespace) -> None:
     fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
     check_fit_map(fmap, spec, folds=3)
     calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
+    longest = None if calibration.length else short_of_map(spec, fmap)
+    if longest is not None:
+        raise CliError(
+            f'{args.muscle}: nominal_length {spec.nominal_length:g} m is shorter than the '
+            f'longest measured length {longest:g} m, and a muscle is not stretched beyond its '
+            'rest length: measure L0 again, or leave out --no-calibrate-length to have it '
+            'raised to what the map shows'
+        )
     print(calibration.describe() + ' (switch off: --no-calibrate-length, --no-calibrate-pressure)')
     names = TABLE3_MODELS if args.model == 'all' else (args.model,)
     found = identify_all(

@@ -11,8 +11,10 @@ The given geometry is the default, and a calibration must never make the held-ou
   Jacobian at the optimum (:func:`standard_errors`) at most :data:`OFFSET_SIGMA`.  A map with its
   rest-length row (Table A2) identifies it; elsewhere the elastic terms absorb it.
 * the rest length L0 (``muscle.nominal_length``): kept as given unless the map proves it too short.
-  A muscle that is slack at low pressure (its force line meets zero at a positive pressure) is not
-  stretched, so L0 is at least the longest such length (:func:`slack_length`).  (At that length
+  A muscle is not stretched, so L0 is at least the longest measured length: a shorter given L0 is
+  raised to it first (:func:`short_of_map`).  A muscle that is slack at low pressure (its force
+  line meets zero at a positive pressure) is not stretched either, so L0 is at least the longest
+  such length (:func:`slack_length`).  (At that length
   exactly, Martens' force line, eq. 14, meets zero at 0 Pa: a threshold there is the offset's.)
   Only if the given L0 is shorter is L0 identified, on
   (bound, bound (1 + :data:`LENGTH_BOUND`)], by the held-out error of fits without each length
@@ -116,6 +118,16 @@ def with_length(spec: MuscleSpec, nominal_length: float) -> MuscleSpec:
         if nominal_length == spec.nominal_length
         else replace(spec, nominal_length=float(nominal_length))
     )
+
+
+def short_of_map(spec: MuscleSpec, fmap: ForceMap) -> float | None:
+    """The map's longest measured length [m] if the given L0 is shorter, else None.  A muscle is
+    not stretched beyond its rest length, taut or slack, so such an L0 is wrong: the calibration
+    raises it to this length (and on, if the map is slack there), and a fit that keeps L0 as given
+    refuses it.
+    """
+    longest = float(fmap.length.max())
+    return longest if spec.nominal_length < longest else None
 
 
 def slack_length(fmap: ForceMap) -> float | None:

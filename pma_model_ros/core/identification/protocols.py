@@ -379,6 +379,10 @@ def fit_best_all(
         raise ValueError(f'unknown objective {sorted(unknown)}; choose from {OBJECTIVES}')
     domain = domain_of(fmap)
     sigma: dict[str, float] = {}
+    # L0 is at least the longest measured length, taut or slack (a muscle is not stretched)
+    raised = calibration.length and cal.short_of_map(spec, fmap) is not None
+    if raised:
+        spec = cal.with_length(spec, domain.length_max)
     slack = cal.slack_length(fmap) if calibration.length else None
     offset = _offset(model, spec, domain, fmap, sigma) if calibration.pressure else None
     found = offset if offset is not None and offset[2] else None
@@ -407,7 +411,7 @@ def fit_best_all(
     solutions = {'least_squares': solution}
     if 'minimax' in objectives:
         solutions['minimax'] = fitted.fit_minimax(solution)
-    applied = Calibration(moved, shifted)
+    applied = Calibration(moved or raised, shifted)
     n = model.n_params
     return {
         obj: _fit_record(
