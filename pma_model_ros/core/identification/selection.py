@@ -4,7 +4,8 @@ Each model is identified by the ``best`` protocol (:mod:`.protocols`) and judged
 leave-one-length-out errors (:mod:`.validation`): the whole protocol, calibration and choices
 included, re-run without each measured length.  Each model's objective and the default model are
 chosen by the worst held-out error, and every such choice is made again inside each fold.  The fits
-without each length run in worker processes, one per core, where they are worth it.
+run in worker processes, one per core (:func:`_fit_everything`); the judgement made from them is
+the same to the bit.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from dataclasses import dataclass
 import functools
 import math
 import os
+import signal
+import sys
 import time
 from typing import Iterator
 
@@ -111,6 +114,7 @@ def identify_all(
     calibration: Calibration = OFF,
     objectives: tuple[str, ...] = OBJECTIVES,
     truth: np.ndarray | None = None,
+    workers: int | None = None,
 ) -> Identification:
     """Identify every model, judge each by nested held-out error and pick the default.
 
@@ -119,7 +123,8 @@ def identify_all(
     held-out figures (:func:`~pma_model_ros.core.identification.validation.select`).
     ``calibration`` applies to the ``best`` protocol only; the paper protocol keeps the given
     geometry.  ``truth``: forces [N] at the map's points to report held-out errors against (choices
-    use the map's own).
+    use the map's own).  ``workers``: processes the fits run in (default: one per core there is;
+    the result does not depend on it, :func:`_fit_everything`).
     """
     held = {
         model.name: HeldOut(
@@ -133,7 +138,7 @@ def identify_all(
     }
     pairs = len(models) * len(objectives) > 1
     jobs = [(name, s) for name, h in held.items() for s in h.needed(pairs)]
-    papers = _fit_everything(held, jobs, models, spec, fmap)
+    papers = _fit_everything(held, jobs, models, spec, fmap, workers)
     reports, candidates = {}, {}
     against = truth is not None
     for model, paper in zip(models, papers):
@@ -151,8 +156,31 @@ def identify_all(
     return Identification(reports, default, held_out, tuple(name for name, _ in chosen))
 
 
-#: Expected fitting time [s] above which an identification spreads its fits over the cores.
+#: Expected fitting time [s] above which spawned worker processes (each importing the package,
+#: about 1 s) are worth starting; forked ones start in milliseconds.
 _PARALLEL_ABOVE = 1.0
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the platform reports it)."""
+    count = getattr(os, 'process_cpu_count', None)  # Python >= 3.13
+    if count is not None:
+        return count() or 1
+    if hasattr(os, 'sched_getaffinity'):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def _start_method() -> str:
+    """``fork`` where the platform forks safely and this process runs no other Python thread
+    (a forked child gets only the calling thread, and another thread's locks stay held); else
+    ``spawn``.  (OpenBLAS's native threads stop around a fork by its own handlers.)
+    """
+    import multiprocessing
+    import threading
+
+    forks = 'fork' in multiprocessing.get_all_start_methods() and sys.platform != 'darwin'
+    return 'fork' if forks and threading.active_count() == 1 else 'spawn'
 
 
 def _fit_everything(
@@ -161,39 +189,67 @@ def _fit_everything(
     models: tuple[Model, ...],
     spec: MuscleSpec,
     fmap: ForceMap,
+    workers: int | None = None,
 ) -> list[Fit]:
     """Every fit the judgement needs, into each model's :class:`HeldOut`; returns the paper fits.
 
-    The whole-map fits run here; if they announce more than :data:`_PARALLEL_ABOVE` of work for the
-    rest (as long, per model, times the fits left), the rest run in worker processes, one per core
-    (spawned, not forked: the caller may hold threads).  The fits are the same either way.
+    Each fit depends on its training map alone, so the fits run in any process and any order and
+    the judgement made from them afterwards, here, in its fixed order, is the same to the bit.
+    With ``workers`` (default: :func:`available_cores`) above 1, they run in that many worker
+    processes, the largest training maps first.  Forked workers (:func:`_start_method`) take
+    every fit; spawned ones only the fits without held-out lengths, and only if the whole-map fits,
+    run here first, announce more than :data:`_PARALLEL_ABOVE` of work for them (as long, per
+    model, times the fits left).
     """
+    workers = available_cores() if workers is None else workers
+    method = _start_method()
+    first = [] if method == 'fork' else [(name, frozenset()) for name in held]
     started = time.perf_counter()
-    for name in held:
-        held[name].fits_without(frozenset())
-    rest = [(name, s) for name, s in jobs if s]
-    meter = Meter(len(rest), f'{len(held)} model(s), fits without held-out lengths')
+    for name, s in first:
+        held[name].fits_without(s)
+    # whole maps, then one length out, then two: the longest fits first
+    rest = sorted([job for job in jobs if job not in first], key=lambda job: len(job[1]))
     expected = (time.perf_counter() - started) * len(rest) / len(held)
-    workers = os.cpu_count() or 1
-    if workers > 1 and expected > _PARALLEL_ABOVE:
-        from concurrent.futures import ProcessPoolExecutor
+    tasks = [(fit_or_none, (held[n].identify, held[n].training_map(s))) for n, s in rest]
+    tasks += [(fit_paper, (model, spec, fmap)) for model in models]
+    results: list = [None] * len(tasks)
+    meter = Meter(len(tasks), f'{len(held)} model(s), fits with and without each length')
+    workers = min(workers, len(tasks))
+    if workers > 1 and (method == 'fork' or expected > _PARALLEL_ABOVE):
         import multiprocessing
+        import warnings
 
-        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context('spawn'))
-        with _environment(_WORKER_ENVIRONMENT), pool:
-            fits = pool.map(
-                fit_or_none,
-                [held[n].identify for n, _ in rest],
-                [held[n].training_map(s) for n, s in rest],
+        with warnings.catch_warnings(), _environment(_WORKER_ENVIRONMENT):
+            # Python >= 3.12 warns of a fork beside OpenBLAS's threads (_start_method)
+            warnings.filterwarnings(
+                'ignore', 'This process .* is multi-threaded', DeprecationWarning
             )
-            for done, ((n, s), result) in enumerate(zip(rest, fits), 1):
-                held[n].store(s, result)
-                meter.update(done)
-            return list(pool.map(fit_paper, models, *zip(*[(spec, fmap)] * len(models))))
-    for done, (n, s) in enumerate(rest, 1):
-        held[n].fits_without(s)
-        meter.update(done)
-    return [fit_paper(model, spec, fmap) for model in models]
+            pool = multiprocessing.get_context(method).Pool(workers, _ignore_interrupts)
+        with pool:  # leaving it (done, an error, Ctrl-C) terminates the workers
+            done = pool.imap_unordered(_run, enumerate(tasks))
+            for count, (i, result) in enumerate(done, 1):
+                results[i] = result
+                meter.update(count)
+    else:
+        for i, (function, args) in enumerate(tasks):
+            results[i] = function(*args)
+            meter.update(i + 1)
+    for (name, s), fits in zip(rest, results):
+        held[name].store(s, fits)
+    return results[len(rest) :]
+
+
+def _run(task: tuple[int, tuple]) -> tuple[int, object]:
+    """A worker's call: (index, function(*args)) of an indexed (function, args)."""
+    i, (function, args) = task
+    return i, function(*args)
+
+
+def _ignore_interrupts() -> None:
+    """A worker's start: Ctrl-C (SIGINT, sent to the whole process group) is the parent's to
+    handle; the parent then terminates the workers.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @contextmanager

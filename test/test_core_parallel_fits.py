@@ -1,0 +1,76 @@
+"""The nested judgement's fits in worker processes: the same identification, to the bit, as in
+one process, whatever the number of workers.
+"""
+
+import os
+from pathlib import Path
+import sys
+
+import numpy as np
+import pytest
+
+from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
+from pma_model_ros.core.identification import selection
+from pma_model_ros.core.identification.calibration import Calibration
+from pma_model_ros.core.identification.protocols import fit_paper
+from pma_model_ros.core.identification.selection import identify_all
+from pma_model_ros.core.physics.models import get_model
+
+#: (muscle, models, objectives): both objectives (the objective chosen again in each fold: fits
+#: without every pair of lengths), and Martens' calibrated fit (L0 searched, pressure offset
+#: identified).
+CASES = [
+    ('DMSP-10-250', ('mckibben',), ('least_squares', 'minimax')),
+    ('DMSP-20-300', ('martens',), ('least_squares',)),
+]
+
+_PIDS = Path()  #: where :func:`_recorded_paper_fit` leaves its process ids (set by the test)
+
+
+def _recorded_paper_fit(model, spec, fmap):
+    """``fit_paper``, leaving the id of the process it ran in as a file in ``_PIDS``."""
+    (_PIDS / str(os.getpid())).touch()
+    return fit_paper(model, spec, fmap)
+
+
+def _figures(found: selection.Identification) -> list:
+    """Every number and choice of an identification, flat: fits, per-fold errors, choices."""
+    out = [found.default, found.chosen, found.held_out]
+    for name, rep in found.reports.items():
+        out += [name, rep.shipped_objective, rep.nested, *rep.cv.values()]
+        for fit in (rep.paper, *rep.best.values()):
+            out += [fit.theta, fit.err, fit.rmse, fit.r2, fit.spec, fit.calibration]
+            out += [fit.pressure_offset, sorted(fit.sigma.items()), fit.slack_length]
+    return out
+
+
+def _same(a: list, b: list) -> bool:
+    """Element by element equal; arrays bit for bit (NaN equal to NaN)."""
+    return len(a) == len(b) and all(
+        np.array_equal(x, y, equal_nan=True) if isinstance(x, np.ndarray) else x == y
+        for x, y in zip(a, b)
+    )
+
+
+@pytest.mark.parametrize('muscle, names, objectives', CASES)
+def test_workers_give_the_serial_identification(muscle, names, objectives, tmp_path, monkeypatch):
+    """Serial, two and three workers: every fit, error and choice identical (exact), and the
+    parallel runs fitted in processes other than this one.
+    """
+    monkeypatch.setattr(sys.modules[__name__], '_PIDS', tmp_path)  # workers fork with it
+    monkeypatch.setattr(selection, 'fit_paper', _recorded_paper_fit)
+    spec, fmap = shipped_spec(muscle), shipped_force_map(muscle)
+    models = tuple(get_model(name) for name in names)
+    runs = {}
+    for workers in (1, 2, 3):
+        for pid in tmp_path.iterdir():
+            pid.unlink()
+        found = identify_all(spec, fmap, models, Calibration(), objectives, None, workers)
+        runs[workers] = _figures(found)
+        pids = {int(p.name) for p in tmp_path.iterdir()}
+        if workers == 1:
+            assert pids == {os.getpid()}
+        elif selection._start_method() == 'fork':
+            assert pids and os.getpid() not in pids
+    assert _same(runs[1], runs[2])
+    assert _same(runs[1], runs[3])
