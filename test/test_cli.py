@@ -505,6 +505,7 @@ def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_pa
     assert abs(entry['nominal_length'] - 0.300) <= 0.001
     assert params['muscle']['nominal_length'] == entry['nominal_length']
     assert 'pressure_offset' not in entry and 'pressure offset kept 0: not identifiable' in text
+    assert params['muscle']['given_nominal_length'] == 0.296  # for pma-model scale
 
 
 def test_fit_raises_an_l0_shorter_than_the_longest_row_and_says_so(tmp_path, capsys):
@@ -885,9 +886,12 @@ def test_scale_writes_the_muscle_cut_to_another_length_and_back(tmp_path, capsys
     source = CONFIGS['DMSP-20-300']
     assert main(['scale', '--config', str(source), '--length', '0.274', '--out', str(cut)]) == 0
     assert capsys.readouterr().out == (
-        f'wrote {cut}: DMSP-20-274 (DMSP-20-300 x 0.913333), length_range [0.20276, 0.270347] m\n'
+        f'wrote {cut}: DMSP-20-274 (DMSP-20-300 x 0.913333: given L0 0.3 -> 0.274 m), '
+        'length_range [0.20276, 0.270347] m\n'
     )
-    assert cut.read_text().startswith(f'# DMSP-20-274: DMSP-20-300 of {source} cut to L0 = 0.274')
+    assert cut.read_text().startswith(
+        f"# DMSP-20-274: DMSP-20-300 of {source} cut to the given rest length L0' = 0.274 m"
+    )
     assert main(['scale', '--config', str(cut), '--length', '0.3', '--out', str(back)]) == 0
     theirs, ours, cut_params = (read_parameters(p) for p in (source, back, cut))
     assert ours['muscle'] == theirs['muscle']
@@ -927,17 +931,24 @@ def test_scale_refuses_an_existing_output_before_any_work(tmp_path, capsys):
 @pytest.mark.parametrize(
     'length, message',
     [
-        ('0', 'rest length must be in (0, 10] m, got 0.0'),
-        ('-0.3', 'rest length must be in (0, 10] m, got -0.3'),
-        ('nan', 'rest length must be in (0, 10] m, got nan'),
-        ('274', 'rest length must be in (0, 10] m, got 274.0; millimetres? divide by 1000'),
+        ('0', 'got 0.0'),
+        ('-0.3', 'got -0.3'),
+        ('nan', 'got nan'),
+        ('0.01', 'got 0.01'),  # a 1 cm DMSP-20: no such cut
+        ('274', 'got 274.0; mm? 274 mm = 0.274 m'),
+        ('30', 'got 30.0; cm? 30 cm = 0.3 m'),  # nearer the source's 0.3 m than 30 mm
     ],
 )
-def test_scale_refuses_a_rest_length_beyond_physics(tmp_path, capsys, length, message):
+def test_scale_refuses_a_length_festo_does_not_cut(tmp_path, capsys, length, message):
+    """The length is the user's, not the file's: named as --length, one line, no file."""
     out = tmp_path / 'out.yaml'
     config = CONFIGS['DMSP-20-300']
     assert main(['scale', '--config', str(config), '--length', length, '--out', str(out)]) == 2
-    assert capsys.readouterr() == ('', f'pma-model: error: {config}: {message}\n')
+    assert capsys.readouterr() == (
+        '',
+        f'pma-model: error: --length {float(length):g}: rest length must be in [0.04, 9] m (the '
+        f'lengths Festo cuts a DMSP to), {message}\n',
+    )
     assert not out.exists()
 
 
@@ -954,3 +965,26 @@ def test_scale_takes_one_muscle(tmp_path, capsys, config, message):
     argv = ['scale', '--config', str(path), '--length', '0.2', '--out', str(tmp_path / 'o.yaml')]
     assert main(argv) == 2
     assert capsys.readouterr().err.startswith(f'pma-model: error: {path}: {message}')
+def test_scale_takes_the_given_rest_length_of_a_fit(tmp_path, capsys):
+    """A fit's file with a calibrated L0 (0.305 m, given 0.3 m; the header as fit writes it, the
+    key absent as in a file without it): --length is the new cut's measured rest length, the
+    calibrated L0 moves by the same factor, and the output keeps the given length as its key.
+    """
+    text = CONFIGS['DMSP-20-300'].read_text()
+    assert 'muscle: {name: DMSP-20-300, nominal_length: 0.3,' in text
+    source, cut = tmp_path / 'fit.yaml', tmp_path / 'cut.yaml'
+    source.write_text(
+        '# DMSP-20-300 identified from map.csv by `pma-model fit` (geometry calibration ON; '
+        'given nominal_length 0.3 m).\n'
+        + text.replace('nominal_length: 0.3,', 'nominal_length: 0.305,', 1)
+    )
+    argv = ['scale', '--config', str(source), '--length', '0.398', '--out', str(cut)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f'wrote {cut}: DMSP-20-398 (DMSP-20-300 x 1.32667: given L0 0.3 -> ')
+    assert 'given L0 0.3 m read from the header' in out
+    muscle = read_parameters(cut)['muscle']
+    assert muscle['given_nominal_length'] == 0.398
+    assert muscle['nominal_length'] == pytest.approx(0.305 * 0.398 / 0.3, rel=1e-11)
+
+

@@ -39,3 +39,19 @@ def test_no_pressure_range_without_a_known_maximum():
     built = build_parameters(spec, 'mckibben', Domain(0.22, 0.3, math.inf), {'mckibben': {}})
     assert 'pressure_range' not in built['/**']['ros__parameters']
     assert yaml.safe_load(yaml.safe_dump(built)) == built
+
+
+def test_a_given_rest_length_is_kept_beside_the_calibrated_one(tmp_path):
+    """A fit's file: muscle.nominal_length the calibrated L0, muscle.given_nominal_length the
+    spec's as given; the muscle reads back with the calibrated one.
+    """
+    spec = shipped_spec('DMSP-20-300')
+    calibrated = type(spec)(**(spec.to_mapping() | {'nominal_length': 0.305}))
+    path = tmp_path / 'fit.yaml'
+    built = build_parameters(
+        calibrated, 'mckibben', Domain(0.222, 0.296, 6.75e5), {'mckibben': {}}, given_length=0.3
+    )
+    write_parameters(path, built, 'fit')
+    params = read_parameters(path)
+    assert params['muscle']['given_nominal_length'] == 0.3
+    assert muscle_model(params).spec.nominal_length == 0.305

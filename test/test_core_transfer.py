@@ -238,17 +238,95 @@ def test_a_model_without_a_transfer_is_refused_by_name(monkeypatch):
 @pytest.mark.parametrize(
     'length, message',
     [
-        (0.0, r'rest length must be in \(0, 10\] m, got 0\.0$'),
+        (0.0, r'must be in \[0\.04, 9\] m \(the lengths Festo cuts a DMSP to\), got 0\.0$'),
         (-0.3, r'got -0\.3$'),
         (math.nan, r'got nan$'),
         (math.inf, r'got inf$'),
-        (300.0, r'got 300\.0; millimetres\? divide by 1000$'),
+        # a 1 cm DMSP-20: shorter than any Festo cuts, and no unit makes it one
+        (0.01, r'got 0\.01$'),
+        (9.5, r'got 9\.5; cm\? 9\.5 cm = 0\.095 m$'),
+        # the unit whose length is nearest the source's 0.3 m: 30 cm (30 mm is 10 times off)
+        (30.0, r'got 30\.0; cm\? 30 cm = 0\.3 m$'),
+        (300.0, r'got 300\.0; mm\? 300 mm = 0\.3 m$'),
+        (3e6, r'got 3000000\.0$'),  # beyond 9 m in mm too: no unit named
         (True, r'must be a number in m'),
     ],
 )
 def test_a_bad_rest_length_is_refused(length, message):
     with pytest.raises(ValueError, match=message):
         scale_parameters(read_parameters(CONFIGS['DMSP-20-300']), length)
+
+
+def test_the_festo_lengths_are_taken():
+    for length in transfer.FESTO_LENGTHS:
+        target, _ = scale_parameters(read_parameters(CONFIGS['DMSP-20-300']), length)
+        assert target['muscle']['nominal_length'] == length
+
+
+def _calibrated(given=0.3, calibrated=0.305):
+    """DMSP-20-300's file as ``pma-model fit`` writes a calibrated one: the given L0 as
+    muscle.given_nominal_length, the default model's calibrated L0 as muscle.nominal_length and
+    in its block.
+    """
+    source = read_parameters(CONFIGS['DMSP-20-300'])
+    source['muscle'].update(nominal_length=calibrated, given_nominal_length=given)
+    source['models']['martens']['nominal_length'] = calibrated
+    return source
+
+
+def test_the_new_length_is_the_given_one_and_a_calibrated_l0_moves_by_the_same_factor():
+    """Cut to a measured 0.398 m: s = 0.398 / 0.3 (the given L0s), the calibrated 0.305 m
+    becomes 0.305 s, the name follows the given length, and the source's force at its measured
+    rest length 0.3 m is served at 0.398 m.
+    """
+    source = _calibrated()
+    target, _ = scale_parameters(source, 0.398)
+    s = 0.398 / 0.3
+    muscle = target['muscle']
+    assert muscle['name'] == 'DMSP-20-398' and muscle['given_nominal_length'] == 0.398
+    assert muscle['nominal_length'] == pytest.approx(0.305 * s, rel=1e-12)
+    assert target['models']['martens']['nominal_length'] == pytest.approx(0.305 * s, rel=1e-12)
+    assert _close(target['length_range'], [0.222 * s, 0.296 * s], rel=1e-11)
+    old, new = muscle_model(source, 'martens'), muscle_model(target, 'martens')
+    pressure = np.linspace(1e5, 6e5, 6)
+    for length in (0.3, 0.29, 0.25):  # beyond, inside the identified lengths
+        a, b = old.force(pressure, length), new.force(pressure, length * s)
+        assert np.allclose(a.force, b.force, rtol=1e-9) and np.all(a.flags == b.flags)
+    for model in source['models']:  # every model of the file moves with it
+        old, new = muscle_model(source, model), muscle_model(target, model)
+        a, b = old.force(pressure, 0.26), new.force(pressure, 0.26 * s)
+        # to 1e-9 of the largest force, as every model's transfer (the parameters' rounding)
+        assert np.allclose(a.force, b.force, rtol=0, atol=1e-9 * a.force.max()), model
+    back, _ = scale_parameters(target, 0.3)
+    assert back['muscle']['given_nominal_length'] == 0.3
+    assert back['muscle']['name'] == 'DMSP-20-300'
+    assert back['muscle']['nominal_length'] == pytest.approx(0.305, rel=1e-12)
+    assert _close(back['models']['martens']['params'], source['models']['martens']['params'])
+
+
+def test_the_given_length_of_a_file_without_the_key():
+    """A calibrated file without muscle.given_nominal_length: the given L0 of its header (as
+    ``pma-model fit`` writes it), else its muscle.nominal_length with a note when that is the
+    default model's calibrated L0.
+    """
+    source = _calibrated()
+    del source['muscle']['given_nominal_length']
+    header = (
+        '# DMSP-20-300 identified ... (geometry calibration ON; given nominal_length 0.3 m).\n'
+    )
+    given, note = transfer.given_length(source, header)
+    assert given == 0.3
+    assert note == (
+        'given L0 0.3 m read from the header (muscle.nominal_length 0.305 m is the calibrated one)'
+    )
+    given, note = transfer.given_length(source)
+    assert given == 0.305 and 'no given L0 in the file' in note
+    target, _ = scale_parameters(source, 0.398, given=0.3)
+    assert target['muscle']['given_nominal_length'] == 0.398
+    assert target['muscle']['nominal_length'] == pytest.approx(0.305 * 0.398 / 0.3, rel=1e-12)
+    plain = read_parameters(CONFIGS['DMSP-20-300'])
+    assert transfer.given_length(plain) == (0.3, '')
+    assert 'given_nominal_length' not in scale_parameters(plain, 0.274)[0]['muscle']
 
 
 def test_a_calibrated_rest_length_beyond_physics_is_refused():

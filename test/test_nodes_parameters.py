@@ -124,6 +124,23 @@ def test_entries_read_undeclared_are_no_unknown_parameters(make, warnings):
     assert warnings == []
 
 
+def test_a_fit_files_given_rest_length_is_no_unknown_parameter(make, warnings, tmp_path):
+    """muscle.given_nominal_length (pma-model fit's record of the spec's L0 beside a calibrated
+    one): read by pma-model scale, no warning, and the node serves the calibrated L0.
+    """
+    text = CONFIGS['DMSP-10-250'].read_text()
+    assert 'nominal_length: 0.25,' in text
+    path = tmp_path / 'fit.yaml'
+    path.write_text(
+        text.replace(
+            'nominal_length: 0.25,', 'nominal_length: 0.2517, given_nominal_length: 0.25,'
+        )
+    )
+    node = make(ModelNode, path)
+    assert warnings == []
+    assert node.get_parameter('muscle.nominal_length').value == 0.2517
+
+
 def test_a_key_copied_into_every_block_is_one_warning(make, warnings, tmp_path):
     """64 muscles, each block holding three node-wide keys (192 unknown names): one warning per
     key, naming the blocks and the node-wide name (its cost at start-up: bench/startup.py, the

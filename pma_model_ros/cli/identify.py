@@ -178,22 +178,38 @@ _FILE_LEGEND = (
 def cmd_scale(args: argparse.Namespace) -> None:
     from ..core.files.param_writer import write_parameters
     from ..core.files.user_files import load_yaml_mapping, read_user_file
-    from ..core.identification.transfer import scale_parameters
+    from ..core.identification.transfer import check_rest_length, given_length, scale_parameters
 
-    data = load_yaml_mapping(read_user_file(args.config, 'parameter file'), str(args.config))
+    text = read_user_file(args.config, 'parameter file')
+    data = load_yaml_mapping(text, str(args.config))
     nodes = [k for k, v in data.items() if isinstance(v, dict) and 'ros__parameters' in v]
     if len(nodes) > 1:
         raise CliError(f"{args.config}: {len(nodes)} nodes in one file; scale one muscle's file")
     parameters = read_parameters(args.config)
+    comments = ''.join(line for line in text.splitlines(True) if line.startswith('#'))
     try:
-        scaled, notes = scale_parameters(parameters, args.length)
+        given, note = given_length(parameters, comments)
+    except ValueError as err:
+        raise CliError(f'{args.config}: {err}') from None
+    try:
+        check_rest_length(args.length, given)
+    except ValueError as err:
+        raise CliError(f'--length {args.length:g}: {err}') from None
+    try:
+        scaled, notes = scale_parameters(parameters, args.length, given)
     except ValueError as err:
         raise CliError(f'{args.config}: {err}') from None
     source, target = parameters['muscle'], scaled['muscle']
-    ratio = args.length / source['nominal_length']
+    ratio = args.length / given
+    calibrated = [
+        f'{name} {block["nominal_length"]:.6g} m'
+        for name, block in scaled['models'].items()
+        if 'nominal_length' in block
+    ]
     header = (
-        f'{target["name"]}: {source["name"]} of {args.config} cut to L0 = {args.length:g} m by '
-        f"`pma-model scale` (s = L0' / L0 = {ratio:.6g}).\n"
+        f'{target["name"]}: {source["name"]} of {args.config} cut to the given rest length '
+        f"L0' = {args.length:g} m by `pma-model scale` (s = L0' / L0 = {args.length:g} / "
+        f'{given:g} = {ratio:.6g}; a calibrated L0 moves by s).\n'
         "At equal contraction (L0 - L) / L0 and pressure it serves the source's force; lengths\n"
         "are s times the source's (docs/calibration.md). err, rmse, r2, cv_err and held_out err\n"
         "are the source map's figures, at equal contraction."
@@ -201,11 +217,13 @@ def cmd_scale(args: argparse.Namespace) -> None:
     write_parameters(args.out, {nodes[0]: {'ros__parameters': scaled}}, header)
     low, high = scaled['length_range']
     print(
-        f'wrote {args.out}: {target["name"]} ({source["name"]} x {ratio:.6g}), length_range '
-        f'[{low:.6g}, {high:.6g}] m'
+        f'wrote {args.out}: {target["name"]} ({source["name"]} x {ratio:.6g}: given L0 '
+        f'{given:g} -> {args.length:g} m), length_range [{low:.6g}, {high:.6g}] m'
     )
-    for note in notes:
-        print(f'  {note}')
+    if calibrated:
+        print(f'  calibrated L0: {", ".join(calibrated)}')
+    for line in ([note] if note else []) + notes:
+        print(f'  {line}')
 
 
 def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
@@ -339,6 +357,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
             found.default,
             chosen.domain,
             {name: model_entry(rep, fmap) for name, rep in reports.items()},
+            given_length=spec.nominal_length,
         ),
         f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
         f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
@@ -545,7 +564,12 @@ def add_identify_commands(sub: argparse._SubParsersAction) -> None:
         'contraction and pressure)',
     )
     p.add_argument('--config', required=True, help='parameter file of one identified muscle')
-    p.add_argument('--length', required=True, type=float, help="the new rest length L0' [m]")
+    p.add_argument(
+        '--length',
+        required=True,
+        type=float,
+        help="the new cut's measured rest length L0' [m], as the source's given L0 (0.04..9)",
+    )
     p.add_argument('--out', required=True, help='output ROS parameter YAML')
     add_overwrite_option(p, {'--out': 'file'})
     p.set_defaults(func=cmd_scale)

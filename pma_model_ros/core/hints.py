@@ -65,10 +65,18 @@ def pressure_hint(magnitude: float) -> str:
     return f'{unit}? {magnitude:g} {unit} = {magnitude * scale:.6g} Pa'
 
 
-def length_hint(length: float, reference: float = TYPICAL_LENGTH) -> str:
+def length_hint(
+    length: float,
+    reference: float = TYPICAL_LENGTH,
+    within: tuple[float, float] = (0.0, math.inf),
+) -> str:
     """The unit in which ``length`` (a bare number, far above the metres of a muscle) lands nearest
-    to ``reference`` [m] (the muscle's rest length where known), and the value in metres:
-    ``cm? 23 cm = 0.23 m``.
+    to ``reference`` [m] (the muscle's rest length where known) by ratio, among those where it
+    lands ``within`` [m] (the lengths the caller takes), and the value in metres:
+    ``cm? 23 cm = 0.23 m``; ``''`` where no unit lands within.
     """
-    unit, scale = min(LENGTH_UNITS, key=lambda u: abs(math.log(length * u[1] / reference)))
+    units = [u for u in LENGTH_UNITS if within[0] <= length * u[1] <= within[1]]
+    if not units:
+        return ''
+    unit, scale = min(units, key=lambda u: abs(math.log(length * u[1] / reference)))
     return f'{unit}? {length:g} {unit} = {length * scale:.6g} m'

@@ -31,7 +31,7 @@ from ..core.files.node_parameters import (
     PROCESS_PARAMETERS,
     SPECS,
 )
-from ..core.files.param_file import all_node_settings, NodeSettings
+from ..core.files.param_file import all_node_settings, GIVEN_LENGTH, NodeSettings
 from ..core.physics.models import ALIASES, get_model, MODELS
 
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
@@ -120,9 +120,10 @@ def block_of(model: str | None) -> str | None:
 
 def expected_undeclared(name: str) -> bool:
     """Whether a parameter file's entry ``name`` is one a node reads without declaring it: a
-    known model's block entry or identification result.
+    known model's block entry or identification result, or the muscle's given rest length (a
+    record beside a calibrated one, :data:`~pma_model_ros.core.files.param_file.GIVEN_LENGTH`).
     """
-    return _MODEL_ENTRY.fullmatch(name) is not None
+    return _MODEL_ENTRY.fullmatch(name) is not None or name.endswith(f'muscle.{GIVEN_LENGTH}')
 
 
 class ModelBlocks:

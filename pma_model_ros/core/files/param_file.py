@@ -6,6 +6,9 @@ Layout (every value SI; ``config/dmsp_10_250.yaml``, its martens entry)::
       ros__parameters:
         muscle: {name: DMSP-10-250, nominal_length: 0.25, inner_diameter: 0.01,
                  membrane_thickness: 0.0018, fiber_angle: 0.49916416607, max_pressure: 800000.0}
+        # a file of pma-model fit also has muscle.given_nominal_length [m]: the L0 of the spec
+        # as given (measured), where nominal_length is the calibrated one; a record for
+        # pma-model scale, not a ROS parameter
         model: martens                   # the default model
         length_range: [0.198, 0.25]      # identified length range [m]
         pressure_range: [0.0, 650000.0]  # identified gauge pressure range [Pa] (absent: rated)
@@ -70,6 +73,18 @@ NODE_DEFAULTS = {
     name: SPECS[name].default
     for name in ('ambient_pressure', 'pressure_reference', 'max_input_age')
 }
+
+
+#: Key of ``muscle`` holding the given (measured) rest length [m] beside a calibrated
+#: ``nominal_length`` (module doc); not part of the spec the models use.
+GIVEN_LENGTH = 'given_nominal_length'
+
+
+def spec_mapping(muscle: object) -> object:
+    """The muscle spec keys of a file's ``muscle`` mapping: without :data:`GIVEN_LENGTH`."""
+    if isinstance(muscle, dict):
+        return {k: v for k, v in muscle.items() if k != GIVEN_LENGTH}
+    return muscle
 
 
 #: Parameters rclpy gives every node; a file may set them.
@@ -221,7 +236,7 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     for key in ('muscle', 'length_range', 'models', *(('model',) if model is None else ())):
         if key not in parameters:
             raise ValueError(missing_key(key, parameters, MUSCLE_KEYS))
-    spec = MuscleSpec.from_mapping(parameters['muscle'])
+    spec = MuscleSpec.from_mapping(spec_mapping(parameters['muscle']))
     name = get_model(model if model is not None else parameters['model']).name
     models = parameters['models']
     if not isinstance(models, dict) or not isinstance(models.get(name), dict):

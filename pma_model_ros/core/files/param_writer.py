@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .param_file import NODE_DEFAULTS
+from .param_file import GIVEN_LENGTH, NODE_DEFAULTS
 from ..identification.force_map import ForceMap
 from ..identification.protocols import Fit
 from ..identification.selection import edge_err, interior_err, ModelReport
@@ -69,15 +69,23 @@ def held_out_entry(model: str, nested: np.ndarray, fmap: ForceMap) -> dict:
 
 
 def build_parameters(
-    spec: MuscleSpec, default: str, domain: Domain, models: dict[str, dict]
+    spec: MuscleSpec,
+    default: str,
+    domain: Domain,
+    models: dict[str, dict],
+    given_length: float | None = None,
 ) -> dict:
-    """The full parameter-file mapping for one muscle."""
+    """The full parameter-file mapping for one muscle; ``given_length`` [m]: the spec's rest
+    length as given, beside a calibrated ``spec.nominal_length`` (``muscle.given_nominal_length``,
+    :mod:`.param_file`).
+    """
+    muscle = {k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()}
+    if given_length is not None:
+        muscle[GIVEN_LENGTH] = _num(given_length)
     return {
         '/**': {
             'ros__parameters': {
-                'muscle': {
-                    k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()
-                },
+                'muscle': muscle,
                 'model': default,
                 'length_range': [_num(domain.length_min), _num(domain.length_max)],
                 **(

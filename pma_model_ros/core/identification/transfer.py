@@ -33,6 +33,11 @@ a calibration                 nominal_length [m]; pressure_offset    1; 0
                               [Pa]
 ============================  =====================================  =========================
 
+s is taken between GIVEN rest lengths, the ones a user measures: the new cut's and the source's
+(:func:`given_length`: ``muscle.given_nominal_length``, written by ``pma-model fit`` beside a
+calibrated ``muscle.nominal_length``).  A calibrated L0 moves by the same s, so the source's
+measured rest-length row lands at the new cut's measured rest length.
+
 A model missing from :data:`EXPONENTS` is refused by name.  The validity domain moves with the
 muscle in contraction: ``length_range``, the held-out lengths and a calibrated ``nominal_length``
 are multiplied by s; pressures, forces and errors in % of the max force are not.
@@ -45,6 +50,8 @@ import math
 import re
 
 from .calibration import LENGTH_BOUND
+from ..files.param_file import GIVEN_LENGTH, spec_mapping
+from ..hints import length_hint
 from ..physics.geometry import MuscleSpec
 from ..physics.models import get_model
 
@@ -62,7 +69,11 @@ EXPONENTS: dict[str, tuple[float, ...]] = {
 #: significant digits of the written lengths (as the parameter writer's; parameters are written
 #: in full, for the round trip)
 _DIGITS = 12
-_LONGEST = 10.0  #: [m] longest rest length a muscle spec takes
+#: [m] The rest lengths Festo cuts a DMSP to, every diameter: 40 to 9000 mm (Festo's catalogue).
+#: Outside them no muscle of the type exists to serve.
+FESTO_LENGTHS = (0.04, 9.0)
+#: The header line ``pma-model fit`` writes the given rest length in (files without the key).
+_HEADER_GIVEN = re.compile(r'given nominal_length ([0-9.eE+-]+) m')
 
 
 def _num(value: float) -> float:
@@ -84,13 +95,66 @@ def renamed(name: str, old_length: float, new_length: float) -> str:
     return f'{name}-{_millimetres(new_length)}'
 
 
+def check_rest_length(length: object, reference: float) -> float:
+    """``length`` [m] if a rest length Festo cuts (:data:`FESTO_LENGTHS`), else ValueError (one
+    line; a number too large names the unit it looks like, by its ratio to ``reference`` [m], the
+    source's given rest length).
+    """
+    if isinstance(length, bool) or not isinstance(length, (int, float)):
+        raise ValueError(f'rest length must be a number in m, got {length!r}')
+    low, high = FESTO_LENGTHS
+    if not (math.isfinite(length) and low <= length <= high):
+        hint = length_hint(length, reference, FESTO_LENGTHS) if length > high else ''
+        raise ValueError(
+            f'rest length must be in [{low:g}, {high:g}] m (the lengths Festo cuts a DMSP to), '
+            f'got {length!r}' + (f'; {hint}' if hint else '')
+        )
+    return float(length)
+
+
+def given_length(parameters: dict, header: str = '') -> tuple[float, str]:
+    """The source's given rest length L0 [m] (as measured, before any calibration) and a note
+    where it is not the file's key.
+
+    ``muscle.given_nominal_length`` where the file has it; else the ``given nominal_length X m``
+    of ``header`` (the file's comment lines, as ``pma-model fit`` writes them), noted; else
+    ``muscle.nominal_length``, noted where it is the default model's calibrated L0 (then the given
+    one is unknown).
+    """
+    muscle = _one_muscle(parameters)
+    muscle = muscle if isinstance(muscle, dict) else {}
+    if GIVEN_LENGTH in muscle:
+        return _length(muscle[GIVEN_LENGTH], GIVEN_LENGTH, 'muscle'), ''
+    length = _length(muscle.get('nominal_length'), 'nominal_length', 'muscle')
+    found = _HEADER_GIVEN.search(header)
+    if found:
+        given = float(found[1])
+        if given == length:
+            return given, ''
+        return given, (
+            f'given L0 {given:g} m read from the header (muscle.nominal_length {length:g} m is '
+            'the calibrated one)'
+        )
+    models = parameters.get('models')
+    block = models.get(parameters.get('model')) if isinstance(models, dict) else None
+    if isinstance(block, dict) and block.get('nominal_length') == length:
+        return length, (
+            f'no given L0 in the file: --length is taken in the sense of the calibrated L0 '
+            f'{length:g} m; for a measured rest length X pass X x {length:g} / the given L0'
+        )
+    return length, ''
+
+
 def frame_of(name: str) -> str:
     """The frame_id the parameter writer derives from a muscle name."""
     return name.lower().replace('-', '_')
 
 
-def scale_parameters(parameters: dict, nominal_length: float) -> tuple[dict, list[str]]:
-    """The ``ros__parameters`` of the muscle in ``parameters`` cut to ``nominal_length``.
+def scale_parameters(
+    parameters: dict, nominal_length: float, given: float | None = None
+) -> tuple[dict, list[str]]:
+    """The ``ros__parameters`` of the muscle in ``parameters`` cut to the given rest length
+    ``nominal_length``.
 
     Parameters
     ----------
@@ -98,17 +162,21 @@ def scale_parameters(parameters: dict, nominal_length: float) -> tuple[dict, lis
         ``ros__parameters`` of one identified muscle (:mod:`~pma_model_ros.core.files.param_file`
         layout; SI units).
     nominal_length : float
-        The new rest length L0' [m], in (0, 10].
+        The new cut's given (measured) rest length L0' [m], in :data:`FESTO_LENGTHS`.
+    given : float, optional
+        The source's given rest length L0 [m] (default: :func:`given_length` of ``parameters``).
 
     Returns
     -------
     dict
         A new mapping (``parameters`` is not changed): every model's ``params`` multiplied by
         s**k (:data:`EXPONENTS`, s = L0' / L0), ``muscle.nominal_length``, ``length_range``, each
-        model's calibrated ``nominal_length`` and held-out ``lengths`` [m] by s; the muscle renamed
-        ``<type>-<L0' in mm>`` (:func:`renamed`), and ``joint_name`` / ``frame_id`` with it where
-        they were the old name's.  Everything else (pressures, the identification figures, which
-        are the source map's at equal contraction, node settings) is kept.
+        model's calibrated ``nominal_length`` and held-out ``lengths`` [m] by s;
+        ``muscle.given_nominal_length`` L0' (where the source has one or it differs from
+        ``muscle.nominal_length``); the muscle renamed ``<type>-<L0' in mm>`` (:func:`renamed`),
+        and ``joint_name`` / ``frame_id`` with it where they were the old name's.  Everything
+        else (pressures, the identification figures, which are the source map's at equal
+        contraction, node settings) is kept.
     list of str
         One note per thing kept that a user may want to set (a ``joint_name``, ``frame_id`` or
         ``hardware_id`` of their own).
@@ -116,33 +184,30 @@ def scale_parameters(parameters: dict, nominal_length: float) -> tuple[dict, lis
     Raises
     ------
     ValueError
-        A rest length that is not a positive finite length up to 10 m, a file of several muscles
+        A rest length Festo does not cut (:func:`check_rest_length`), a file of several muscles
         or joints, a model without a transfer (one line naming it), or a malformed block.
 
     """
-    if isinstance(nominal_length, bool) or not isinstance(nominal_length, (int, float)):
-        raise ValueError(f'rest length must be a number in m, got {nominal_length!r}')
-    if not (math.isfinite(nominal_length) and 0 < nominal_length <= _LONGEST):
-        raise ValueError(
-            f'rest length must be in (0, {_LONGEST:g}] m, got {nominal_length!r}'
-            + ('; millimetres? divide by 1000' if _LONGEST < nominal_length < math.inf else '')
-        )
-    for key in ('muscles', 'joints'):
-        if key in parameters:
-            raise ValueError(
-                f"a file with '{key}:' has no one muscle to cut; scale one muscle's file"
-            )
-    spec = MuscleSpec.from_mapping(parameters.get('muscle'))
+    spec = MuscleSpec.from_mapping(spec_mapping(_one_muscle(parameters)))
+    given = given_length(parameters)[0] if given is None else given
+    nominal_length = check_rest_length(nominal_length, given)
     models = parameters.get('models')
     if not isinstance(models, dict):
         raise ValueError('models must be a mapping of model name -> block')
     for name in models:
         if get_model(name).name not in EXPONENTS:
             raise ValueError(f'model {name!r} has no cut-to-length transfer; remove its block')
-    ratio = nominal_length / spec.nominal_length
+    ratio = nominal_length / given
     out = copy.deepcopy(parameters)
-    new_name = renamed(spec.name, spec.nominal_length, nominal_length)
-    out['muscle'] = dict(out['muscle'], name=new_name, nominal_length=_num(nominal_length))
+    new_name = renamed(spec.name, given, nominal_length)
+    muscle = out['muscle'] | {'name': new_name}
+    if spec.nominal_length == given:  # the given L0 itself: the new one as typed
+        muscle['nominal_length'] = _num(nominal_length)
+    else:
+        muscle['nominal_length'] = _num(spec.nominal_length * ratio)
+    if GIVEN_LENGTH in muscle or muscle['nominal_length'] != nominal_length:
+        muscle[GIVEN_LENGTH] = _num(nominal_length)
+    out['muscle'] = muscle
     length_range = parameters.get('length_range')
     if not (isinstance(length_range, list) and len(length_range) == 2):
         raise ValueError(f'length_range must be [min, max] in m, got {length_range!r}')
@@ -178,7 +243,23 @@ def scale_parameters(parameters: dict, nominal_length: float) -> tuple[dict, lis
     return out, notes
 
 
-def _length(value: object, model: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f'models.{model}: lengths must be numbers in m, got {value!r}')
+def _one_muscle(parameters: dict) -> object:
+    """The ``muscle`` entry of a file of one muscle; ValueError for a file of several or a joint
+    file.
+    """
+    for key in ('muscles', 'joints'):
+        if key in parameters:
+            raise ValueError(
+                f"a file with '{key}:' has no one muscle to cut; scale one muscle's file"
+            )
+    return parameters.get('muscle')
+
+
+def _length(value: object, model: str, where: str = 'models') -> float:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not (math.isfinite(value) and value > 0)
+    ):
+        raise ValueError(f'{where}.{model}: lengths must be positive numbers in m, got {value!r}')
     return float(value)
