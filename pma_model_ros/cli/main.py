@@ -39,4 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (CliError, ValueError, OSError) as err:
         print(f'pma-model: error: {err}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: outputs are written whole or not at all, workers ended
+        print('pma-model: interrupted', file=sys.stderr)
+        return 130  # 128 + SIGINT, as a shell reports it
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -103,7 +104,17 @@ def build_parameters(
 
 
 def write_parameters(path: str | Path, parameters: dict, header: str) -> None:
+    """Write a parameter file whole or not at all: into a new file beside ``path`` (a link's
+    target), renamed over it once written; interrupted or failed, ``path`` is as it was.
+    """
     text = yaml.safe_dump(parameters, sort_keys=False, default_flow_style=None, width=120)
-    Path(path).write_text(
-        ''.join(f'# {line}\n' for line in header.splitlines()) + text, encoding='utf-8'
-    )
+    target = os.path.realpath(path)
+    folder, name = os.path.split(target)
+    partial = os.path.join(folder, f'.{name}.{os.getpid()}.partial')
+    try:
+        with open(partial, 'x', encoding='utf-8') as out:
+            out.write(''.join(f'# {line}\n' for line in header.splitlines()) + text)
+        os.replace(partial, target)
+    finally:
+        if os.path.exists(partial):
+            os.unlink(partial)
