@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import CONFIGS, REPO
+from conftest import central_difference, CONFIGS, force_rounding, REPO
 from pma_model_ros.core.files.joint_file import joints, load_joints
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.physics.flags import Flag
@@ -82,9 +82,39 @@ def knee_torque(theta, p0, p1):
     return 0.02 * (force(BIG, p0, 0.26 - 0.02 * theta) - force(BIG, p1, 0.26 + 0.02 * theta))
 
 
-def stiffness_of(torque, theta, p0, p1, h=1e-5):
-    """K = -dτ/dθ [N·m/rad] by a central difference of a hand torque."""
-    return -(torque(theta + h, p0, p1) - torque(theta - h, p0, p1)) / (2 * h)
+def torque_rounding(joint, theta, p0, p1):
+    """A bound [N·m] on the rounding error of a hand torque r (F0 - F1) of ``joint`` at ``theta``
+    [rad] and gauge ``p0``, ``p1`` [Pa] (conftest.force_rounding); both forces are off by about
+    as much within the 2 mm of a central difference's steps.
+    """
+    (l0, l1), r = joint.lengths(theta), joint.transmission.radius(theta)
+    m0, m1 = joint.muscles
+    return abs(r) * (force_rounding(m0, p0, l0) + force_rounding(m1, p1, l1))
+
+
+def hand_torque(torque, joint, theta, p0, p1):
+    """A hand torque [N·m] as ``pytest.approx``, within the rounding of it and of the engine's
+    float path (each off by at most :func:`torque_rounding`).
+    """
+    return pytest.approx(torque(theta, p0, p1), abs=2 * torque_rounding(joint, theta, p0, p1))
+
+
+def stiffness_of(torque, joint, theta, p0, p1):
+    """K = -dτ/dθ [N·m/rad] of a hand torque of ``joint`` by a central difference, and a bound on
+    its error (conftest.central_difference).
+    """
+    slope, error = central_difference(
+        lambda t: torque(t, p0, p1), theta, torque_rounding(joint, theta, p0, p1)
+    )
+    return -slope, error
+
+
+def hand_stiffness(torque, joint, theta, p0, p1):
+    """:func:`stiffness_of` as ``pytest.approx`` within its error bound (the engine's analytic K
+    rounds far below it: its terms are the force's over a length, times r²).
+    """
+    stiffness, error = stiffness_of(torque, joint, theta, p0, p1)
+    return pytest.approx(stiffness, abs=error)
 
 
 def ns(seconds: float) -> int:
@@ -151,10 +181,10 @@ def test_three_joints_estimate_r_times_the_force_difference():
     ]
     for k, _, pair, _ in cases:
         feed(e, k, *pair, t=10.0)
-    for k, theta, pair, torque in cases:
+    for (k, theta, pair, torque), joint in zip(cases, (ELBOW, WRIST, KNEE)):
         tau, stiffness = e.angle(k, theta, 10.01, 10.02)
-        assert tau == pytest.approx(torque(theta, *pair), rel=1e-9)
-        assert stiffness == pytest.approx(stiffness_of(torque, theta, *pair), rel=1e-6)
+        assert tau == hand_torque(torque, joint, theta, *pair)
+        assert stiffness == hand_stiffness(torque, joint, theta, *pair)
         assert e.status(k, 10.02)[:2] == (Level.OK, 'estimating')
     # docs/joints.md's rounded numbers of the worked example
     assert (round(e.state[0].torque, 3), round(e.state[0].stiffness_estimate, 2)) == (-0.692, 3.84)
@@ -234,9 +264,7 @@ def test_angle_noise_keeps_the_branches_of_the_last_motion():
     def held(t, p0, p1):  # the branches of the last motion
         return finger_torque(t, p0, p1, -1.0, 1.0)
 
-    assert e.state[0].stiffness_estimate == pytest.approx(
-        stiffness_of(held, theta, 600e3, 500e3), rel=1e-6
-    )
+    assert e.state[0].stiffness_estimate == hand_stiffness(held, FINGER, theta, 600e3, 500e3)
     assert e.status(0, 1.5)[:2] == (
         Level.OK,
         'estimating',
@@ -425,7 +453,8 @@ def test_a_torque_command_round_trips_through_the_hand_torque():
     e.stiffness(0, 4.5, 0.0)
     p0, p1 = (p - AMBIENT for p in e.command(0, 1.0, 0.0))
     assert elbow_torque(0.2, p0, p1) == pytest.approx(1.0, abs=1e-8)
-    assert stiffness_of(elbow_torque, 0.2, p0, p1) == pytest.approx(4.5, rel=1e-5)
+    stiffness, error = stiffness_of(elbow_torque, ELBOW, 0.2, p0, p1)
+    assert stiffness == pytest.approx(4.5, rel=1e-5, abs=error)
     assert e.status(0, 0.0)[2]['commands'] == 'stiffness 4.5 N·m/rad'
     # a co-contraction command ends the stiffness mode
     e.cocontraction(0, 400e3, 0.0)
@@ -513,8 +542,9 @@ def test_a_bad_input_is_rejected_and_changes_nothing(act, problem, source):
     assert values[source] == '1'
     # the newest inputs are untouched: the same estimate and command as before
     assert e.angle(0, 0.5, 0.0, 0.0) == before and e.command(0, 1.0, 0.0) == before_command
-    assert before == pytest.approx(
-        (elbow_torque(0.5, 400e3, 300e3), stiffness_of(elbow_torque, 0.5, 400e3, 300e3)), rel=1e-6
+    assert before == (
+        hand_torque(elbow_torque, ELBOW, 0.5, 400e3, 300e3),
+        hand_stiffness(elbow_torque, ELBOW, 0.5, 400e3, 300e3),
     )
     for t, level in ((0.999, Level.ERROR), (1.0, Level.OK)):  # held for 1 s, inputs fresh
         feed(e, 0, 400e3, 300e3, t)
