@@ -159,15 +159,15 @@ def force_map_figure(fmap: ForceMap, model: MuscleModel) -> Figure:
     return fig
 
 
-def _grid(fmap: ForceMap, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(pressures, lengths, values on the pressure x length grid) of a full-grid map."""
+def _grid(fmap: ForceMap, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(pressures, lengths, values on the pressure x length grid) of a full-grid map (every
+    pressure measured at every length, once, as Tables A1 and A2); None for another map.
+    """
     pressures, lengths = np.unique(fmap.pressure), np.unique(fmap.length)
     grid = np.full((pressures.size, lengths.size), np.nan)
     grid[np.searchsorted(pressures, fmap.pressure), np.searchsorted(lengths, fmap.length)] = values
     if np.isnan(grid).any() or grid.size != values.size:
-        raise ValueError(
-            'an error map needs a full grid: every pressure measured at every length, once'
-        )
+        return None
     return pressures, lengths, grid
 
 
@@ -181,23 +181,34 @@ def _edges(centres: np.ndarray) -> np.ndarray:
 def error_map_figure(fmap: ForceMap, model: MuscleModel) -> Figure:
     """Model minus measured force at every measured point, in % of the largest measured force.
 
-    Its largest magnitude is eq. 23's err.  Crosses mark measured 0 N (slack) points; the dashed
-    line is where the model starts to pull (the inverse at 0 N).
+    One cell per point of a full-grid map, one coloured dot per point of another (a user's map,
+    measured at pressures of its own per length).  Its largest magnitude is eq. 23's err.  Crosses
+    mark measured 0 N (slack) points; the dashed line is where the model starts to pull (the
+    inverse at 0 N).
     """
     fig = _figure(4.6)
     ax = fig.add_subplot()
     error = 100 * (model.force(fmap.pressure, fmap.length).force - fmap.force) / fmap.max_force
-    pressures, lengths, grid = _grid(fmap, error)
     limit = max(float(np.abs(error).max()), 1e-9)
-    mesh = ax.pcolormesh(
-        _kpa(_edges(pressures)),
-        _mm(_edges(lengths)),
-        grid.T,
-        cmap='RdBu_r',
-        norm=TwoSlopeNorm(0.0, -limit, limit),
-        edgecolors='white',
-        linewidth=0.5,
-    )
+    colours = {'cmap': 'RdBu_r', 'norm': TwoSlopeNorm(0.0, -limit, limit)}
+    grid = _grid(fmap, error)
+    if grid is not None:
+        pressures, lengths, values = grid
+        mesh = ax.pcolormesh(
+            _kpa(_edges(pressures)),
+            _mm(_edges(lengths)),
+            values.T,
+            edgecolors='white',
+            linewidth=0.5,
+            **colours,
+        )
+        xlim = _kpa(_edges(pressures)[[0, -1]])
+    else:
+        lengths = np.unique(fmap.length)
+        mesh = ax.scatter(
+            _kpa(fmap.pressure), _mm(fmap.length), c=error, s=90, edgecolors='0.4', **colours
+        )
+        xlim = (0.0, 1.03 * _kpa(fmap.pressure.max()))
     fig.colorbar(mesh, ax=ax, label=f'model − measured [% of max measured {fmap.max_force:.0f} N]')
     slack = fmap.force == 0
     ax.plot(
@@ -234,7 +245,7 @@ def error_map_figure(fmap: ForceMap, model: MuscleModel) -> Figure:
     ax.set(
         xlabel='gauge pressure p [kPa]',
         ylabel='length L [mm]',
-        xlim=_kpa(_edges(pressures)[[0, -1]]),
+        xlim=xlim,
         title=f'{model.spec.name}: {model.model.name} model error over the measured map',
     )
     ax.grid(False)

@@ -83,10 +83,14 @@ def test_map_figures(tmp_path, draw, muscle):
     assert_written(figures.save(draw(shipped_force_map(muscle), model), tmp_path, 'map'), 'map')
 
 
-def test_error_map_needs_a_full_grid(martens_10_250):
+def test_an_error_map_of_a_map_not_on_a_grid_draws_each_point(tmp_path, martens_10_250):
+    """A user's map is measured at pressures of its own per length: one dot per point."""
     fmap = shipped_force_map('DMSP-10-250')
-    with pytest.raises(ValueError, match='full grid'):
-        figures.error_map_figure(fmap.subset(np.arange(fmap.force.size) != 7), martens_10_250)
+    fmap = fmap.subset(np.arange(fmap.force.size) != 7)
+    fig = figures.error_map_figure(fmap, martens_10_250)
+    (dots,) = fig.axes[0].collections
+    assert dots.get_offsets().shape == (fmap.force.size, 2)
+    assert_written(figures.save(fig, tmp_path, 'map'), 'map')
 
 
 def test_models_figure(tmp_path):
@@ -257,3 +261,99 @@ def test_plot_names_carry_the_input_and_never_overwrite_without_overwrite(tmp_pa
     assert (tmp_path / 'force_map_mine_martens.svg').read_text() == 'mine'
     assert main([*args, '--overwrite']) == 0
     assert (tmp_path / 'force_map_mine_martens.svg').read_text() != 'mine'
+
+
+def _map_csv(path, fmap, scale=1.0):
+    """``fmap`` as a force map CSV, its lengths times ``scale``."""
+    rows = zip(fmap.pressure, fmap.length * scale, fmap.force)
+    path.write_text(
+        'pressure_pa,length_m,force_n\n' + ''.join(f'{p},{float(L)!r},{F}\n' for p, L, F in rows)
+    )
+    return str(path)
+
+
+@pytest.fixture
+def titles(monkeypatch):
+    """The title of every figure ``pma-model plot`` saves."""
+    seen, save = [], figures.save
+
+    def saving(fig, *args, **kwargs):
+        seen.append(fig.axes[0].get_title())
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(figures, 'save', saving)
+    return seen
+
+
+def test_plot_draws_a_users_own_map(tmp_path, capsys, titles):
+    """The shipped DMSP-10-250 cut to 0.382 m and Table A2 with its lengths cut alike (the same
+    muscle type at equal contraction): drawn against the user's --data, the model's eq. 23 err is
+    the file's on Table A2 (4.20 %, its identification), in both map figures.
+    """
+    cut = tmp_path / 'dmsp_10_382.yaml'
+    argv = ['scale', '--config', str(CONFIGS['DMSP-10-250']), '--length', '0.382']
+    assert main([*argv, '--out', str(cut)]) == 0
+    data = _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-10-250'), 0.382 / 0.25)
+    capsys.readouterr()
+    args = ['--config', str(cut), '--data', data, '--out-dir', str(tmp_path), '--format', 'png']
+    assert main(['plot', 'force-map', *args]) == 0
+    assert main(['plot', 'error-map', *args]) == 0
+    err = read_parameters(CONFIGS['DMSP-10-250'])['models']['martens']['err']
+    assert f'{err:.2f}' == '4.20'
+    assert (
+        titles[0]
+        == f'DMSP-10-382: measured force map and the martens model (err {err:.2f} %, eq. 23)'
+    )
+    assert titles[1] == 'DMSP-10-382: martens model error over the measured map'
+    assert capsys.readouterr().out.split()[1::2] == [
+        str(tmp_path / 'force_map_dmsp_10_382_martens.png'),
+        str(tmp_path / 'error_map_dmsp_10_382_martens.png'),
+    ]
+
+
+@pytest.mark.parametrize(
+    'edit, message',
+    [
+        # a fit of another map whose spec kept the name: the map's lengths, not Table A2's
+        (
+            ('length_range: [0.198, 0.25]', 'length_range: [0.331, 0.382]'),
+            "length_range [0.331, 0.382] m, the map's [0.198, 0.25] m",
+        ),
+        (
+            ('inner_diameter: 0.01,', 'inner_diameter: 0.02,'),
+            "inner_diameter 0.02, the map's 0.01",
+        ),
+    ],
+)
+def test_plot_never_draws_another_muscles_dots(tmp_path, capsys, edit, message):
+    text = CONFIGS['DMSP-10-250'].read_text()
+    assert edit[0] in text
+    mine = tmp_path / 'mine.yaml'
+    mine.write_text(text.replace(*edit))
+    for figure in ('force-map', 'error-map', 'all'):
+        argv = ['plot', figure, '--config', str(mine), '--out-dir', str(tmp_path)]
+        assert main(argv) == 2
+        assert capsys.readouterr().err == (
+            f'pma-model: error: {mine}: its DMSP-10-250 is not the shipped one of its map '
+            f'({message}); give the map it was fitted on: --data <csv>\n'
+        )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['mine.yaml']
+
+
+def test_plot_asks_for_the_map_of_a_muscle_without_a_shipped_one(tmp_path, capsys):
+    cut = tmp_path / 'cut.yaml'
+    argv = ['scale', '--config', str(CONFIGS['DMSP-10-250']), '--length', '0.3']
+    assert main([*argv, '--out', str(cut)]) == 0
+    capsys.readouterr()
+    assert main(['plot', 'force-map', '--config', str(cut), '--out-dir', str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (
+        f"pma-model: error: {cut}: no shipped force map for 'DMSP-10-300' (maps: DMSP-10-250, "
+        'DMSP-20-300); give the map it was fitted on: --data <csv>\n'
+    )
+    data = _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-10-250'))
+    argv = ['plot', 'joint', '--config', str(cut), '--data', data, '--out-dir', str(tmp_path)]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (
+        'pma-model: error: --data is the measured map of force-map and error-map (with --config); '
+        'plot joint draws none\n'
+    )

@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import argparse
 import functools
+import math
 from pathlib import Path
 
 from .checks import add_overwrite_option, CliError, refuse_existing
 from .identify import identify_shipped, table3
 from ..core.files.param_file import load_muscle, read_parameters
-from ..core.files.shipped_data import MAPPED_MUSCLES, shipped_force_map
+from ..core.files.shipped_data import MAPPED_MUSCLES, shipped_force_map, shipped_spec
+from ..core.identification.force_map import ForceMap, read_force_map_csv
 from ..core.identification.progress import step
+from ..core.physics.muscle_model import MuscleModel
 
 #: Figures of ``pma-model plot`` and what each needs; ``all`` makes every one whose input is given.
 PLOTS = {
@@ -22,6 +25,53 @@ PLOTS = {
     'timeseries': '--bag',
     'joint': '--config',
 }
+#: The figures that draw measured points or errors against them: the map of ``--data``, else the
+#: shipped map of a shipped muscle (:func:`measured_map`).
+MAP_FIGURES = ('force-map', 'error-map')
+
+
+def measured_map(config: str, muscle: MuscleModel, data: ForceMap | None) -> ForceMap:
+    """The measured map the figures of the muscle file ``config`` draw: ``data`` (the user's
+    ``--data``), else the shipped map of the muscle, only where the file's muscle is that one:
+    the same name, geometry (D0, H0, Theta0) and identified lengths (``length_range``, as ``fit``
+    and ``make-config`` write the map's).  CliError otherwise (one line asking for ``--data``):
+    another muscle's dots are never drawn.
+    """
+    if data is not None:
+        return data
+    name = muscle.spec.name
+    if name not in MAPPED_MUSCLES:
+        raise CliError(
+            f'{config}: no shipped force map for {name!r} (maps: {", ".join(MAPPED_MUSCLES)}); '
+            'give the map it was fitted on: --data <csv>'
+        )
+    fmap, spec = shipped_force_map(name), shipped_spec(name)
+    geometry = ('inner_diameter', 'membrane_thickness', 'fiber_angle')
+    mine = {
+        'length_range': (muscle.domain.length_min, muscle.domain.length_max),
+        **{key: (getattr(muscle.spec, key),) for key in geometry},
+    }
+    theirs = {
+        'length_range': (float(fmap.lengths.min()), float(fmap.lengths.max())),
+        **{key: (getattr(spec, key),) for key in geometry},
+    }
+    differ = [
+        f"{key} {_text(mine[key])}, the map's {_text(theirs[key])}"
+        for key in mine
+        if not all(math.isclose(a, b, rel_tol=1e-9) for a, b in zip(mine[key], theirs[key]))
+    ]
+    if differ:
+        raise CliError(
+            f'{config}: its {name} is not the shipped one of its map ({"; ".join(differ)}); '
+            'give the map it was fitted on: --data <csv>'
+        )
+    return fmap
+
+
+def _text(values: tuple[float, ...]) -> str:
+    """One value, or a range in m."""
+    text = ', '.join(f'{v:.6g}' for v in values)
+    return f'[{text}] m' if len(values) > 1 else text
 
 
 def cmd_plot(args: argparse.Namespace) -> None:
@@ -38,6 +88,12 @@ def cmd_plot(args: argparse.Namespace) -> None:
             raise CliError(f'plot {name} needs {PLOTS[name]}')
         print(f'skipped {name}: no {PLOTS[name]}')
         wanted.remove(name)
+    if args.data and not set(MAP_FIGURES) & set(wanted):
+        raise CliError(
+            f'--data is the measured map of {" and ".join(MAP_FIGURES)} (with --config); '
+            f'plot {args.figure} draws none'
+        )
+    data = read_force_map_csv(args.data) if args.data else None
     jobs = {}  # file stem: a function drawing the figure (inputs read and checked first)
     for config in args.config or ():
         source = Path(config).stem
@@ -54,7 +110,9 @@ def cmd_plot(args: argparse.Namespace) -> None:
         if args.figure == 'joint':
             raise CliError(f"plot joint needs a joint file (with 'joints:'), got {config}")
         model = load_muscle(config, args.model)
-        fmap = shipped_force_map(model.spec.name)
+        if not set(MAP_FIGURES) & set(wanted):
+            continue
+        fmap = measured_map(config, model, data)
         for name, draw in (
             ('force-map', figures.force_map_figure),
             ('error-map', figures.error_map_figure),
@@ -95,6 +153,11 @@ def add_plot_command(sub: argparse._SubParsersAction) -> None:
         nargs='+',
         help='parameter file(s) of mapped muscles, for force-map and error-map; '
         'joint files, for joint',
+    )
+    p.add_argument(
+        '--data',
+        help='measured force map CSV (pressure_pa,length_m,force_n) that force-map and error-map '
+        "draw the --config muscles against (default: a shipped muscle's own map)",
     )
     p.add_argument('--model', default=None, help="override the files' default model")
     p.add_argument(
