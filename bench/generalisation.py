@@ -22,9 +22,11 @@ after ``--``):
 Then a leave-one-muscle-out choice of the rule by the edge figure: for each muscle, the rule with
 the lowest worst edge err over the other three, and that muscle's figure under it.
 
-Usage: ``.venv/bin/python bench/generalisation.py [--quick] [--rules] [-- fit options]``.
-``--quick``: the two shipped maps only; ``--rules``: also each model's rule (hold or extrapolate,
-leave-one-muscle-out on the served edge err of ``fit --model <model>``) against the rule served.
+Usage: ``.venv/bin/python bench/generalisation.py [--quick] [--rules | --selection] [-- fit
+options]``.  ``--quick``: the two shipped maps only; ``--rules``: also each model's rule (hold or
+extrapolate, leave-one-muscle-out on the served edge err of ``fit --model <model>``) against the
+rule served; ``--selection``: only the rule by which ``fit --model all`` chooses its default model,
+leave-one-muscle-out (:func:`model_rules`).
 Not a test.
 """
 
@@ -258,6 +260,106 @@ def rules_by_model(maps: dict, tmp: Path) -> None:
         )
 
 
+def model_rules(maps: dict) -> None:
+    """The rule by which ``fit --model all`` chooses the default model (``RULES`` of
+    :mod:`pma_model_ros.core.identification.validation`), leave-one-muscle-out.
+
+    Per map and rule: the model written, its in-sample err, the whole protocol's nested held-out
+    figures (the model chosen again without each length by the rule: the honest figure of the
+    rule) and the written model's own (what its file serves; a selection figure where the rule
+    looked at it).  For each map judged, the rule chosen on the other maps: the lowest worst
+    whole-protocol figure, rules within :data:`NO_TRADING` of it tied; a tie goes to the lowest
+    sum of the written models' mean held-out err (every length counted once).
+    """
+    from pma_model_ros.core.files.user_files import read_spec_yaml
+    from pma_model_ros.core.identification.calibration import Calibration
+    from pma_model_ros.core.identification.selection import identify_all, MODEL_RULE
+    from pma_model_ros.core.identification.validation import RULES as MODEL_RULES
+    from pma_model_ros.core.physics.models import get_model
+
+    models = tuple(get_model(m) for m in TABLE3_MODELS)
+    rows = {}  # map -> rule -> figures
+    for name, (csv, spec) in maps.items():
+        found = identify_all(
+            read_spec_yaml(spec),
+            read_force_map_csv(csv),
+            models,
+            Calibration(),
+            ('least_squares',),
+        )
+        rows[name] = {}
+        for rule, (default, held_out, chosen) in found.by_rule.items():
+            own = found.reports[default].nested
+            rows[name][rule] = {
+                'model': default,
+                'in-sample': found.reports[default].shipped.err,
+                'interior': interior_edge(held_out)[0],
+                'edge': interior_edge(held_out)[1],
+                'per fold': ' '.join(f'{n[:4]}x{chosen.count(n)}' for n in dict.fromkeys(chosen)),
+                'own int.': interior_edge(own)[0],
+                'own edge': interior_edge(own)[1],
+                'own mean': float(np.nanmean(own)),
+            }
+    print(
+        '\nfit --model all: the model written by each rule, its in-sample err, the whole '
+        "protocol's held-out\nfigures [%] (interior, edge: the model chosen again without each "
+        "length by the rule, per fold)\nand the written model's own (what its file serves)"
+    )
+    columns = ('in-sample', 'interior', 'edge', 'per fold', 'own int.', 'own edge', 'own mean')
+    print(f'{"map":<13}{"rule":<19}{"model":<14}' + ''.join(f'{c:>{len(c) + 2}}' for c in columns))
+    for name, by_rule in rows.items():
+        for rule, row in by_rule.items():
+            print(
+                f'{name:<13}{rule:<19}{row["model"]:<14}'
+                + ''.join(
+                    f'{row[c]:>{len(c) + 2}}'
+                    if isinstance(row[c], str)
+                    else f'{row[c]:>{len(c) + 2}.2f}'
+                    for c in columns
+                )
+            )
+    if len(rows) < 2:
+        return
+
+    def worst(rule: str, names: list[str]) -> float:
+        return max(max(rows[n][rule]['interior'], rows[n][rule]['edge']) for n in names)
+
+    print(
+        f'\nleave-one-muscle-out: the rule with the lowest worst whole-protocol figure on the '
+        f'other maps\n(within {NO_TRADING} pp: tied; a tie to the lowest sum of own mean); '
+        f'served: {MODEL_RULE}'
+    )
+    print(
+        f'{"judged":<14}{"chosen on the others":>22}{"model":>15}{"in-sample":>10}'
+        f'{"interior":>10}{"edge":>8}{"own int.":>10}{"own edge":>10}'
+    )
+    for name in rows:
+        others = [n for n in rows if n != name]
+        lowest = min(worst(r, others) for r in MODEL_RULES)
+        tied = [r for r in MODEL_RULES if worst(r, others) <= lowest + NO_TRADING]
+        rule = min(tied, key=lambda r: sum(rows[n][r]['own mean'] for n in others))
+        row = rows[name][rule]
+        print(
+            f'{name:<14}{rule:>22}{row["model"]:>15}{row["in-sample"]:>10.2f}'
+            f'{row["interior"]:>10.2f}{row["edge"]:>8.2f}{row["own int."]:>10.2f}'
+            f'{row["own edge"]:>10.2f}'
+        )
+    for rule in MODEL_RULES:
+        for base in MODEL_RULES:
+            if base == rule:
+                continue
+            worse = [
+                f'{n} ({what})'
+                for n in rows
+                for what in ('interior', 'edge')
+                if rows[n][rule][what] > rows[n][base][what] + NO_TRADING
+            ]
+            print(
+                f'{rule}: whole-protocol figures worse than {base} by > {NO_TRADING} pp on '
+                + (', '.join(worse) if worse else 'no muscle')
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='the two shipped maps only')
@@ -265,6 +367,11 @@ def main() -> None:
         '--rules',
         action='store_true',
         help='also every model: its served rule against the leave-one-muscle-out choice',
+    )
+    parser.add_argument(
+        '--selection',
+        action='store_true',
+        help='only the rule by which fit --model all chooses its default, leave-one-muscle-out',
     )
     argv = sys.argv[1:]
     options = argv[argv.index('--') + 1 :] if '--' in argv else ['--model', 'martens']
@@ -282,6 +389,8 @@ def main() -> None:
             print(f'independent maps skipped: {INDEPENDENT.relative_to(REPO.parent)} is absent')
         else:
             maps |= INDEPENDENT_MAPS
+        if args.selection:
+            return model_rules(maps)
         for name, (csv, spec) in maps.items():
             results.append(measure(name, csv, spec, options, tmp))
         print(f'pma-model fit options: {" ".join(options) or "(defaults)"}')

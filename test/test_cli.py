@@ -1,5 +1,6 @@
 """The pma-model command line: outputs and one-line errors with exit code 2."""
 
+from dataclasses import replace
 import subprocess
 import sys
 
@@ -11,7 +12,7 @@ from conftest import CONFIGS, REPO
 from pma_model_ros.cli.identify import length_headers, rows_to_add
 from pma_model_ros.cli.main import main
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
-from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
 
 TABLE3_MODELS = {'mckibben', 'andrikopoulos', 'wickramatunge', 'hildebrandt', 'sarosi', 'martens'}
 
@@ -565,13 +566,67 @@ def test_fit_all_models_defaults_to_the_best_held_out_error(tmp_path, capsys):
     params = read_parameters(out)
     models = params['models']
     assert set(models) == TABLE3_MODELS
-    assert params['model'] == min(models, key=lambda m: models[m]['cv_err'])
+    # the lowest mean of the nested held-out errors per length the file keeps
+    assert params['model'] == min(models, key=lambda m: np.mean(models[m]['held_out']['err']))
     assert params['model'] != min(
         models, key=lambda m: models[m]['err']
     )  # Hildebrandt fits best in-sample
     assert all('nominal_length' not in e and 'pressure_offset' not in e for e in models.values())
-    assert 'default model (by held-out err; ' in text and f'): {params["model"]}  err' in text
-    assert 'held-out worst' in text.splitlines()[-1]
+    assert 'default model (by mean held-out err; ' in text
+    assert f'): {params["model"]}  err' in text
+    # one figure for one thing: the last line's are the written model's, as its file and the
+    # force band serve them (the whole protocol's is on the line above, labelled so)
+    entry = models[params['model']]
+    assert (
+        f'held-out worst {entry["cv_err"]:.2f} % (between measured lengths '
+        f'{entry["interior_cv_err"]:.2f} %, beyond them {entry["edge_cv_err"]:.2f} %)'
+        in text.splitlines()[-1]
+    )
+    assert "(the whole protocol's figure, not the default model's own)" in text
+    for length, figure in ((0.23, entry['interior_cv_err']), (0.19, entry['edge_cv_err'])):
+        argv = ['force', '--config', str(out), '--pressure', '300000', '--length', str(length)]
+        assert main(argv) == 0
+        assert f'({figure:.2f} % of 542.5 N: ' in capsys.readouterr().out
+
+
+def test_fit_all_prints_the_written_models_figures_where_the_folds_chose_others(
+    tmp_path, capsys, monkeypatch
+):
+    """Chosen by the interior figure, Table A2 (calibration off) writes Sárosi while the folds
+    choose Martens and Hildebrandt: the whole protocol's figure then differs from Sárosi's own.
+    The last line, the file and the force band give Sárosi's own; the protocol's is labelled.
+    """
+    from pma_model_ros.core.identification import selection
+
+    monkeypatch.setattr(selection, 'MODEL_RULE', 'interior held-out')
+    csv, out = (
+        _map_csv(tmp_path / 'map.csv', shipped_force_map('DMSP-10-250')),
+        tmp_path / 'a.yaml',
+    )
+    flags = ['--no-calibrate-length', '--no-calibrate-pressure', '--out', str(out)]
+    assert (
+        main(['fit', '--data', csv, '--muscle', str(SPEC_10_250), '--model', 'all', *flags]) == 0
+    )
+    lines = capsys.readouterr().out.splitlines()
+    params = read_parameters(out)
+    entry = params['models'][params['model']]
+    assert params['model'] == 'sarosi'
+    own = (entry['cv_err'], entry['interior_cv_err'], entry['edge_cv_err'])
+    assert (
+        lines[-1]
+        .split('held-out worst ')[1]
+        .startswith(
+            f'{own[0]:.2f} % (between measured lengths {own[1]:.2f} %, beyond them {own[2]:.2f} %)'
+        )
+    )
+    protocol = next(line for line in lines if line.startswith('default model (lowest'))
+    assert 'x' in protocol and "(the whole protocol's figure, not the default model's own)" in (
+        protocol
+    )
+    assert f'errs by {own[0]:.2f} % at worst' not in protocol  # the folds chose other models
+    argv = ['force', '--config', str(out), '--pressure', '300000', '--length', '0.23']
+    assert main(argv) == 0
+    assert f'({own[1]:.2f} % of 542.5 N: ' in capsys.readouterr().out
 
 
 def test_fit_held_out_column_is_what_holding_each_length_back_gives(tmp_path, capsys):
@@ -654,9 +709,17 @@ def test_fit_names_the_rows_to_measure_when_the_edge_figure_is_large(tmp_path, c
     advice = next(line for line in lines if line.startswith('beyond the measured lengths'))
     assert '(the longest, predicted from the others)' in advice
     assert (
-        'the rest-length row at L0 0.25 m (measured: it is the edge; a row between 0.234 and '
-        '0.25 m makes it less of an extrapolation)' in advice
+        'rows to measure: one between 0.234 and 0.25 m (the rest-length row, 0.25 m, is '
+        'measured: it is the edge, and a row beside it makes it less of an extrapolation)'
+        in advice
     )
+    # a calibrated L0 just above the longest row names the row measured, not L0
+    calibrated = rows_to_add(
+        np.array([8.81, 2.9, 0.81, 0.53, 0.56]),
+        fmap.lengths,
+        replace(shipped_spec('DMSP-10-250'), nominal_length=0.2512),
+    )
+    assert '(the rest-length row, 0.25 m, L0 0.2512 m as calibrated, is measured' in calibrated
     assert 'the shortest is 0.198 m; the braid pulls down to 0.1644 m' in advice
     assert lines[-1].startswith('default model')  # the last line stays the figures' line
     # not large: an edge within 5 %, or within 1 pp of the lengths between the edges
@@ -668,7 +731,7 @@ def test_fit_names_the_rows_to_measure_when_the_edge_figure_is_large(tmp_path, c
 def test_force_prints_the_expected_error_at_the_length(capsys):
     """Between the measured lengths the worst held-out err of the lengths inside (interpolation),
     from the file; beyond them the worse of the shortest's and longest's, said to be
-    extrapolation.
+    extrapolation where the model is extrapolated and held where the force is held.
     """
     config = str(CONFIGS['DMSP-10-250'])
     held = read_parameters(config)['models']['martens']['held_out']
@@ -683,16 +746,21 @@ def test_force_prints_the_expected_error_at_the_length(capsys):
             f'expected error: about ±{interior * 542.5 / 100:.3g} N ({interior:.2f} % of 542.5 N: '
             'between the measured lengths 0.198..0.25 m'
         )
-    for length in (0.26, 0.19):
+    # 0.19 m: Martens extrapolated below the shortest; 0.26 m: beyond L0 = 0.25 m, held at L0
+    for length, why in (
+        (0.19, 'extrapolation: 0.19 m is beyond the measured lengths 0.198..0.25 m'),
+        (0.26, 'held: 0.26 m is beyond the lengths served, and the force is the one at 0.25 m'),
+    ):
         assert (
             main(['force', '--config', config, '--pressure', '300000', '--length', str(length)])
             == 0
         )
-        band = capsys.readouterr().out.splitlines()[1]
+        force, band = capsys.readouterr().out.splitlines()[:2]
+        assert ('LENGTH_OUT_OF_RANGE' in force) == (length == 0.26)
         assert band.startswith(
-            f'expected error: about ±{edge * 542.5 / 100:.3g} N ({edge:.2f} % of 542.5 N: '
-            f'extrapolation: {length:g} m is beyond the measured lengths 0.198..0.25 m'
+            f'expected error: about ±{edge * 542.5 / 100:.3g} N ({edge:.2f} % of 542.5 N: {why}'
         )
+        assert ('extrapolation' in band) == (length == 0.19)
 
 
 def test_force_where_no_force_was_measured_has_no_band_of_zero(capsys):

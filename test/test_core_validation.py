@@ -90,7 +90,8 @@ def test_the_band_at_a_length():
     assert band.values_at(0.2) == {
         'expected error [N]': '40',  # 8 % of 500 N
         'expected error [% of max force]': (
-            '8 (extrapolation: 0.2 m is beyond the measured lengths 0.219..0.25 m)'
+            '8 (0.2 m is beyond the measured lengths 0.219..0.25 m: the worst of the shortest and '
+            'longest, extrapolated or held there as served)'
         ),
     }
     with pytest.raises(ValueError, match='as many finite lengths as errors'):

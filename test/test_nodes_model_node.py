@@ -95,7 +95,7 @@ def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
     """The nested held-out error that judges the newest length, in N and %: between the measured
     lengths the worst of those inside (the file's ``models.martens.held_out``: 4.66 % at 0.234 m,
     of 542.5 N); beyond them the worse of the shortest's and longest's (8.81 % at 0.25 m), said to
-    be extrapolation.
+    be beyond them (extrapolated or held as served, which the band does not know).
     """
     node = make_node(CONFIGS['DMSP-10-250'])
     diagnostics = record(node._diag_pub)
@@ -115,12 +115,13 @@ def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
     node._on_state(0, raw(state(now, 0.26, 0.0)))  # beyond L0 = 0.25 m, the longest held out
     edge = max(held['err'][0], held['err'][-1])  # 0.25 m and 0.198 m
     assert (
+    beyond = (
+        ' (0.26 m is beyond the measured lengths 0.198..0.25 m: the worst of the shortest and '
+        'longest, extrapolated or held there as served)'
+    )
         expected()
-        == (
-            f'{edge * 542.5 / 100:.3g}',
-            f'{edge:.3g} (extrapolation: 0.26 m is beyond the measured lengths 0.198..0.25 m)',
-        )
-        == ('47.8', '8.81 (extrapolation: 0.26 m is beyond the measured lengths 0.198..0.25 m)')
+        == (f'{edge * 542.5 / 100:.3g}', f'{edge:.3g}{beyond}')
+        == ('47.8', f'8.81{beyond}')
     )
 
 

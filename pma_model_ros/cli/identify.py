@@ -112,12 +112,15 @@ def _print_tables(results: dict[str, Identification]) -> None:
 
 def _default_line(found: Identification) -> str:
     """How the default model was chosen, with the nested figure of that choice."""
+    from ..core.identification.selection import MODEL_RULE
+
     picks = ', '.join(
         f'{name} x{found.chosen.count(name)}' for name in dict.fromkeys(found.chosen)
     )
     return (
-        f'default model (lowest worst held-out err): {found.default}; the choice made again '
-        f'without each length ({picks}) errs by {_worst(found.held_out):.2f} % at worst'
+        f'default model (lowest {MODEL_RULE} err): {found.default}; the choice made again '
+        f'without each length ({picks}) errs by {_worst(found.held_out):.2f} % at worst (the '
+        "whole protocol's figure, not the default model's own)"
     )
 
 
@@ -305,7 +308,7 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
 def cmd_fit(args: argparse.Namespace) -> None:
     from ..core.files.param_writer import build_parameters, model_entry, write_parameters
     from ..core.identification.protocols import check_fit_map
-    from ..core.identification.selection import identify_all
+    from ..core.identification.selection import identify_all, MODEL_RULE
 
     spec = read_spec_yaml(args.muscle)
     if args.model != 'all' and get_model(args.model).hysteresis:
@@ -363,17 +366,19 @@ def cmd_fit(args: argparse.Namespace) -> None:
         f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
         + _FILE_LEGEND,
     )
-    rows = rows_to_add(found.held_out, fold_lengths(fmap), chosen.spec)
+    # the written model's own figures: the file's, the force band's and /diagnostics'
+    written = reports[found.default].nested
+    rows = rows_to_add(written, fold_lengths(fmap), chosen.spec)
     if rows:
         print('\n' + rows)
     if len(reports) > 1:
         print('\n' + _default_line(found))
-        how = f'by held-out err; {reports[found.default].cv_err:.2f} % is a selection figure'
+        how = f'by {MODEL_RULE} err; its own figures, as its file serves them'
     else:
         how = 'the one fitted'
     print(
         f'\ndefault model ({how}): {found.default}  err {chosen.err:.3f} %  rmse '
-        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  {held_out_parts(found.held_out)}'
+        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  {held_out_parts(written)}'
         f'  -> {args.out}'
     )
 
@@ -397,15 +402,17 @@ def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec) -> str:
     rest, longest, shortest = spec.nominal_length, float(lengths[0]), float(lengths[-1])
     side = 'longest' if nested[0] >= nested[-1] else 'shortest'
     at_rest = abs(longest - rest) <= 0.005 * rest  # within a calibrated L0's reach
+    calibrated = '' if f'{rest:.4g}' == f'{longest:.4g}' else f', L0 {rest:.4g} m as calibrated'
     return (
         f'beyond the measured lengths the fit errs by {edge:.2f} % (the {side}, predicted from '
-        f'the others) against {interior:.2f} % between them; '
-        'rows to measure: the rest-length row at L0 '
+        f'the others) against {interior:.2f} % between them; rows to measure: '
         + (
-            f'{rest:.4g} m (measured: it is the edge; a row between {float(lengths[1]):.4g} and '
-            f'{rest:.4g} m makes it less of an extrapolation)'
+            f'one between {float(lengths[1]):.4g} and {longest:.4g} m (the rest-length row, '
+            f'{longest:.4g} m{calibrated}, is measured: it is the edge, and a row beside it makes '
+            'it less of an extrapolation)'
             if at_rest
-            else f'{rest:.4g} m (not measured: the longest is {longest:.4g} m)'
+            else f'the rest-length row at L0 {rest:.4g} m (not measured: the longest is '
+            f'{longest:.4g} m)'
         )
         + ', and the shortest working length (the shortest is '
         f'{shortest:.4g} m; the braid pulls down to {shortest_length(spec):.4g} m)'
@@ -538,7 +545,8 @@ def add_identify_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         '--model',
         required=True,
-        help="model name, e.g. martens; 'all': every Table 3 model, the default by held-out error",
+        help="model name, e.g. martens; 'all': every Table 3 model, the default by mean held-out "
+        'error',
     )
     p.add_argument(
         '--objective',

@@ -49,13 +49,18 @@ def cmd_force(args: argparse.Namespace) -> None:
         f'{describe(int(result.flags))}'
     )
     band = held_out_band(parameters, args.model)
-    print(expected_error(band, muscle.domain, pressure, length, int(result.flags)))
+    held = min(max(length, muscle.limits.length_low), muscle.limits.length_high)
+    print(expected_error(band, muscle.domain, pressure, length, int(result.flags), held))
 
 
-def expected_error(band, domain, pressure: float, length: float, flags: int) -> str:
+def expected_error(
+    band, domain, pressure: float, length: float, flags: int, held: float | None = None
+) -> str:
     """The ``expected error:`` line of ``force``: within the identified pressures (served as such,
     up to ``domain.pressure_max`` [Pa]), the held-out band's figure at ``length`` [m]: between the
-    measured lengths the interpolation's, beyond them the extrapolation's; else why it is unknown.
+    measured lengths the interpolation's, beyond them the extrapolation's, and where the force is
+    held at the length ``held`` [m] (LENGTH_OUT_OF_RANGE in ``flags``) the edge figure, said to
+    be no figure at ``length`` itself; else why it is unknown.
     """
     if band is None:
         return 'expected error: unknown (the parameter file has no held_out errors)'
@@ -65,12 +70,20 @@ def expected_error(band, domain, pressure: float, length: float, flags: int) -> 
             f'0..{domain.pressure_max:g} Pa (the held-out errors hold within them)'
         )
     percent, inside = band.at(length)
+    if flags & Flag.LENGTH_OUT_OF_RANGE:
+        percent = band.edge
     of = f'{percent:.2f} % of {band.max_force:.4g} N'
     lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
     if band.slack_at(length):
         why = (
             "the map's worst held-out err: the held-out lengths that judge it measured no force, "
             'so their own 0 % says only that the model is slack where the muscle was'
+        )
+    elif flags & Flag.LENGTH_OUT_OF_RANGE:
+        why = (
+            f'held: {length:g} m is beyond the lengths served, and the force is the one at '
+            f'{held:g} m; the worst held-out err of the shortest and longest of the measured '
+            f'lengths {lengths}, each served from a fit without it (not a figure at {length:g} m)'
         )
     elif inside:
         why = f'between the measured lengths {lengths}: the worst held-out err of those inside'

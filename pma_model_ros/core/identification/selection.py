@@ -2,10 +2,10 @@
 
 Each model is identified by the ``best`` protocol (:mod:`.protocols`) and judged by nested
 leave-one-length-out errors (:mod:`.validation`): the whole protocol, calibration and choices
-included, re-run without each measured length.  Each model's objective and the default model are
-chosen by the worst held-out error, and every such choice is made again inside each fold.  The fits
-run in worker processes, one per core (:func:`_fit_everything`); the judgement made from them is
-the same to the bit.
+included, re-run without each measured length.  Each model's objective is chosen by the worst
+held-out error and the default model by the mean (:data:`MODEL_RULE`), and every such choice is
+made again inside each fold.  The fits run in worker processes, one per core
+(:func:`_fit_everything`); the judgement made from them is the same to the bit.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from .calibration import Calibration, OFF
 from .force_map import ForceMap
 from .progress import Meter
 from .protocols import Fit, fit_best_all, fit_paper
-from .validation import fit_or_none, HeldOut, OBJECTIVES, select
+from .validation import fit_or_none, HeldOut, OBJECTIVES, RULES, select
 from ..physics.geometry import MuscleSpec
 from ..physics.models import Model
 
@@ -35,6 +35,11 @@ from ..physics.models import Model
 #: spinning takes the shared cores from the other workers.  2^4 cycles: they sleep at once (same
 #: threads, same partition of the work, so the same numbers).
 _WORKER_ENVIRONMENT = {'OPENBLAS_THREAD_TIMEOUT': '4'}
+
+
+#: The rule by which the default model is chosen among several (:data:`~.validation.RULES`),
+#: chosen leave-one-muscle-out on four maps (docs/calibration.md).
+MODEL_RULE = 'mean held-out'
 
 
 @dataclass(frozen=True)
@@ -98,13 +103,16 @@ class Identification:
     """Every model of a map identified and judged, and the default model."""
 
     reports: dict[str, ModelReport]
-    #: the model with the lowest worst held-out err (a selection on the whole map)
+    #: the model chosen by :data:`MODEL_RULE` (a selection on the whole map)
     default: str
     #: nested held-out err per fold of the whole protocol [%]: the model chosen again without
     #: each fold, judged on it (the honest figure of ``default``)
     held_out: np.ndarray
     #: the model chosen in each fold
     chosen: tuple[str, ...]
+    #: (default, held_out, chosen) under each candidate rule of choice
+    #: (:data:`~.validation.RULES`; the default's is :data:`MODEL_RULE`)
+    by_rule: dict[str, tuple[str, np.ndarray, tuple[str, ...]]]
 
 
 def identify_all(
@@ -118,8 +126,9 @@ def identify_all(
 ) -> Identification:
     """Identify every model, judge each by nested held-out error and pick the default.
 
-    Each model's objective (among ``objectives``) and the default model are chosen by the worst
-    leave-one-length-out error, and every such choice is made again inside each fold for the
+    Each model's objective (among ``objectives``) is chosen by the worst leave-one-length-out
+    error, the default model by :data:`MODEL_RULE` (each rule's choice is in ``by_rule``), and
+    every such choice is made again inside each fold for the
     held-out figures (:func:`~pma_model_ros.core.identification.validation.select`).
     ``calibration`` applies to the ``best`` protocol only; the paper protocol keeps the given
     geometry.  ``truth``: forces [N] at the map's points to report held-out errors against (choices
@@ -152,8 +161,11 @@ def identify_all(
             nested,
         )
         candidates |= {(model.name, obj): (h, obj) for obj in objectives}
-    (default, _), held_out, chosen = select(candidates, against)
-    return Identification(reports, default, held_out, tuple(name for name, _ in chosen))
+    by_rule = {}
+    for rule, score in RULES.items():
+        (default, _), held_out, chosen = select(candidates, against, score)
+        by_rule[rule] = (default, held_out, tuple(name for name, _ in chosen))
+    return Identification(reports, *by_rule[MODEL_RULE], by_rule)
 
 
 #: Expected fitting time [s] above which spawned worker processes (each importing the package,

@@ -159,27 +159,80 @@ class HeldOut:
         return max(finite) if finite else np.inf
 
 
+#: A rule of choice: the score (lower is better) of a candidate (its :class:`HeldOut`, its key
+#: there) on the map without fold ``outer`` (None: the whole map).
+Score = Callable[[HeldOut, str, 'int | None'], float]
+
+
+def errors_without(held: HeldOut, key: str, outer: int | None) -> np.ndarray:
+    """The candidate's leave-one-length-out errors [%] on the map without fold ``outer`` (None:
+    the whole map), longest first.
+    """
+    if outer is None:
+        return held.errors(key)
+    others = (j for j in range(len(held.folds)) if j != outer)
+    return np.array([held.error(key, j, frozenset({outer, j})) for j in others])
+
+
+def worst_score(held: HeldOut, key: str, outer: int | None) -> float:
+    """The worst leave-one-length-out error [%] (inf: none could be judged)."""
+    if outer is not None:
+        return held.inner_worst(key, outer)
+    errors = held.errors(key)
+    return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else np.inf
+
+
+def interior_score(held: HeldOut, key: str, outer: int | None) -> float:
+    """The worst leave-one-length-out error [%] on the lengths between the shortest and the
+    longest (interpolation); the worst of all where there are none.
+    """
+    inner = errors_without(held, key, outer)[1:-1]
+    inner = inner[np.isfinite(inner)]
+    return float(inner.max()) if inner.size else worst_score(held, key, outer)
+
+
+def mean_score(held: HeldOut, key: str, outer: int | None) -> float:
+    """The mean leave-one-length-out error [%] (inf: none could be judged): every length counts,
+    and no one of them (an edge no candidate predicts) decides alone.
+    """
+    errors = errors_without(held, key, outer)
+    errors = errors[np.isfinite(errors)]
+    return float(errors.mean()) if errors.size else np.inf
+
+
+def in_sample_score(held: HeldOut, key: str, outer: int | None) -> float:
+    """The in-sample err [%] of the candidate's fit (inf: no fit)."""
+    fits = held.fits_without(frozenset() if outer is None else frozenset({outer}))
+    return float(fits[key].err) if fits is not None else np.inf
+
+
+#: Candidate rules by which a model is chosen among several (``pma-model fit --model all``), each
+#: judged nested; ``bench/generalisation.py --selection`` compares them leave-one-muscle-out.
+RULES: dict[str, Score] = {
+    'worst held-out': worst_score,
+    'interior held-out': interior_score,
+    'mean held-out': mean_score,
+    'in-sample': in_sample_score,
+}
+
+
 def select(
-    candidates: dict[str, tuple[HeldOut, str]], against_truth: bool = False
+    candidates: dict[str, tuple[HeldOut, str]],
+    against_truth: bool = False,
+    score: Score = worst_score,
 ) -> tuple[str, np.ndarray, list[str]]:
-    """Choose among candidates (name -> (its :class:`HeldOut`, its key there)) by the worst
-    leave-one-length-out error, and judge that choice honestly.
+    """Choose among candidates (name -> (its :class:`HeldOut`, its key there)) by the lowest
+    ``score`` (default the worst leave-one-length-out error), and judge that choice honestly.
 
     Returns the whole map's choice, the nested errors per fold [%] (in fold k the choice is made by
-    each candidate's worst error without k, then judged on k) and the candidate chosen per fold.
+    each candidate's score without k, then judged on k) and the candidate chosen per fold.
     """
     names = list(candidates)
-
-    def worst(name: str) -> float:
-        held, key = candidates[name]
-        errors = held.errors(key)
-        return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else np.inf
-
-    chosen = _first_best(names, worst)
+    chosen = _first_best(names, lambda n: score(*candidates[n], None))
     n_folds = len(next(iter(candidates.values()))[0].folds)
     per_fold, errors = [], []
     for k in range(n_folds):
-        name = _first_best(names, lambda n: candidates[n][0].inner_worst(candidates[n][1], k))
+        name = _first_best(names, lambda n: score(*candidates[n], k))
         held, key = candidates[name]
         per_fold.append(name)
         errors.append(held.error(key, k, frozenset({k}), against_truth))
@@ -293,8 +346,9 @@ class HeldOutBand:
                     keys,
                     (
                         newtons,
-                        f'{percent:.3g} (extrapolation: {length:.4g} m is beyond the measured '
-                        f'lengths {min(self.lengths):.4g}..{max(self.lengths):.4g} m)',
+                        f'{percent:.3g} ({length:.4g} m is beyond the measured lengths '
+                        f'{min(self.lengths):.4g}..{max(self.lengths):.4g} m: the worst of the '
+                        'shortest and longest, extrapolated or held there as served)',
                     ),
                 )
             )
