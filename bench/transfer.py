@@ -1,13 +1,18 @@
 """Cut-to-length transfer between two labs' DMSP-20s: how far ``pma-model scale`` carries a fit.
 
-Two directions, each judged per measured length by eq. 23 (the worst |error| of the length, in %
-of the target map's max force) on the served force:
+Two directions, each with the length a user types (the target's measured rest length, in the
+sense of the source's given L0: ``pma-model scale --length 0.274`` and ``--length 0.3``), judged
+per measured length by eq. 23 (the worst |error| of the length, in % of the target map's max
+force) on the served force:
 
-* the shipped DMSP-20-300 (``config/dmsp_20_300.yaml``, Table A1) cut to 0.274 m, on the
-  independent DMSP-20-274 fill map;
-* the independent map fitted (``pma-model fit --model martens``, its default calibration) and cut
-  to 0.300 m, on the shipped Table A1 map.
+* the shipped DMSP-20-300 (``config/dmsp_20_300.yaml``, Table A1, given L0 0.300 m) cut to
+  0.274 m, on the independent DMSP-20-274 fill map;
+* the independent map fitted (``pma-model fit --model martens``, its default calibration: given
+  L0 0.274 m, a calibrated L0 moving by the same factor) and cut to 0.300 m, on the shipped Table
+  A1 map.
 
+A' and B' cut so that the one's given L0 meets the other's calibrated one instead (where the
+independent fit calibrated its L0): how much of the two-lab gap is where the rest length is.
 Each without and with a one-row recalibration: a force gain g fitted on the target's rest-length
 row alone (least squares, closed form g = sum(F m) / sum(m^2), m the transferred model's force),
 judged on the other rows.  Table A1 has no 0.300 m row: its longest row (0.296 m, 1.3 %
@@ -136,7 +141,11 @@ def main() -> int:
             if key in block
         )
         cut_274 = tmp / 'dmsp_20_274.yaml'
-        run(['scale', '--config', str(SHIPPED_300), '--length', '0.274', '--out', str(cut_274)])
+        said = run(
+            ['scale', '--config', str(SHIPPED_300), '--length', '0.274', '--out', str(cut_274)]
+        )
+        print('\n$ pma-model scale --config config/dmsp_20_300.yaml --length 0.274')
+        print(said, end='')
         judge(
             cut_274,
             read_force_map_csv(MAP_274),
@@ -162,7 +171,9 @@ def main() -> int:
                 read_force_map_csv(MAP_274),
                 f"A'. the same, cut to the independent fit's calibrated L0 {length:.5g} m",
             )
-        run(['scale', '--config', str(fitted), '--length', '0.3', '--out', str(cut_300)])
+        said = run(['scale', '--config', str(fitted), '--length', '0.3', '--out', str(cut_300)])
+        print('\n$ pma-model scale --config <fit of DMSP-20-274> --length 0.3')
+        print(said, end='')
         judge(
             cut_300,
             shipped_force_map('DMSP-20-300'),
@@ -170,6 +181,16 @@ def main() -> int:
             + (' ' + ' '.join(quick) if quick else '')
             + f'; calibrated: {calibrated or "nothing"}) cut to 0.300 m, on Table A1',
         )
+        if 'nominal_length' in block:
+            given = read_parameters(fitted)['muscle']['given_nominal_length']
+            length = 0.3 * given / block['nominal_length']
+            argv = ['--length', repr(length), '--out', str(cut_300), '--overwrite']
+            run(['scale', '--config', str(fitted), *argv])
+            judge(
+                cut_300,
+                shipped_force_map('DMSP-20-300'),
+                f"B'. the same, cut to --length {length:.5g} m: its calibrated L0 at 0.300 m",
+            )
     return 0
 
 
