@@ -728,7 +728,7 @@ def test_fit_names_the_rows_to_measure_when_the_edge_figure_is_large(tmp_path, c
     assert rows_to_add(np.array([9.0, 8.5, 3.0, 6.0]), lengths, None) == ''
 
 
-def test_force_prints_the_expected_error_at_the_length(capsys):
+def test_force_prints_the_expected_error_at_the_length(tmp_path, capsys):
     """Between the measured lengths the worst held-out err of the lengths inside (interpolation),
     from the file; beyond them the worse of the shortest's and longest's, said to be
     extrapolation where the model is extrapolated and held where the force is held.
@@ -761,6 +761,18 @@ def test_force_prints_the_expected_error_at_the_length(capsys):
             f'expected error: about ±{edge * 542.5 / 100:.3g} N ({edge:.2f} % of 542.5 N: {why}'
         )
         assert ('extrapolation' in band) == (length == 0.19)
+    # a file whose L0 (0.24 m) is shorter than its measured lengths: 0.245 m lies between them
+    # but beyond L0, so the force is held at L0 and the band says so, with the edge figure
+    short = tmp_path / 'short.yaml'
+    text = CONFIGS['DMSP-10-250'].read_text()
+    short.write_text(text.replace('nominal_length: 0.25,', 'nominal_length: 0.24,', 1))
+    assert short.read_text() != text
+    argv = ['force', '--config', str(short), '--pressure', '300000', '--length', '0.245']
+    assert main(argv) == 0
+    force, band = capsys.readouterr().out.splitlines()[:2]
+    assert 'LENGTH_OUT_OF_RANGE' in force and 'between the measured lengths' not in band
+    assert f'({edge:.2f} % of 542.5 N: held: 0.245 m is beyond the lengths served' in band
+    assert 'the force is the one at 0.24 m' in band
 
 
 def test_force_where_no_force_was_measured_has_no_band_of_zero(capsys):
