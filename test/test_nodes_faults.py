@@ -7,13 +7,24 @@ the context down, ``spin`` returns through ExternalShutdownException (SIGTERM) o
 """
 
 import signal
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 import pytest
+from sensor_msgs.msg import FluidPressure, JointState
 
 from conftest import CONFIGS
-from node_messages import model_statuses, RELIABLE_QOS, stamp_key
+from node_messages import (
+    AMBIENT,
+    model_statuses,
+    pressure,
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    stamp_key,
+    state,
+    status_values,
+)
 from pma_model_ros.tools import node_process
 
 pytestmark = pytest.mark.ros
@@ -79,3 +90,54 @@ def test_signal_ends_both_nodes_cleanly_under_load(sig, ros, processes, namespac
     for proc in nodes:
         assert proc.wait(10) == 0, why()
     assert 'Traceback' not in why() and 'Error' not in why(), why()
+
+
+def test_a_stalled_node_skips_what_waited_and_answers_fresh_inputs(ros, processes, namespace):
+    """model_node's process stopped for 0.3 s (SIGSTOP) while inputs keep coming: when it runs
+    again, what was sent more than 10 ms before the SIGCONT (longer than max_queue_delay, 5 ms,
+    plus the wire) is skipped, counted in /diagnostics (``skipped behind``), and the inputs sent
+    after it are answered.
+    """
+    node = processes.node('model_node', namespace, CONFIGS['DMSP-10-250'])
+    why = lambda: processes.output(node)  # noqa: E731
+    estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
+    diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
+    pressures = ros.node.create_publisher(FluidPressure, f'{namespace}/pressure', SENSOR_QOS)
+    states = ros.node.create_publisher(JointState, f'{namespace}/muscle_state', SENSOR_QOS)
+    sent: list[tuple[int, int]] = []  # (stamp [ns], system time after both publishes [ns])
+
+    def publish() -> None:
+        stamp = ros.now()
+        pressures.publish(pressure(stamp.to_msg(), AMBIENT + 300e3))
+        states.publish(state(stamp.to_msg(), 0.23, 0.0))
+        sent.append((stamp.nanoseconds, time.time_ns()))
+
+    ros.spin_until(lambda: estimates, 20, 'a first estimate', every=publish, period=0.005)
+    node.send_signal(signal.SIGSTOP)
+    stopped = time.monotonic()
+    try:
+        ros.spin_until(
+            lambda: time.monotonic() - stopped > 0.3, 5, 'the stall', every=publish, period=0.005
+        )
+    finally:
+        resumed, last = time.time_ns(), sent[-1][0]
+        node.send_signal(signal.SIGCONT)
+    ros.spin_until(
+        lambda: estimates and stamp_key(estimates[-1]) > last,
+        20,
+        'an estimate of an input sent after the stall',
+        every=publish,
+        period=0.005,
+        diagnose=why,
+    )
+    waited = {stamp for stamp, after in sent if resumed - after > 10_000_000}
+    answered = {stamp_key(e) for e in estimates}
+    stall = {stamp for stamp in waited if stamp > stamp_key(estimates[0])}
+    assert stall, 'no input was sent during the stall'
+    assert not answered & stall, f'{len(answered & stall)} of {len(stall)} waited inputs answered'
+
+    def skipped() -> int:
+        statuses = model_statuses(diagnostics, namespace)
+        return int(status_values(statuses[-1]).get('skipped behind', 0)) if statuses else 0
+
+    ros.spin_until(lambda: skipped() > 0, 10, 'a report of what was skipped', diagnose=why)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure, JointState
+from test_nodes_model_node import frozen_clock
 import yaml
 
 from conftest import CONFIGS, REPO
@@ -56,7 +57,7 @@ def test_model_node_per_muscle(private_node):
     estimates, commands = record(node._estimate_pubs[0]), record(node._command_pubs[0])
     diagnostics = record(node._diag_pub)
     rng = np.random.default_rng(SEED)
-    stamp = node.get_clock().now().to_msg()
+    stamp = frozen_clock(node)  # fresh however slowly the test runs
     node._on_state(0, raw(state(stamp, L)))  # a valid length: a pressure would be answered
     for callback, msg in (
         (node._on_pressure, pressure(stamp, AMBIENT + P)),
@@ -68,7 +69,7 @@ def test_model_node_per_muscle(private_node):
         node.publish_status(node.now())
         assert errors(diagnostics) == [INVALID]
     assert estimates == [] and commands == []
-    stamp = node.get_clock().now().to_msg()
+    stamp = frozen_clock(node)  # fresh however slowly the test runs
     node._on_state(0, raw(state(stamp, L)))  # (the length before the fuzz is stale by now)
     node._on_pressure(0, raw(pressure(stamp, AMBIENT + P)))
     assert [m.wrench.force.x for m in estimates] == pytest.approx(
@@ -84,7 +85,7 @@ def test_model_node_a_known_joint_state_layout_with_no_length(private_node):
     """
     node = private_node(ModelNode, '--params-file', CONFIGS['DMSP-10-250'])
     estimates, diagnostics = record(node._estimate_pubs[0]), record(node._diag_pub)
-    stamp = node.get_clock().now().to_msg()
+    stamp = frozen_clock(node)  # fresh however slowly the test runs
     node._on_state(0, raw(state(stamp, L)))  # the layout of one joint, one length
     empty = state(stamp, L)
     empty.position, empty.velocity = [], []

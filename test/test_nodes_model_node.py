@@ -8,6 +8,7 @@ The expected forces come from each muscle's own single-muscle file through the c
 import math
 import subprocess
 import sys
+import time
 
 from builtin_interfaces.msg import Time
 import pytest
@@ -114,11 +115,11 @@ def test_diagnostics_carry_the_expected_error_at_the_served_length(make_node):
     assert expected() == (f'{worst * 542.5 / 100:.3g}', f'{worst:.3g}') == ('25.3', '4.66')
     node._on_state(0, raw(state(now, 0.26, 0.0)))  # beyond L0 = 0.25 m, the longest held out
     edge = max(held['err'][0], held['err'][-1])  # 0.25 m and 0.198 m
-    assert (
     beyond = (
         ' (0.26 m is beyond the measured lengths 0.198..0.25 m: the worst of the shortest and '
         'longest, extrapolated or held there as served)'
     )
+    assert (
         expected()
         == (f'{edge * 542.5 / 100:.3g}', f'{edge:.3g}{beyond}')
         == ('47.8', f'8.81{beyond}')
@@ -275,3 +276,87 @@ def test_the_node_does_not_load_the_identification_tools():
     code = "import sys, pma_model_ros.nodes.model_node; print('scipy.optimize' in sys.modules)"
     run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == 'False'
+
+
+def received(ago: float) -> dict:
+    """A message info as the single-threaded executor hands it over: written and received
+    ``ago`` [s] ago (rmw's ``source_timestamp`` and ``received_timestamp``, system clock [ns]).
+    """
+    t = time.time_ns() - round(ago * 1e9)
+    return {'source_timestamp': t, 'received_timestamp': t}
+
+
+def test_an_input_that_waited_in_its_queue_is_skipped_and_counted(make_node):
+    """A node that fell behind takes inputs that DDS received long ago: one that waited longer
+    than max_queue_delay (5 ms by default) is counted as received and skipped, unread, and the
+    next one in time is answered; each answer's delay since reception is reported, and past
+    max_answer_delay (20 ms) it holds the level at WARN.
+    """
+    node = make_node(CONFIGS['DMSP-10-250'])
+    node.engine.health.report_interval = 0
+    estimates, diagnostics = record(node._estimate_pubs[0]), record(node._diag_pub)
+    stamp = frozen_clock(node)
+    node._on_state(0, raw(state(stamp, 0.23, 0.0)), received(0.0))
+    node._on_pressure(0, raw(pressure(stamp, AMBIENT + 300e3)), received(1.0))  # waited 1 s
+    assert estimates == []
+    counts = node.engine.counts(0)
+    assert counts['received pressure'] == 1 and counts['skipped behind'] == 1
+    assert 'rejected pressure' not in counts  # skipped, not judged
+    node._on_pressure(0, raw(pressure(stamp, AMBIENT + 300e3)), received(0.0))
+    assert [m.wrench.force.x for m in estimates] == pytest.approx(
+        [float(MARTENS.force(300e3, 0.23).force)], rel=1e-9
+    )
+    status = diagnostics[-1].status[0]  # the report of the change to OK, with this answer
+    values = {kv.key: kv.value for kv in status.values}
+    assert status.message == 'estimating' and float(values['answer delay max [ms]']) < 20
+    assert values['skipped behind'] == '1'
+    # an answer 30 ms after the reception of its input (the callback itself was slow)
+    node._on_state(0, raw(state(stamp, 0.23, 0.0)), received(0.03))
+    assert node.engine.counts(0)['skipped behind'] == 2  # 30 ms > 5 ms in the queue: skipped
+    node._max_queue_delay = 10**9  # let it through: its answer is then 30 ms late
+    node._on_state(0, raw(state(stamp, 0.23, 0.0)), received(0.03))
+    level, message = node.engine.level(0, node.now())
+    assert level == 1 and message.startswith('answers late: ')
+    assert '(max_answer_delay 20 ms)' in message
+    assert float(message.split()[2]) >= 30.0
+    assert diagnostics[-1].status[0].message == message
+
+
+def test_without_reception_times_nothing_is_skipped(make_node):
+    """The callbacks as the events executor calls them (no message info): every input is read,
+    and no answer delay is reported.
+    """
+    node = make_node(CONFIGS['DMSP-10-250'], executor='events')
+    assert not node.reception_times
+    estimates = record(node._estimate_pubs[0])
+    stamp = frozen_clock(node)
+    node._on_state(0, raw(state(stamp, 0.23, 0.0)))
+    node._on_pressure(0, raw(pressure(stamp, AMBIENT + 300e3)))
+    assert len(estimates) == 1
+    assert 'answer delay max [ms]' not in node.engine.statuses(node.now())[0].values
+    assert all(s._callback_type.name == 'MessageOnly' for s in node.subscriptions)
+
+
+def test_the_single_executor_hands_sensor_inputs_their_reception_times(make_node):
+    node = make_node(EXAMPLE, input_mode='combined')
+    kinds = {s.topic_name: s._callback_type.name for s in node.subscriptions}
+    assert kinds == {
+        '/muscle_pressures': 'WithMessageInfo',
+        '/muscle_states': 'WithMessageInfo',
+        '/force_commands': 'MessageOnly',  # reliable commands: never skipped
+    }
+
+
+def test_combined_inputs_skipped_and_answered_for_every_muscle(make_node):
+    node = make_node(EXAMPLE)
+    estimates = record(node._estimate_pubs[0])
+    stamp = frozen_clock(node)
+    lengths = [INPUTS[n][2] for n in INPUTS]
+    node._on_states(raw(joint_states(stamp, INPUTS, lengths)), received(1.0))
+    assert [node.engine.counts(k)['skipped behind'] for k in range(4)] == [1, 1, 1, 1]
+    node._on_states(raw(joint_states(stamp, INPUTS, lengths)), received(0.0))
+    pressures = [AMBIENT + v[1] for v in INPUTS.values()]
+    node._on_pressures(raw(joint_states(stamp, INPUTS, pressures)), received(0.0))
+    assert len(estimates) == 1
+    values = [s.values for s in node.engine.statuses(node.now())]
+    assert all(float(v['answer delay max [ms]']) < 20 for v in values)

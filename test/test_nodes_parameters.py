@@ -68,14 +68,14 @@ def test_every_node_passes_its_keywords_to_rclpy(make, cls):
 
 def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
     """One muscle: 15 parameters of the muscle (hardware_id among them), 4 of its model's block
-    (params, extrapolates, nominal_length, pressure_offset), 8 node-wide (``autostart`` among
-    them), 2 of rclpy's: 29 (30 with ``executor``, which startup.run declares); and the QoS
-    overrides of its 6 topics, 2 each (nodes/qos.py).  Four muscles: 19 each under ``<name>.``.
+    (params, extrapolates, nominal_length, pressure_offset), 11 node-wide (``autostart`` and
+    ``executor`` among them), 2 of rclpy's: 32; and the QoS overrides of its 6 topics, 2 each
+    (nodes/qos.py).  Four muscles: 19 each under ``<name>.``.
     """
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     names = listed(node)
     qos = [n for n in names if n.startswith('qos_overrides.')]
-    assert len(names) - len(qos) == 29 and len(qos) == 6 * 2
+    assert len(names) - len(qos) == 32 and len(qos) == 6 * 2
     assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
     multi = make(ModelNode, MULTI)
     muscles = yaml.safe_load(MULTI.read_text())['/**']['ros__parameters']['muscles']
@@ -98,7 +98,16 @@ def test_read_only_where_the_node_never_changes_a_parameter(make):
         for n, d in zip(listed(node), node.describe_parameters(listed(node)))
         if d.read_only and not n.startswith('qos_overrides.')  # rclpy's, always read-only
     }
-    assert fixed - RCLPY == {'muscles', 'input_mode', 'pairing', 'pairing_slop', 'autostart'}
+    assert fixed - RCLPY == {
+        'muscles',
+        'input_mode',
+        'pairing',
+        'pairing_slop',
+        'max_queue_delay',
+        'max_answer_delay',
+        'autostart',
+        'executor',
+    }
 
 
 @pytest.mark.parametrize(

@@ -71,6 +71,8 @@ class ManagedNode(LifecycleNode):
         self._starting = False
         with refusing(self):
             self.autostart = declare(self, SPECS['autostart']).value
+            #: its executor hands subscriptions each message's reception time (``single``)
+            self.reception_times = declare(self, SPECS['executor']).value == 'single'
         try:  # so that they can be listed and set while unconfigured
             self.declare_all()
         except (ParameterException, ValueError):

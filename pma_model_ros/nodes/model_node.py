@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from functools import partial
 import sys
+from time import time_ns
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
@@ -36,10 +37,12 @@ from .diagnostics import diagnostic_array
 from .managed import ManagedNode
 from .parameters import warn_unknown
 from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
+from .rclpy_private import with_message_info
 from .startup import run
-from ..core.files.node_parameters import topic_prefixes
+from ..core.files.node_parameters import SPECS, topic_prefixes
 from ..core.files.param_file import node_engine, node_pairing, NodeSettings
 from ..core.runtime.engine import Engine
+from ..core.runtime.pairing import nanoseconds, QueueDelay
 from ..wire.cdr import fluid_pressure
 from ..wire.muscle_inputs import MuscleInputs
 
@@ -79,6 +82,11 @@ class ModelNode(ManagedNode):
         flat = self._blocks.would_be([])
         self.settings = model_params.all_settings(flat, self._names, self.instance)
         self._pairing = node_pairing(flat)
+        self._max_answer_delay = flat.get('max_answer_delay', SPECS['max_answer_delay'].default)
+        #: [ns] an input taken later than this after its reception is skipped (_behind)
+        self._max_queue_delay = nanoseconds(
+            flat.get('max_queue_delay', SPECS['max_queue_delay'].default)
+        )
         self.reset()
         warn_unknown(self, model_params.expected_undeclared)
         muscles = [
@@ -98,7 +106,9 @@ class ModelNode(ManagedNode):
 
     def reset(self) -> None:
         """A fresh engine of the current settings (no input known, counters at zero)."""
-        self.engine = node_engine(self.settings, **self._pairing)
+        self.engine = node_engine(
+            self.settings, **self._pairing, max_answer_delay=self._max_answer_delay
+        )
         self.use(self.settings)
 
     def release(self) -> None:
@@ -110,6 +120,11 @@ class ModelNode(ManagedNode):
         overridable by parameters (:mod:`.qos`).
         """
         self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
+        count = 1 if self.mode == 'combined' else len(self.settings)
+        #: each sensor topic's queue wait (_behind), by input and muscle (combined: one)
+        self._waits = {
+            s: [QueueDelay() for _ in range(count)] for s in ('pressure', 'muscle_state')
+        }
         if self.mode == 'combined':
             self._estimate_pubs = [publisher(self, JointState, 'force_estimates', RELIABLE)]
             self._command_pubs = [publisher(self, JointState, 'pressure_commands', RELIABLE)]
@@ -118,7 +133,7 @@ class ModelNode(ManagedNode):
                 ('muscle_states', self._on_states, SENSOR_INPUT),
                 ('force_commands', self._on_commands, RELIABLE),
             ):
-                subscription(self, JointState, topic, callback, qos, raw=True)
+                self._timed(subscription(self, JointState, topic, callback, qos, raw=True))
             return
         prefixes = topic_prefixes(self._names)
         self._estimate_pubs = [
@@ -133,7 +148,16 @@ class ModelNode(ManagedNode):
                 (JointState, 'muscle_state', self._on_state, SENSOR_INPUT),
                 (WrenchStamped, 'force_command', self._on_command, RELIABLE),
             ):
-                subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
+                self._timed(
+                    subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
+                )
+
+    def _timed(self, sub) -> None:
+        """An input subscription of a sensor's topic gets each message's reception time, where
+        the executor passes it (:attr:`reception_times`).
+        """
+        if self.reception_times and sub.qos_profile.reliability == SENSOR_INPUT.reliability:
+            with_message_info(sub)
 
     def use(self, settings: list[NodeSettings]) -> None:
         """Translate messages for the muscles of ``settings`` (their joint names and frames)."""
@@ -166,34 +190,61 @@ class ModelNode(ManagedNode):
         self.settings = settings
         self.use(settings)
 
-    # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
-    def _on_pressure(self, k: int, data: bytes) -> None:
-        if not self.active:
+    # --- callbacks: bytes in, bytes out, only while active (the gate: the first line).  With
+    # DDS's message info (``info``), an input that waited longer than max_queue_delay is skipped
+    # (_behind), and each answer's delay since the input would have arrived is counted.
+    def _on_pressure(self, k: int, data: bytes, info: dict | None = None) -> None:
+        if not self.active or info is not None and self._behind(info, 'pressure', k):
             return
         now = self.now()
-        self._answer(k, self.inputs.pressure(k, data, now), now)
+        self._answer(k, self.inputs.pressure(k, data, now), now, info, k)
 
-    def _on_state(self, k: int, data: bytes) -> None:
-        if not self.active:
+    def _on_state(self, k: int, data: bytes, info: dict | None = None) -> None:
+        if not self.active or info is not None and self._behind(info, 'muscle_state', k):
             return
         now = self.now()
-        self._answer(k, self.inputs.muscle_state(k, data, now), now)
+        self._answer(k, self.inputs.muscle_state(k, data, now), now, info, k)
 
-    def _on_pressures(self, data: bytes) -> None:
-        if not self.active:
+    def _on_pressures(self, data: bytes, info: dict | None = None) -> None:
+        if not self.active or info is not None and self._behind(info, 'pressure', None):
             return
         now = self.now()
-        self._answer(0, self.inputs.pressures(data, now), now)
+        self._answer(0, self.inputs.pressures(data, now), now, info, None)
 
-    def _on_states(self, data: bytes) -> None:
-        if not self.active:
+    def _on_states(self, data: bytes, info: dict | None = None) -> None:
+        if not self.active or info is not None and self._behind(info, 'muscle_state', None):
             return
         now = self.now()
-        self._answer(0, self.inputs.states(data, now), now)
+        self._answer(0, self.inputs.states(data, now), now, info, None)
 
-    def _answer(self, k: int, estimate: bytes | None, now: int) -> None:
+    def _behind(self, info: dict, source: str, k: int | None) -> bool:
+        """Whether the input waited longer than ``max_queue_delay`` (:class:`QueueDelay`): then
+        it is counted as skipped, unread (muscle ``k``; None: every muscle).  Else its wait [ns]
+        and when it was taken [ns, system clock] are kept for :meth:`_answer`.
+        """
+        taken = time_ns()
+        waited = self._waits[source][k or 0].waited(
+            info['source_timestamp'], info['received_timestamp'], taken
+        )
+        if waited <= self._max_queue_delay:
+            self._waited, self._taken = waited, taken
+            return False
+        self.engine.behind(source, k)
+        now = self.now()
+        if self.engine.status_due(now):
+            self.publish_status(now)
+        return True
+
+    def _answer(
+        self, k: int, estimate: bytes | None, now: int, info: dict | None, muscle: int | None
+    ) -> None:
+        """Publish ``estimate`` on publisher ``k``; with ``info``, its delay since the input
+        would have arrived (of ``muscle``; None: of every muscle) to the engine.
+        """
         if estimate is not None:
             self._estimate_pubs[k].publish(estimate)
+            if info is not None:
+                self.engine.answered(muscle, self._waited + time_ns() - self._taken, now)
         if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
 

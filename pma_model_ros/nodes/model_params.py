@@ -4,7 +4,7 @@
 One node serves one muscle (the per-muscle parameters at the top level, as in
 ``config/dmsp_10_250.yaml``) or, when ``muscles`` lists names, one muscle per name with the
 per-muscle parameters under ``<name>.`` (``config/example_multi_muscle.yaml``); the others are
-node-wide.  ``executor`` is declared by :mod:`pma_model_ros.nodes.startup`, ``autostart`` by
+node-wide.  ``executor`` and ``autostart`` are declared by
 :mod:`pma_model_ros.nodes.managed`.
 
 Of a muscle's ``models.<model>.*`` entries only the selected ``model``'s block

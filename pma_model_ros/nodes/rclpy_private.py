@@ -10,6 +10,10 @@ fails then).
 * :func:`clock_handle`: the C clock behind an rclpy ``Clock`` (``Clock.handle``, "not to be used
   outside of rclpy"): ``handle.get_now().nanoseconds`` reads the time without building an rclpy
   ``Time`` (:meth:`.managed.ManagedNode.now`, on every input).
+* :func:`with_message_info`: a subscription whose callback, with a second parameter of default
+  None, gets the message info (reception time) as well (``Subscription._callback_type``: rclpy
+  decides by whether the callback can be called with one argument); for the
+  SingleThreadedExecutor only: this rclpy's EventsExecutor fails on it.
 * :func:`lifecycle_state`: a lifecycle node's state and the transitions it has
   (``LifecycleNode._state_machine``; the public ``get_available_transitions`` is a service),
   to say why a ``change_state`` call is refused.
@@ -22,6 +26,7 @@ from rclpy.clock import Clock
 from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.subscription import Subscription
 
 
 def parameter_overrides(node: Node) -> dict[str, Parameter]:
@@ -38,3 +43,11 @@ def lifecycle_state(node: LifecycleNode) -> tuple[str, list[tuple[int, str]]]:
     """The label of ``node``'s current state and the (id, label) of each transition it has."""
     machine = node._state_machine
     return machine.current_state[1], [(t[0], t[1]) for t in machine.available_transitions]
+
+
+def with_message_info(subscription: Subscription) -> Subscription:
+    """``subscription``, its callback called with the message and its info
+    (``info['received_timestamp']``: when DDS received it [ns, system clock]).
+    """
+    subscription._callback_type = Subscription.CallbackType.WithMessageInfo
+    return subscription

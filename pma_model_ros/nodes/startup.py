@@ -1,9 +1,10 @@
 """Start-up of the nodes: a bad parameter file or value ends the process with one clear line.
 
 Every node spins on the executor named by its read-only ROS parameter ``executor``:
-``events`` (``rclpy.experimental.EventsExecutor``, the default) or ``single`` (rclpy's
-SingleThreadedExecutor); docs/performance.md compares them.  Several nodes in one process
-(``pma_composed``, :mod:`.composed`) share one executor: their ``executor`` parameters must agree.
+``single`` (rclpy's SingleThreadedExecutor, the default) or ``events``
+(``rclpy.experimental.EventsExecutor``); docs/performance.md compares them.  Several nodes in one
+process (``pma_composed``, :mod:`.composed`) share one executor: their ``executor`` parameters must
+agree.
 """
 
 from __future__ import annotations

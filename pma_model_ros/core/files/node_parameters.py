@@ -299,11 +299,32 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         read_only=True,
     ),
     ParameterSpec(
+        'max_queue_delay',
+        'double',
+        0.005,
+        'an input that waited longer than this since its publisher wrote it (less the usual '
+        'transport time) is skipped (counted `skipped behind`): a node that falls behind answers '
+        'its newest inputs (`executor: single`; the events executor passes no message info)',
+        's',
+        (1e-4, 3600.0),
+        read_only=True,
+    ),
+    ParameterSpec(
+        'max_answer_delay',
+        'double',
+        0.02,
+        'an answer published longer than this after its input would have arrived holds the '
+        'level at WARN (`answers late`) for a second (`executor: single`)',
+        's',
+        (1e-4, 3600.0),
+        read_only=True,
+    ),
+    ParameterSpec(
         'executor',
         'string',
-        'events',
+        'single',
         'rclpy executor spinning the node: `single` '
-        '(SingleThreadedExecutor) or `events` (EventsExecutor)',
+        '(SingleThreadedExecutor) or `events` (the experimental EventsExecutor)',
         choices=EXECUTORS,
         read_only=True,
     ),
@@ -317,8 +338,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
-#: Declared by every node's process, not by its parameter code: ``executor`` (nodes/startup.py)
-#: and ``autostart`` (nodes/managed.py).
+#: Declared by every node's process, not by its parameter code: ``executor`` (nodes/startup.py;
+#: the managed nodes' shell too, nodes/managed.py) and ``autostart`` (nodes/managed.py).
 PROCESS_PARAMETERS = ('executor', 'autostart')
 #: The entries of a model's block ``models.<model>.``: its ROS parameters (the selected model's)...
 MODEL_BLOCK = ('params', 'extrapolates', 'nominal_length', 'pressure_offset')

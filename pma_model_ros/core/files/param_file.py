@@ -393,13 +393,18 @@ def node_engine(
     settings: Sequence[NodeSettings],
     pairing: str = SPECS['pairing'].default,
     slop: float = SPECS['pairing_slop'].default,
+    max_answer_delay: float = SPECS['max_answer_delay'].default,
 ) -> Engine:
     """The engine model_node runs for ``settings`` (one per muscle): their configs, the node's
-    report timing (:func:`~pma_model_ros.core.runtime.health.node_timing`) and its ``pairing``
-    (``slop`` [s]).
+    report timing (:func:`~pma_model_ros.core.runtime.health.node_timing`), its ``pairing``
+    (``slop`` [s]) and ``max_answer_delay`` [s].
     """
     return Engine(
-        [s.config for s in settings], **node_timing(len(settings)), pairing=pairing, slop=slop
+        [s.config for s in settings],
+        **node_timing(len(settings)),
+        pairing=pairing,
+        slop=slop,
+        max_answer_delay=max_answer_delay,
     )
 
 

@@ -50,6 +50,7 @@ class Counter(enum.IntEnum):
     COMMANDS = 9
     NO_LENGTH = 10
     STALE_COMMAND = 11
+    BEHIND = 12
 
 
 LABELS = (
@@ -65,6 +66,7 @@ LABELS = (
     'pressure commands',
     'commands without fresh length',
     'stale force_command',
+    'skipped behind',
 )
 #: Inputs by topic name: (received counter, rejected counter).
 SOURCES = {
@@ -79,10 +81,12 @@ class Engine:
 
     ``hold`` [s]: how long a rejected input (ERROR) or a warning flag (WARN) keeps a muscle's
     level up; ``pairing``, ``slop`` [s]: :mod:`.pairing`; ``report_interval`` [s]: see
-    :meth:`~.health.Health.due`.  After an input, until the next one: ``estimated`` (a mask over
-    the input's muscles: N, or 1 for one muscle's input; ``every``: all N of an input of every
-    muscle), ``forces`` [N] and ``flags`` (over the same muscles) describe the answer, ``stamp``
-    [ns] is its stamp (the newest input stamp among the muscles estimated).
+    :meth:`~.health.Health.due`; ``max_answer_delay`` [s]: an answer given later than this after
+    its input was received holds the level at WARN (:meth:`answered`).  After an input, until
+    the next one: ``estimated`` (a mask over the input's muscles: N, or 1 for one muscle's
+    input; ``every``: all N of an input of every muscle), ``forces`` [N] and ``flags`` (over the
+    same muscles) describe the answer, ``stamp`` [ns] is its stamp (the newest input stamp among
+    the muscles estimated).
     """
 
     def __init__(
@@ -92,9 +96,11 @@ class Engine:
         pairing: str = 'every_input',
         slop: float = 0.0,
         report_interval: float = 0.0,
+        max_answer_delay: float = SPECS['max_answer_delay'].default,
     ) -> None:
         SPECS['pairing'].check(pairing)
         SPECS['pairing_slop'].check(slop)
+        SPECS['max_answer_delay'].check(max_answer_delay)
         ages = {c.max_input_age for c in configs}
         if len(ages) != 1:
             raise ValueError(f'max_input_age is node-wide: got {sorted(ages)}')
@@ -108,6 +114,7 @@ class Engine:
             max_age,
             nanoseconds(hold),
             nanoseconds(report_interval),
+            nanoseconds(max_answer_delay),
         )
         self.muscles = Muscles(configs)
         self.configs = tuple(configs)
@@ -286,6 +293,22 @@ class Engine:
         health.warn_one(k, flags, now)
         health.count(Counter.COMMANDS, k)
         return pressure
+
+    def behind(self, source: str, which: int | None) -> None:
+        """Count an input of ``source`` (``pressure`` or ``muscle_state``) of muscle ``which``
+        (None: every muscle, a combined message) skipped unread: the node took it from its queue
+        longer than ``max_queue_delay`` after DDS received it (a node that fell behind skips to
+        its newest inputs; offline, nothing waits in a queue).
+        """
+        self.health.count(SOURCES[source][0], which)
+        self.health.count(Counter.BEHIND, which)
+
+    def answered(self, k: int | None, delay: int, now: int) -> None:
+        """The answer to an input went out ``delay`` [ns] after the input was received: an input
+        of muscle ``k``, or (None) of every muscle, whose answer holds the muscles
+        :attr:`estimated`.
+        """
+        self.health.answered(k if k is not None or self.every else self.estimated, delay, now)
 
     def reject(self, k: int, source: str, reason: str, now: int) -> None:
         """Count a message of ``source`` (``pressure``, ``muscle_state`` or ``force_command``)

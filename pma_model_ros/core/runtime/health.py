@@ -6,14 +6,16 @@ One implementation for model_node's and joint_node's engines, so both nodes repo
 * ERROR for ``hold`` after a rejected input (``invalid input: <reason>``) or a stale command
   (``stale <command>: stamp is ...``), and while an input was never received or is stale
   (``no <input> received yet``, ``stale <input>: newest stamp is ...``);
-* WARN for ``hold`` after a warning flag of an estimate or command (:data:`WARN_FLAGS`);
+* WARN for ``hold`` after a warning flag of an estimate or command (:data:`WARN_FLAGS`), or an
+  answer given longer than ``max_answer_delay`` after its input was received (``answers late``);
 * else OK, ``estimating``.
 
 A report is due when a level differs from the last report (at most every ``report_interval``);
 the nodes also report every second.  Each status's values: the non-zero counters, then per input
 what diagnostic_updater's FrequencyStatus and TimeStampStatus report, over the window since the
-previous report, then the engine's own values and :attr:`Health.extra` (static key-values per
-entity: a hook for, e.g., identification results).
+previous report, the longest time from an input's reception to its answer in that window
+(``answer delay max [ms]``, where the node knows reception times), then the engine's own values and
+:attr:`Health.extra` (static key-values per entity: a hook for, e.g., identification results).
 
 An event concerns every entity (``which`` None: kept as one number, so that an input of every
 muscle costs no array operation), the entities of a boolean mask, or one entity (an int).
@@ -108,6 +110,16 @@ def stale_text(name: str, which: str, age: int, max_age: int) -> str:
     return f'stale {name}: {which} is {when} (max_input_age {max_age / SECOND:g} s)'
 
 
+def late_text(delay: int, bound: int) -> str:
+    """``answers late: <delay> ms after their input arrived (max_answer_delay <bound> ms)``
+    (``delay``, ``bound`` [ns]).
+    """
+    return (
+        f'answers late: {delay / 1e6:.3g} ms after their input arrived (max_answer_delay '
+        f'{bound / 1e6:g} ms)'
+    )
+
+
 @dataclass(frozen=True)
 class Status:
     level: Level
@@ -121,7 +133,7 @@ class Health:
 
     ``stamps`` (inputs x count, [ns]) is the newest valid stamp of each input, written by its
     owner (:meth:`arrived`; NEVER: none); ``max_age`` [ns]: freshness; ``hold`` [ns]: how long a
-    rejection or warning keeps the level up.
+    rejection or warning keeps the level up; ``max_answer_delay`` [ns]: :meth:`answered`.
     """
 
     def __init__(
@@ -133,6 +145,7 @@ class Health:
         max_age: int,
         hold: int = SECOND,
         report_interval: int = 0,
+        max_answer_delay: float = np.inf,
     ) -> None:
         names = [tuple(inputs)] * count if isinstance(inputs[0], str) else list(map(tuple, inputs))
         shape = (len(names[0]), count)
@@ -153,6 +166,11 @@ class Health:
         # when each entity last refused an input or command, and the text of it
         self._rejected_at, self._latched = np.full(count, NEVER, np.int64), [''] * count
         self._warned_at = np.full((count, len(WARN_FLAGS)), NEVER, np.int64)
+        # the longest reception-to-answer delay [ns] of this window (-1: none known), and when
+        # each entity last answered later than max_answer_delay, how late [ns]
+        self.max_answer_delay = max_answer_delay
+        self._answer_max, self._answer_max_all = [-1] * count, -1
+        self._late_at, self._late_by = np.full(count, NEVER, np.int64), [0] * count
         #: each entity's level in the last report (-1: none), and its time [ns] (NEVER: none)
         self.reported = np.full(count, -1, np.int64)
         self._window_start = np.full(count, NEVER, np.int64)
@@ -201,6 +219,23 @@ class Health:
                 if delay > high[k]:
                     high[k] = delay
 
+    def answered(self, which: Which, delay: int, now: int) -> None:
+        """The entities ``which`` were answered ``delay`` [ns] after their input was received;
+        past ``max_answer_delay`` that holds their level at WARN for ``hold``.
+        """
+        if which is None:
+            self._answer_max_all = max(self._answer_max_all, delay)
+            late = range(len(self._answer_max))
+        else:
+            late = [which] if isinstance(which, int) else np.flatnonzero(which).tolist()
+            for k in late:
+                if delay > self._answer_max[k]:
+                    self._answer_max[k] = delay
+        if delay > self.max_answer_delay:
+            for k in late:
+                self._late_at[k], self._late_by[k] = now, delay
+            self._steady = False
+
     def reject(self, k: int, reason: str, now: int) -> None:
         """Entity ``k`` refused an input for ``reason`` (counted by the caller)."""
         self._refuse(k, invalid_text(reason), now)
@@ -243,7 +278,7 @@ class Health:
     # --- levels and reports
     def levels(self, now: int) -> np.ndarray:
         """Every entity's level."""
-        warned = self._warned_at.max(axis=1)
+        warned = np.maximum(self._warned_at.max(axis=1), self._late_at)
         return levels_of(now, self._rejected_at, self.stamps, warned, self.hold, self.max_age)
 
     def level(self, k: int, now: int) -> tuple[Level, str]:
@@ -256,10 +291,11 @@ class Health:
             if not fresh(stamp, now, self.max_age):
                 return Level.ERROR, stale_text(name, 'newest stamp', now - stamp, self.max_age)
         warned = self._warned_at[k].tolist()
-        if now - max(warned) < self.hold:
-            return Level.WARN, '; '.join(
-                sorted({text for text, at in zip(_WARN_TEXTS, warned) if now - at < self.hold})
-            )
+        texts = {text for text, at in zip(_WARN_TEXTS, warned) if now - at < self.hold}
+        if now - self._late_at.item(k) < self.hold:
+            texts.add(late_text(self._late_by[k], self.max_answer_delay))
+        if texts:
+            return Level.WARN, '; '.join(sorted(texts))
         return Level.OK, OK_TEXT
 
     def restore(
@@ -323,6 +359,9 @@ class Health:
             values = {label: str(n) for label, n in zip(self.labels, self.counts(k)) if n}
             for i, name in enumerate(self.inputs[k]):
                 values |= _input_values(name, windows[k], limit, *(c[i][k] for c in columns))
+            answer = max(self._answer_max[k], self._answer_max_all)
+            if answer >= 0:
+                values['answer delay max [ms]'] = f'{answer / 1e6:.3f}'
             values |= own(k) if own else {}
             values |= self.extra[k]
             statuses.append(Status(level, message, values))
@@ -333,6 +372,7 @@ class Health:
         for row in self._delay_max:
             row[:] = [-np.inf] * len(row)
         self._delay_all = [[np.inf, -np.inf] for _ in self._delay_all]
+        self._answer_max[:], self._answer_max_all = [-1] * len(self._answer_max), -1
         self._steady, self.last_report = False, now
         return statuses
 

@@ -17,7 +17,8 @@ plain integers for one muscle (:meth:`Pairing.pair_one`, the one-muscle fast pat
 recording, ``every_input`` is :meth:`Pairing.pair`'s array rule over the stream
 (:func:`pair_every_input`), pinned to the engine by ``test/test_bags_estimate.py``;
 ``approximate_time`` runs :meth:`Pairing.pair_one` along it.  Freshness is :func:`fresh`
-everywhere, on integers and on arrays.
+everywhere, on integers and on arrays.  How long an input waited in the node's queue, which a node
+that fell behind uses to skip to its newest inputs, is :class:`QueueDelay`'s.
 """
 
 from __future__ import annotations
@@ -170,3 +171,35 @@ class Pairing:
             new[PRESSURE, k] = new[LENGTH, k] = False
         ok = fresh(p, now, self.max_age) and fresh(length, now, self.max_age)
         return ok, not ok, False
+
+
+class QueueDelay:
+    """How long each input of one topic waited before the node took it [ns]: the time since its
+    publisher wrote it (DDS's source timestamp) less the topic's usual transport time.
+
+    The usual transport time is the lowest reception-minus-source difference of the inputs
+    received in the current and the previous :data:`WINDOW`, which also takes out a constant
+    offset between the two machines' clocks and follows a step of either within two windows.
+    Unlike the reception time alone, this counts a stall of the whole node process too: what was
+    sent meanwhile is received, and stamped received, only when the process runs again.
+    """
+
+    #: [ns] How long one window of transport times lasts.
+    WINDOW = SECOND
+
+    def __init__(self) -> None:
+        self._start = NEVER  # [ns] reception time of the current window's first input
+        self._current = self._previous = 0  # [ns] lowest transport time of each window
+
+    def waited(self, source: int, received: int, now: int) -> int:
+        """The wait [ns] of an input written at ``source`` and received at ``received`` [ns],
+        taken at ``now`` [ns] (each on its machine's system clock).
+        """
+        transport = received - source
+        if received - self._start > self.WINDOW:
+            first = self._start == NEVER
+            self._previous = transport if first else self._current
+            self._start, self._current = received, transport
+        elif transport < self._current:
+            self._current = transport
+        return now - source - min(self._current, self._previous)

@@ -337,6 +337,7 @@ class Recording:
             Counter.ESTIMATES: estimates.at,
             Counter.COMMANDS: commands.at,
             Counter.NO_LENGTH: at[wanted[~with_length]],
+            Counter.BEHIND: at[:0],  # offline nothing waits in a queue
         }
         counters = [at[masks[c]] if c in masks else positions[c] for c in Counter]
         texts = []  # what each rejection latches, as Health.reject and Health.stale_command
