@@ -720,6 +720,14 @@ def test_fit_names_the_rows_to_measure_when_the_edge_figure_is_large(tmp_path, c
         replace(shipped_spec('DMSP-10-250'), nominal_length=0.2512),
     )
     assert '(the rest-length row, 0.25 m, L0 0.2512 m as calibrated, is measured' in calibrated
+    # calibrated 1.5 % above the longest row, which is at the given L0 (0.25 m): still measured
+    far = rows_to_add(
+        np.array([8.81, 2.9, 0.81, 0.53, 0.56]),
+        fmap.lengths,
+        replace(shipped_spec('DMSP-10-250'), nominal_length=0.2538),
+        0.25,
+    )
+    assert '(the rest-length row, 0.25 m, L0 0.2538 m as calibrated, is measured' in far
     assert 'the shortest is 0.198 m; the braid pulls down to 0.1644 m' in advice
     assert lines[-1].startswith('default model')  # the last line stays the figures' line
     # not large: an edge within 5 %, or within 1 pp of the lengths between the edges

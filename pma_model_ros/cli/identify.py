@@ -368,7 +368,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
     )
     # the written model's own figures: the file's, the force band's and /diagnostics'
     written = reports[found.default].nested
-    rows = rows_to_add(written, fold_lengths(fmap), chosen.spec)
+    rows = rows_to_add(written, fold_lengths(fmap), chosen.spec, spec.nominal_length)
     if rows:
         print('\n' + rows)
     if len(reports) > 1:
@@ -387,11 +387,11 @@ def cmd_fit(args: argparse.Namespace) -> None:
 EDGE_LARGE, EDGE_MARGIN = 5.0, 1.0
 
 
-def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec) -> str:
+def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec, given: float | None = None) -> str:
     """What to measure when the fit's edge figure (nested held-out err per fold [%] at the fold
     ``lengths`` [m], longest first) is large against its interior one: the rows that make the
-    lengths served there interpolation, the rest-length row (L0) and the shortest working length;
-    '' when it is not large.
+    lengths served there interpolation, the rest-length row (L0 of ``spec``, or the ``given`` L0
+    [m] where the fit calibrated it) and the shortest working length; '' when it is not large.
     """
     from ..core.identification.selection import edge_err, interior_err
     from ..core.physics.geometry import shortest_length
@@ -401,7 +401,8 @@ def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec) -> str:
         return ''
     rest, longest, shortest = spec.nominal_length, float(lengths[0]), float(lengths[-1])
     side = 'longest' if nested[0] >= nested[-1] else 'shortest'
-    at_rest = abs(longest - rest) <= 0.005 * rest  # within a calibrated L0's reach
+    # the longest row at the given L0, or within a calibrated L0's reach of it
+    at_rest = any(abs(longest - L0) <= 0.005 * L0 for L0 in {rest, given or rest})
     calibrated = '' if f'{rest:.4g}' == f'{longest:.4g}' else f', L0 {rest:.4g} m as calibrated'
     return (
         f'beyond the measured lengths the fit errs by {edge:.2f} % (the {side}, predicted from '
