@@ -97,9 +97,9 @@ def test_every_node_comes_up_and_answers_in_one_process(ros, processes, namespac
         ('positive: flexor', 'positive: biceps', "joint 'elbow': positive must name"),
         (
             '    joints: [elbow]\n',
-            '    joints: [elbow]\n    executor: single\n',
-            'the nodes of one process share one executor, got model_node: events, '
-            'joint_node: single',
+            '    joints: [elbow]\n    executor: events\n',
+            'the nodes of one process share one executor, got model_node: single, '
+            'joint_node: events',
         ),
     ],
 )

@@ -360,3 +360,43 @@ def test_combined_inputs_skipped_and_answered_for_every_muscle(make_node):
     assert len(estimates) == 1
     values = [s.values for s in node.engine.statuses(node.now())]
     assert all(float(v['answer delay max [ms]']) < 20 for v in values)
+
+
+@pytest.fixture
+def logged(monkeypatch):
+    """The lines the nodes log from now on, as (severity, text)."""
+    from rclpy.impl.rcutils_logger import RcutilsLogger
+
+    lines = []
+    for severity in ('info', 'warning'):
+        monkeypatch.setattr(
+            RcutilsLogger,
+            severity,
+            lambda self, text, severity=severity, **_: lines.append((severity, text)),
+        )
+    return lines
+
+
+def test_faults_are_logged_once_a_second_per_cause(make_node, logged):
+    """660 NaN pressures in one second: one WARN line; a second later, another."""
+    node = make_node(CONFIGS['DMSP-10-250'])
+    node.engine.health.report_interval = 0
+    stamp = frozen_clock(node)
+    node._on_state(0, raw(state(stamp, 0.23, 0.0)))
+    for _ in range(660):
+        node._on_pressure(0, raw(pressure(stamp, math.nan)))
+        node._on_timer()  # the 1 Hz report, here as often as the inputs
+    faults = [text for severity, text in logged if severity == 'warning']
+    nan = 'DMSP-10-250: invalid input: pressure is nan Pa'
+    assert faults == ['DMSP-10-250: no pressure received yet', nan]
+    t = node.now() + 10**9
+    node.now = lambda: t
+    node._on_pressure(0, raw(pressure(stamp, math.nan)))
+    node._on_timer()
+    assert [text for severity, text in logged if severity == 'warning'][2:] == [nan]
+
+
+def test_a_parameter_change_is_logged(make_node, logged):
+    node = make_node(CONFIGS['DMSP-10-250'])
+    assert node.set_parameters([Parameter('model', value='hildebrandt')])[0].successful
+    assert ('info', "parameters set: model = 'hildebrandt'") in logged

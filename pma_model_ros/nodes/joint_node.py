@@ -39,7 +39,6 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray
 
 from . import model_params, parameters
-from .diagnostics import diagnostic_array
 from .managed import ManagedNode
 from .model_node import DESERIALIZE
 from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
@@ -288,7 +287,7 @@ class JointNode(ManagedNode):
                 self.engine.joints, self._hardware, self.engine.statuses(now), self.identification
             )
         ]
-        self._diag_pub.publish(diagnostic_array(self, entries))
+        self.publish_entries(entries, now)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -44,7 +44,7 @@ from .parameters import declare
 from .rclpy_private import clock_handle, lifecycle_state, RCLError
 from .startup import refusing, StartupError
 from ..core.files.node_parameters import SPECS
-from ..core.runtime.health import DIAGNOSTIC_PERIOD, Level
+from ..core.runtime.health import DIAGNOSTIC_PERIOD, FaultLog, Level
 
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 
@@ -68,6 +68,7 @@ class ManagedNode(LifecycleNode):
         self.refusal = ''  #: why the last configure failed
         self._ros_clock = clock_handle(self.get_clock())  # see now()
         self._built: list = []  # the publishers, subscriptions and timer of configure
+        self._faults = FaultLog()  # what publish_entries logs
         self._starting = False
         with refusing(self):
             self.autostart = declare(self, SPECS['autostart']).value
@@ -117,6 +118,15 @@ class ManagedNode(LifecycleNode):
         raise NotImplementedError
 
     # --- shared by the nodes
+    def publish_entries(self, entries: list[tuple], now: int) -> None:
+        """Publish the statuses ``entries`` (name, hardware_id, level, message, values) on
+        /diagnostics, and log their faults: one WARN line per cause at most every second
+        (:class:`~pma_model_ros.core.runtime.health.FaultLog`).
+        """
+        self._diag_pub.publish(diagnostic_array(self, entries))
+        for _, line in self._faults.lines([(e[0], e[2], e[3]) for e in entries], now):
+            self.get_logger().warning(line)
+
     def now(self) -> int:
         """The node clock (ROS time; sim time with use_sim_time) [ns], read without building an
         rclpy Time.

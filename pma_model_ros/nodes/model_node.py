@@ -33,7 +33,6 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
 
 from . import model_params
-from .diagnostics import diagnostic_array
 from .managed import ManagedNode
 from .parameters import warn_unknown
 from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
@@ -179,16 +178,21 @@ class ModelNode(ManagedNode):
         return SetParametersResult(successful=True)
 
     def _apply(self, changes: list[Parameter]) -> None:
-        """Swap a good change in atomically (unconfigured: the next configure reads it)."""
+        """Swap a good change in atomically (unconfigured: the next configure reads it), and log
+        it.
+        """
         if self._blocks.swapping or only_overrides(changes):
             return
         flat = self._blocks.applied()
+        told = ', '.join(f'{p.name} = {p.value!r}' for p in changes)
         if self.engine is None:
+            self.get_logger().info(f'parameters set: {told} (read by the next configure)')
             return
         settings = model_params.all_settings(flat, self._names, self.instance)
         self.engine.configure([s.config for s in settings])
         self.settings = settings
         self.use(settings)
+        self.get_logger().info(f'parameters set: {told}')
 
     # --- callbacks: bytes in, bytes out, only while active (the gate: the first line).  With
     # DDS's message info (``info``), an input that waited longer than max_queue_delay is skipped
@@ -279,7 +283,7 @@ class ModelNode(ManagedNode):
             s.status_entry(status, self.engine.inputs(k)[1])
             for k, (s, status) in enumerate(zip(self.settings, self.engine.statuses(now)))
         ]
-        self._diag_pub.publish(diagnostic_array(self, entries))
+        self.publish_entries(entries, now)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -377,6 +377,44 @@ class Health:
         return statuses
 
 
+class FaultLog:
+    """Which faults a node logs: one line per cause (a status message's words before its first
+    colon: ``invalid input``, ``stale pressure``, ``answers late``, ...) at most every ``period``
+    [ns], naming the entities that have it; /diagnostics carries every report.
+    """
+
+    #: entities named in one line, at most
+    NAMES = 5
+
+    def __init__(self, period: int = SECOND) -> None:
+        self.period = period
+        self._logged: dict[str, int] = {}  # cause -> when it was last logged [ns]
+
+    def lines(
+        self, entries: Sequence[tuple[str, Level, str]], now: int
+    ) -> list[tuple[Level, str]]:
+        """The lines to log now of the (name, level, message) ``entries`` of a report, each with
+        the highest level of its cause: ``<names>: <the first entity's message>``.
+        """
+        causes: dict[str, tuple[Level, list[str], str]] = {}
+        for name, level, message in entries:
+            if level == Level.OK:
+                continue
+            cause = message.split(':', 1)[0]
+            top, names, first = causes.get(cause, (level, [], message))
+            causes[cause] = (max(top, level), [*names, name], first)
+        out = []
+        for cause, (level, names, message) in causes.items():
+            if 0 <= now - self._logged.get(cause, NEVER) < self.period:
+                continue
+            self._logged[cause] = now
+            shown = ', '.join(names[: self.NAMES]) + (
+                f' and {len(names) - self.NAMES} more' if len(names) > self.NAMES else ''
+            )
+            out.append((Level(level), f'{shown}: {message}'))
+        return out
+
+
 def _input_values(
     name: str,
     window: float,
