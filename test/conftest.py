@@ -2,6 +2,8 @@
 and a private rclpy context per test.
 """
 
+import contextlib
+import faulthandler
 import math
 import os
 from pathlib import Path
@@ -120,12 +122,63 @@ _skipped_for_libraries: list[str] = []
 def pytest_configure(config):
     """Under pytest-xdist (``scripts/test`` runs two workers per core), each worker in a DDS domain
     of its own (1..100, from the run's), so that one worker's nodes and /diagnostics never reach
-    another's tests.
+    another's tests.  The watchdog's stream: a copy of stderr, which outlives output capture.
     """
     worker = os.environ.get('PYTEST_XDIST_WORKER')  # gw0, gw1, ...
     if worker:
         run = int(os.environ.get('ROS_DOMAIN_ID', '0'))
         os.environ['ROS_DOMAIN_ID'] = str(1 + (run + int(worker.removeprefix('gw'))) % 100)
+    config.addinivalue_line(
+        'markers',
+        'time_bound(seconds): this test bound by seconds, not TEST_BOUND (conftest.py)',
+    )
+    try:
+        _watchdog['stream'] = os.dup(sys.stderr.fileno())
+    except (AttributeError, ValueError):  # pytest-xdist's worker stderr is no file
+        _watchdog['stream'] = os.dup(sys.__stderr__.fileno())
+
+
+#: Every test (set-up, call, teardown) ends within this many seconds [s], or its process prints
+#: every thread's stack and exits with code 1 (a pytest-xdist worker is then replaced; a plain
+#: pytest run, e.g. `colcon test`'s, ends failed): a hang cannot stall a run.  faulthandler's
+#: watchdog thread needs no GIL, which a deadlock in C (Fast DDS's, below) may hold.
+TEST_BOUND = 600.0
+#: The longest an in-process rclpy teardown may take [s]: Fast DDS 2.14 can deadlock in
+#: destroy_participant (nodes/startup.teardown, which the nodes bound the same way).
+ROS_TEARDOWN_BOUND = 30.0
+_watchdog: dict = {'deadline': math.inf, 'stream': None}
+
+
+def _arm(deadline: float) -> None:
+    """Dump the stacks and exit at ``deadline`` (time.monotonic() [s]); never if it is inf."""
+    faulthandler.cancel_dump_traceback_later()
+    if math.isfinite(deadline):
+        later = max(deadline - time.monotonic(), 0.001)
+        faulthandler.dump_traceback_later(later, exit=True, file=_watchdog['stream'])
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item):
+    mark = item.get_closest_marker('time_bound')
+    _watchdog['deadline'] = time.monotonic() + (mark.args[0] if mark else TEST_BOUND)
+    _arm(_watchdog['deadline'])
+    try:
+        return (yield)
+    finally:
+        _watchdog['deadline'] = math.inf
+        _arm(math.inf)
+
+
+@contextlib.contextmanager
+def bounded_ros_teardown():
+    """The block (an rclpy teardown) ends within :data:`ROS_TEARDOWN_BOUND`, else the process
+    prints every thread's stack and exits with code 1; then the test's own bound again.
+    """
+    _arm(min(time.monotonic() + ROS_TEARDOWN_BOUND, _watchdog['deadline']))
+    try:
+        yield
+    finally:
+        _arm(_watchdog['deadline'])
 
 
 #: The longest test files (``--durations``), started first: pytest-xdist hands each worker whole
@@ -267,6 +320,41 @@ def namespace():
     return f'/t{uuid.uuid4().hex[:10]}'
 
 
+#: The node processes that tests started and have not stopped (:class:`Processes`).
+RUNNING: set[int] = set()
+
+
+def run_delay(pid: int | str = 'thread-self') -> float:
+    """How long [s] the (main) thread of process ``pid`` has waited, runnable, for a CPU: the
+    kernel's schedstat run delay; 0 where it is unreadable (a process that ended).
+    """
+    try:
+        return int(Path(f'/proc/{pid}/schedstat').read_text().split()[1]) * 1e-9
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
+class RunClock:
+    """Seconds [s] since it was made, less the longest time that the test's thread or one of its
+    node processes (:data:`RUNNING`) waited for a CPU meanwhile: the time they had to run.
+
+    What a test's deadline counts: on a loaded machine (load 6 on 2 cores: a process runs about a
+    third of the time) the deadline stretches by the waits, while a node that hangs, blocks or
+    answers wrongly (it waits for no CPU then) still fails on it.
+    """
+
+    def __init__(self) -> None:
+        self.start = time.monotonic()
+        self.delays = {pid: run_delay(pid) for pid in ('thread-self', *RUNNING)}
+
+    def __call__(self) -> float:
+        waited = max(
+            (run_delay(pid) - self.delays.get(pid, 0.0) for pid in ('thread-self', *RUNNING)),
+            default=0.0,
+        )
+        return time.monotonic() - self.start - max(waited, 0.0)
+
+
 class Processes:
     """Node processes of one test, their output in log files; all stopped at teardown."""
 
@@ -281,6 +369,7 @@ class Processes:
         with open(log, 'w') as out:
             proc = node_process.start([str(c) for c in cmd], out, env=env, cwd=cwd)
         self.running.append((proc, log))
+        RUNNING.add(proc.pid)
         return proc
 
     def node(
@@ -298,6 +387,7 @@ class Processes:
     def stop_all(self) -> None:
         for proc, _ in self.running:
             node_process.stop(proc, timeout=5.0)
+            RUNNING.discard(proc.pid)
 
 
 @pytest.fixture
@@ -323,14 +413,18 @@ class Ros:
         diagnose: Callable[[], str] = str,
     ) -> None:
         """Spin until ``done()``, calling ``every()`` each ``period`` [s]; after ``timeout`` [s]
-        fail with ``what`` and ``diagnose()`` (e.g. the nodes' output).
+        of :class:`RunClock` (time the test and its nodes had a CPU) fail with ``what`` and
+        ``diagnose()`` (e.g. the nodes' output).
         """
-        deadline = time.monotonic() + timeout
+        clock = RunClock()
         next_call = time.monotonic()
         while not done():
             now = time.monotonic()
-            if now > deadline:
-                pytest.fail(f'timed out after {timeout:g} s waiting for {what}\n{diagnose()}')
+            if clock() > timeout:
+                pytest.fail(
+                    f'timed out after {timeout:g} s of run time ({now - clock.start:.1f} s on '
+                    f'the wall clock) waiting for {what}\n{diagnose()}'
+                )
             if every is not None and now >= next_call:
                 every()
                 next_call = now + period
@@ -396,10 +490,11 @@ def private_node():
         return node
 
     yield make
-    for context, nodes in reversed(made):
-        for node in nodes:
-            node.destroy_node()
-        rclpy.shutdown(context=context)
+    with bounded_ros_teardown():
+        for context, nodes in reversed(made):
+            for node in nodes:
+                node.destroy_node()
+            rclpy.shutdown(context=context)
 
 
 @pytest.fixture
@@ -413,9 +508,10 @@ def ros():
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     yield Ros(node, executor)
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
+    with bounded_ros_teardown():
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
 
 
 @pytest.fixture(scope='module')
@@ -434,6 +530,7 @@ def module_ros(tmp_path_factory):
     procs = Processes(tmp_path_factory.mktemp('module_nodes'))
     yield Ros(node, executor), procs
     procs.stop_all()
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown(context=context)
+    with bounded_ros_teardown():
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
