@@ -220,6 +220,7 @@ def test_two_branch_fit_from_a_bag_recovers_the_simulated_gap(tmp_path, capsys):
         == 0
     )
     model = muscle_model(read_parameters(out))
+    assert read_parameters(out)['hysteresis']['input'] == 'length'  # the branches model_node keeps
     p, L = np.meshgrid([4e5, 5e5, 6e5], [0.198 + 0.052 / 3, 0.198 + 0.104 / 3])
     gap = model.force(p, L, 1.0).force - model.force(p, L, -1.0).force
     assert np.all(np.abs(gap - 16.0) <= 4.0), gap

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from conftest import CONFIGS, REPO
-from pma_model_ros.cli.identify import length_headers, rows_to_add
+from pma_model_ros.cli.fit_output import length_headers, rows_to_add
 from pma_model_ros.cli.main import main
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec

@@ -145,6 +145,8 @@ def test_two_branch_model_from_a_map_with_directions(tmp_path, capsys):
                 str(spec),
                 '--model',
                 'sarosi_hysteresis',
+                '--hysteresis-input',
+                'length',
                 '--out',
                 str(out),
             ]
@@ -179,7 +181,7 @@ def test_two_branch_model_from_a_map_with_directions(tmp_path, capsys):
     assert entry['interior_cv_err'] < 0.5 and entry['extrapolates'] is False
     last = capsys.readouterr().out.splitlines()[-1]
     assert (
-        last.startswith('sarosi_hysteresis: err ')
+        last.startswith('default model (the one fitted): sarosi_hysteresis  err ')
         and (
             f'held-out worst {entry["cv_err"]:.2f} % (between measured lengths '
             f'{entry["interior_cv_err"]:.2f} %, beyond them {entry["edge_cv_err"]:.2f} %)'
@@ -196,6 +198,7 @@ def test_two_branch_model_from_a_map_with_directions(tmp_path, capsys):
         'pressure_pa,length_m,force_n\n' + ''.join(f'{a},{b},{c}\n' for a, b, c, _ in rows)
     )
     argv = ['fit', '--data', str(single), '--muscle', str(spec), '--model', 'sarosi_hysteresis']
+    argv += ['--hysteresis-input', 'length']
     assert main([*argv, '--out', str(out)]) == 2  # no direction column: one line, exit 2
 
 

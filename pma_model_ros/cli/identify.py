@@ -14,7 +14,17 @@ from typing import Sequence, TYPE_CHECKING
 import numpy as np
 
 from .bags import add_fit_bag_options, bag_force_map
+from .branch_fit import fit_branches
 from .checks import add_overwrite_option, CliError
+from .fit_output import (
+    FILE_LEGEND,
+    held_out_table,
+    print_in_sample,
+    print_nested,
+    rows_to_add,
+    worst,
+    written_line,
+)
 from ..core.files.param_file import load_muscle, read_parameters
 from ..core.files.shipped_data import (
     dmsp_10_100_hysteresis,
@@ -26,13 +36,14 @@ from ..core.files.user_files import read_spec_yaml
 from ..core.identification.calibration import Calibration, short_of_map
 from ..core.identification.force_map import read_force_map_csv
 from ..core.identification.progress import step
-from ..core.identification.validation import fold_lengths, length_folds, OBJECTIVES
+from ..core.identification.validation import fold_lengths, OBJECTIVES
 from ..core.physics.flags import describe
+from ..core.physics.hysteresis import INPUTS as HYSTERESIS_INPUTS
 from ..core.physics.models import get_model, TABLE3_MODELS
 
 if TYPE_CHECKING:  # imported where used: force and pressure need no identification (scipy)
     from ..core.identification.protocols import Fit
-    from ..core.identification.selection import Identification, ModelReport
+    from ..core.identification.selection import Identification
 
 
 #: Martens & Boblan 2017, Table 3: err [%] of each model.
@@ -70,7 +81,7 @@ def table3(results: dict[str, Identification]) -> dict:
     """The ``reproduce --json`` object."""
     out = {}
     for muscle, found in results.items():
-        out[muscle] = {'default': found.default, 'held_out': round(_worst(found.held_out), 4)}
+        out[muscle] = {'default': found.default, 'held_out': round(worst(found.held_out), 4)}
         for name, rep in found.reports.items():
             out[muscle][name] = {
                 'paper': PAPER_TABLE3[muscle][name],
@@ -79,11 +90,6 @@ def table3(results: dict[str, Identification]) -> dict:
                 'cv': round(rep.cv_err, 4),
             }
     return {'table3': out}
-
-
-def _worst(errors: np.ndarray) -> float:
-    """The worst of per-fold errors [%], NaN if no fold could be judged."""
-    return float(np.nanmax(errors)) if np.any(np.isfinite(errors)) else math.nan
 
 
 def _print_tables(results: dict[str, Identification]) -> None:
@@ -106,7 +112,9 @@ def _print_tables(results: dict[str, Identification]) -> None:
             f'\n{muscle}: nested held-out err in % per held-out length [m] (each length fitted '
             f'without it)'
         )
-        _held_out_table(shipped_force_map(muscle).lengths, found.reports)
+        held_out_table(
+            shipped_force_map(muscle).lengths, {n: r.nested for n, r in found.reports.items()}
+        )
         print(_default_line(found))
 
 
@@ -119,7 +127,7 @@ def _default_line(found: Identification) -> str:
     )
     return (
         f'default model (lowest {MODEL_RULE} err): {found.default}; the choice made again '
-        f'without each length ({picks}) errs by {_worst(found.held_out):.2f} % at worst (the '
+        f'without each length ({picks}) errs by {worst(found.held_out):.2f} % at worst (the '
         "whole protocol's figure, not the default model's own)"
     )
 
@@ -166,16 +174,9 @@ def cmd_make_config(args: argparse.Namespace) -> None:
         params = build_parameters(
             shipped_spec(args.muscle), found.default, domain_of(fmap), models
         )
-        header += f'\n{_FILE_LEGEND}'
+        header += f'\n{FILE_LEGEND}'
     write_parameters(args.out, params, header)
     print(f'wrote {args.out}')
-
-
-_FILE_LEGEND = (
-    'err: eq. 23 on the whole map [%]; cv_err: worst nested leave-one-length-out err [%] (the '
-    'fit, calibration\nand choices included, re-run without each length); held_out: that err '
-    'per held-out length.'
-)
 
 
 def cmd_scale(args: argparse.Namespace) -> None:
@@ -227,28 +228,6 @@ def cmd_scale(args: argparse.Namespace) -> None:
         print(f'  calibrated L0: {", ".join(calibrated)}')
     for line in ([note] if note else []) + notes:
         print(f'  {line}')
-
-
-def _held_out_table(lengths, reports: dict[str, ModelReport]) -> None:
-    labels = length_headers(lengths)
-    print(f'{"model":<14}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
-    for name, rep in reports.items():
-        print(
-            f'{name:<14}'
-            + ''.join(f'{e:>9.2f}' for e in rep.nested)
-            + f'{_worst(rep.nested):>9.2f}'
-        )
-
-
-def length_headers(lengths: Sequence[float]) -> list[str]:
-    """Column headers of lengths [m]: 3 decimals, or as many more (up to 6) as make neighbouring
-    ones differ (bands of a recording's lengths round alike at 3).
-    """
-    for digits in range(3, 7):
-        texts = [f'{L:.{digits}f}' for L in lengths]
-        if len(set(texts)) == len(texts):
-            break
-    return texts
 
 
 def describe_geometry(fit: Fit, given_length: float) -> str:
@@ -312,7 +291,9 @@ def cmd_fit(args: argparse.Namespace) -> None:
 
     spec = read_spec_yaml(args.muscle)
     if args.model != 'all' and get_model(args.model).hysteresis:
-        return _fit_branches(args, spec)
+        return fit_branches(args, spec)
+    if args.hysteresis_input is not None:
+        raise CliError(f'--hysteresis-input: --model {args.model} has no hysteresis branches')
     fmap = read_force_map_csv(args.data) if args.data else bag_force_map(args, spec)
     check_fit_map(fmap, spec, folds=3)
     calibration = Calibration(not args.no_calibrate_length, not args.no_calibrate_pressure)
@@ -330,28 +311,12 @@ def cmd_fit(args: argparse.Namespace) -> None:
         spec, fmap, tuple(get_model(m) for m in names), calibration, (args.objective,)
     )
     reports = found.reports
-    print(
-        f'\nin-sample err (eq. 23) [%], RMSE [N], R² ({args.objective}); held_out: worst nested '
-        'leave-one-length-out err [%]\n(each length predicted by the whole fit, calibration '
-        'included, re-run without it)'
-    )
-    print(f'{"model":<14}{"err":>8}{"rmse":>9}{"r2":>10}{"held_out":>10}')
-    for name, rep in reports.items():
-        fit = rep.shipped
-        print(f'{name:<14}{fit.err:>8.2f}{fit.rmse:>9.3f}{fit.r2:>10.5f}{rep.cv_err:>10.2f}')
+    print_in_sample(args.objective, {name: (r.shipped, r.cv_err) for name, r in reports.items()})
     if calibration.any:
         print('\nidentified geometry (L0 ± its profile 1-sigma; pressure offset ± 1-sigma):')
         for name, rep in reports.items():
             print(f'  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}')
-    print(
-        '\nnested held-out err [%] per held-out length [m]'
-        + (
-            ' (groups of neighbouring lengths: their mean)'
-            if len(length_folds(fmap)) < fmap.lengths.size
-            else ''
-        )
-    )
-    _held_out_table(fold_lengths(fmap), reports)
+    print_nested(fmap, {name: rep.nested for name, rep in reports.items()})
     chosen = reports[found.default].shipped
     write_parameters(
         args.out,
@@ -364,7 +329,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
         ),
         f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
         f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
-        + _FILE_LEGEND,
+        + FILE_LEGEND,
     )
     # the written model's own figures: the file's, the force band's and /diagnostics'
     written = reports[found.default].nested
@@ -376,114 +341,7 @@ def cmd_fit(args: argparse.Namespace) -> None:
         how = f'by {MODEL_RULE} err; its own figures, as its file serves them'
     else:
         how = 'the one fitted'
-    print(
-        f'\ndefault model ({how}): {found.default}  err {chosen.err:.3f} %  rmse '
-        f'{chosen.rmse:.3f} N  r2 {chosen.r2:.5f}  {held_out_parts(written)}'
-        f'  -> {args.out}'
-    )
-
-
-#: [%, pp] An edge figure above EDGE_LARGE and above the interior one by EDGE_MARGIN is large.
-EDGE_LARGE, EDGE_MARGIN = 5.0, 1.0
-
-
-def rows_to_add(nested: np.ndarray, lengths: np.ndarray, spec, given: float | None = None) -> str:
-    """What to measure when the fit's edge figure (nested held-out err per fold [%] at the fold
-    ``lengths`` [m], longest first) is large against its interior one: the rows that make the
-    lengths served there interpolation, the rest-length row (L0 of ``spec``, or the ``given`` L0
-    [m] where the fit calibrated it) and the shortest working length; '' when it is not large.
-    """
-    from ..core.identification.selection import edge_err, interior_err
-    from ..core.physics.geometry import shortest_length
-
-    edge, interior = edge_err(nested), interior_err(nested)
-    if not (edge > EDGE_LARGE and edge > interior + EDGE_MARGIN):
-        return ''
-    rest, longest, shortest = spec.nominal_length, float(lengths[0]), float(lengths[-1])
-    side = 'longest' if nested[0] >= nested[-1] else 'shortest'
-    # the longest row at the given L0, or within a calibrated L0's reach of it
-    at_rest = any(abs(longest - L0) <= 0.005 * L0 for L0 in {rest, given or rest})
-    calibrated = '' if f'{rest:.4g}' == f'{longest:.4g}' else f', L0 {rest:.4g} m as calibrated'
-    return (
-        f'beyond the measured lengths the fit errs by {edge:.2f} % (the {side}, predicted from '
-        f'the others) against {interior:.2f} % between them; rows to measure: '
-        + (
-            f'one between {float(lengths[1]):.4g} and {longest:.4g} m (the rest-length row, '
-            f'{longest:.4g} m{calibrated}, is measured: it is the edge, and a row beside it makes '
-            'it less of an extrapolation)'
-            if at_rest
-            else f'the rest-length row at L0 {rest:.4g} m (not measured: the longest is '
-            f'{longest:.4g} m)'
-        )
-        + ', and the shortest working length (the shortest is '
-        f'{shortest:.4g} m; the braid pulls down to {shortest_length(spec):.4g} m)'
-    )
-
-
-def held_out_parts(nested: np.ndarray) -> str:
-    """``held-out worst X % (between measured lengths Y %, beyond them Z %)``: the worst nested
-    held-out err per fold [%] (longest first), on the lengths between the map's shortest and
-    longest (interpolation) and on those two (extrapolation, as served there).
-    """
-    from ..core.identification.selection import edge_err, interior_err
-
-    return (
-        f'held-out worst {_worst(nested):.2f} % (between measured lengths '
-        f'{interior_err(nested):.2f} %, beyond them {edge_err(nested):.2f} %)'
-    )
-
-
-def _fit_branches(args: argparse.Namespace, spec) -> None:
-    """``fit`` of a two-branch (hysteresis) model: each branch on its direction's points,
-    uncalibrated.
-    """
-    from ..core.files.param_writer import (
-        build_parameters,
-        fit_entry,
-        held_out_entry,
-        write_parameters,
-    )
-    from ..core.identification.protocols import check_fit_map, fit_best, judge_branches
-
-    model = get_model(args.model)
-    fmap = (
-        read_force_map_csv(args.data)
-        if args.data
-        else bag_force_map(args, spec, two_branches=True)
-    )
-    check_fit_map(fmap, spec, folds=2)
-    if len(length_folds(fmap)) < 3:  # no length between others to judge it on
-        fit, figures = fit_best(model, spec, fmap, args.objective), ''
-        entry = fit_entry(fit)
-    else:
-        fit, nested = judge_branches(model, spec, fmap, args.objective)
-        entry = fit_entry(fit) | held_out_entry(model.name, nested, fmap)
-        figures = f'  {held_out_parts(nested)}'
-        print(
-            'nested held-out err [%] per held-out length [m] (each point on its branch; each '
-            'length predicted by the fit without it, as served)'
-        )
-        labels = length_headers(fold_lengths(fmap))
-        print(f'{"model":<18}' + ''.join(f'{label:>9}' for label in labels) + f'{"worst":>9}')
-        print(
-            f'{model.name:<18}'
-            + ''.join(f'{e:>9.2f}' for e in nested)
-            + f'{_worst(nested):>9.2f}\n'
-        )
-        rows = rows_to_add(nested, fold_lengths(fmap), spec)
-        if rows:
-            print(rows + '\n')
-    write_parameters(
-        args.out,
-        build_parameters(spec, model.name, fit.domain, {model.name: entry}),
-        f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
-        f'({fit.objective}, '
-        'one branch per direction).',
-    )
-    print(
-        f'{model.name}: err {fit.err:.3f} %  rmse {fit.rmse:.3f} N  r2 {fit.r2:.5f}{figures}'
-        f'  -> {args.out}'
-    )
+    print('\n' + written_line(how, found.default, chosen, written, args.out))
 
 
 def cmd_evaluate(args: argparse.Namespace) -> None:
@@ -562,6 +420,12 @@ def add_identify_commands(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         '--no-calibrate-pressure', action='store_true', help='assume no pressure-sensor offset'
+    )
+    p.add_argument(
+        '--hysteresis-input',
+        choices=HYSTERESIS_INPUTS,
+        help="what a map's direction column follows (a two-branch model): pressure (filling "
+        '+1, venting -1) or length (lengthening +1, shortening -1)',
     )
     p.add_argument('--out', required=True, help='output ROS parameter YAML')
     add_overwrite_option(p, {'--out': 'file'})

@@ -8,9 +8,15 @@ import argparse
 import math
 
 from .checks import CliError, finite, gauge_pressure
-from ..core.files.param_file import held_out_band, load_muscle, read_parameters
+from ..core.files.param_file import (
+    held_out_band,
+    hysteresis_follow,
+    load_muscle,
+    read_parameters,
+)
 from ..core.hints import length_hint
 from ..core.physics.flags import describe, Flag
+from ..core.physics.hysteresis import BRANCH_NAMES, branch_of
 
 
 def _length(value: float, rest_length: float) -> float:
@@ -29,6 +35,29 @@ def _load(args: argparse.Namespace, parameters: dict | None = None):
     return load_muscle(args.config, args.model, parameters)
 
 
+def _branch(args: argparse.Namespace, parameters: dict, muscle) -> float | None:
+    """The hysteresis branch asked for (+1, -1; None: unknown): ``--branch`` by its name, or the
+    sign of ``--length-rate`` where the file's branches follow the length.
+    """
+    if not muscle.model.hysteresis:
+        if args.branch is not None:
+            raise CliError(f'--branch: model {muscle.model.name} has no hysteresis branches')
+        return args.length_rate
+    follow = hysteresis_follow(parameters).input
+    if args.branch is not None:
+        try:
+            return branch_of(follow, args.branch)
+        except ValueError as err:
+            raise CliError(f'--branch {args.branch}: {err}') from None
+    if args.length_rate is not None and follow != 'length':
+        first, second = BRANCH_NAMES[follow]
+        raise CliError(
+            f'--length-rate: the branches of {args.config} follow the {follow}, not the length: '
+            f'ask for one with --branch {first} or {second}'
+        )
+    return args.length_rate
+
+
 def _check_geometry(flags: int, length: float, muscle) -> None:
     if flags & Flag.INVALID_INPUT:
         raise CliError(
@@ -42,7 +71,7 @@ def cmd_force(args: argparse.Namespace) -> None:
     parameters = read_parameters(args.config)
     muscle = _load(args, parameters)
     length = _length(args.length, muscle.spec.nominal_length)
-    result = muscle.force(pressure, length, args.length_rate)
+    result = muscle.force(pressure, length, _branch(args, parameters, muscle))
     _check_geometry(int(result.flags), length, muscle)
     print(
         f'force {float(result.force):.6g} N  raw {float(result.raw):.6g} N  flags '
@@ -97,9 +126,10 @@ def expected_error(
 
 def cmd_pressure(args: argparse.Namespace) -> None:
     force = finite('--force', args.force, -1e7, 1e7, 'N', 'force in newtons')
-    muscle = _load(args)
+    parameters = read_parameters(args.config)
+    muscle = _load(args, parameters)
     length = _length(args.length, muscle.spec.nominal_length)
-    result = muscle.pressure(force, length, args.length_rate)
+    result = muscle.pressure(force, length, _branch(args, parameters, muscle))
     _check_geometry(int(result.flags), length, muscle)
     print(f'pressure {float(result.pressure):.6g} Pa  flags {describe(int(result.flags))}')
 
@@ -116,11 +146,19 @@ def add_query_commands(sub: argparse._SubParsersAction) -> None:
         )
         p.add_argument(f'--{quantity}', required=True, type=float, help=f'[{unit}]')
         p.add_argument('--length', required=True, type=float, help='muscle length [m]')
-        p.add_argument(
+        branch = p.add_mutually_exclusive_group()
+        branch.add_argument(
             '--length-rate',
             type=float,
             default=None,
-            help='length rate [m/s]; its sign picks the hysteresis branch',
+            help='length rate [m/s]; its sign picks the hysteresis branch (branches that follow '
+            'the length)',
+        )
+        branch.add_argument(
+            '--branch',
+            choices=[name for names in BRANCH_NAMES.values() for name in names],
+            help="a hysteresis model's branch: filling or venting (hysteresis.input: pressure), "
+            'lengthening or shortening (length)',
         )
         p.add_argument('--model', default=None, help="override the file's default model")
         p.set_defaults(func=func)

@@ -15,6 +15,7 @@ from ..identification.protocols import Fit
 from ..identification.selection import edge_err, interior_err, ModelReport
 from ..identification.validation import fold_lengths
 from ..physics.geometry import MuscleSpec
+from ..physics.hysteresis import Follow
 from ..physics.models import Domain, extrapolates
 
 _ROUND = 12  # significant digits written; far below any fit's resolution
@@ -75,10 +76,12 @@ def build_parameters(
     domain: Domain,
     models: dict[str, dict],
     given_length: float | None = None,
+    follow: Follow | None = None,
 ) -> dict:
     """The full parameter-file mapping for one muscle; ``given_length`` [m]: the spec's rest
     length as given, beside a calibrated ``spec.nominal_length`` (``muscle.given_nominal_length``,
-    :mod:`.param_file`).
+    :mod:`.param_file`); ``follow``: what a hysteresis model's branches were identified on
+    (``hysteresis.input`` and its deadband).
     """
     muscle = {k: (v if isinstance(v, str) else _num(v)) for k, v in spec.to_mapping().items()}
     if given_length is not None:
@@ -95,6 +98,16 @@ def build_parameters(
                     else {}
                 ),
                 'models': models,
+                **(
+                    {
+                        'hysteresis': {
+                            'input': follow.input,
+                            f'{follow.input}_deadband': _num(follow.deadband),
+                        }
+                    }
+                    if follow is not None
+                    else {}
+                ),
                 **NODE_DEFAULTS,
                 'joint_name': spec.name,
                 'frame_id': spec.name.lower().replace('-', '_'),

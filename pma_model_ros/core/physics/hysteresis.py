@@ -33,6 +33,27 @@ class Follow(NamedTuple):
     deadband: float
 
 
+#: The names of the two branches of each input: (+1, -1), the followed signal rising and falling.
+#: Which of them is the upper (the larger force) is a property of a muscle's data: lengthening is
+#: usually the upper one (Sárosi's loop), filling at a held length the lower one.
+BRANCH_NAMES = {'length': ('lengthening', 'shortening'), 'pressure': ('filling', 'venting')}
+
+
+def branch_name(follow: str, branch: float) -> str:
+    """The name of ``branch`` (+1 or -1) of a model whose branches follow ``follow``."""
+    return BRANCH_NAMES[follow][0 if branch > 0 else 1]
+
+
+def branch_of(follow: str, name: str) -> float:
+    """The branch (+1 or -1) called ``name``; ValueError naming the branches ``follow`` has."""
+    names = BRANCH_NAMES[follow]
+    if name not in names:
+        raise ValueError(
+            f'the branches follow the {follow}: {names[0]} or {names[1]}, not {name!r}'
+        )
+    return 1.0 if name == names[0] else -1.0
+
+
 #: The play operator's deadband of each input unless a muscle's parameters say otherwise [m, Pa]
 #: (the defaults of ``hysteresis.<input>_deadband``).
 DEFAULT_DEADBANDS = {'length': 0.0005, 'pressure': 5000.0}

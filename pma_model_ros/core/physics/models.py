@@ -79,9 +79,9 @@ class Model:
     """One static force model.
 
     ``coefficients(theta, spec, domain, length, branch)`` returns (q2, q1, q0)
-    with F_raw = q2 p^2 + q1 p + q0.  ``branch`` is +1 (lengthening, upper
-    hysteresis branch), -1 (shortening, lower) or 0 (unknown); only hysteresis
-    models use it.  ``lower``/``upper`` are the physical parameter bounds used
+    with F_raw = q2 p^2 + q1 p + q0.  ``branch`` is +1 (the followed input rising:
+    lengthening or filling), -1 (falling: shortening or venting) or 0 (unknown); only
+    hysteresis models use it.  ``lower``/``upper`` are the physical parameter bounds used
     by the ``best`` identification protocol.  For many muscles at once, ``theta``
     may be (n_params, n), and the spec's and domain's numbers arrays of n; the
     coefficients broadcast elementwise (:mod:`pma_model_ros.core.physics.muscle_bank`).
@@ -183,17 +183,18 @@ def _sarosi(theta, spec, domain, length, branch) -> Coefficients:
     return _zeros(length), q1, q0
 
 
-def _by_branch(branch, upper: tuple, lower: tuple) -> tuple:
-    """``upper`` where ``branch`` is +1, ``lower`` where -1, their mean where 0 (unknown)."""
+def _by_branch(branch, rising: tuple, falling: tuple) -> tuple:
+    """``rising`` where ``branch`` is +1, ``falling`` where -1, their mean where 0 (unknown)."""
     w_up = (1 + ew.clip(ew.asarray(branch), -1.0, 1.0)) / 2
-    return tuple(w_up * u + (1 - w_up) * lo for u, lo in zip(upper, lower))
+    return tuple(w_up * u + (1 - w_up) * lo for u, lo in zip(rising, falling))
 
 
 def _sarosi_hysteresis(theta, spec, domain, length, branch) -> Coefficients:
-    """Sárosi eq. 3 with an upper (lengthening) and a lower (shortening) branch.
+    """Sárosi eq. 3 with a branch per direction of the followed input (length or pressure).
 
-    ``theta`` = 6 upper-branch parameters then 6 lower-branch parameters, each
-    in the SI form of eq. 19.  An unknown branch (0) gives the mean of both.
+    ``theta`` = 6 parameters of the rising branch (+1: lengthening or filling) then 6 of the
+    falling one (-1: shortening or venting), each in the SI form of eq. 19; which is the upper
+    is the data's.  An unknown branch (0) gives the mean of both.
     """
     up1, up0 = _sarosi_terms(theta[:6], spec, length)
     lo1, lo0 = _sarosi_terms(theta[6:], spec, length)
@@ -381,10 +382,10 @@ MODELS: dict[str, Model] = {
         ),
         Model(
             'sarosi_hysteresis',
-            'Sárosi eq. 3, upper and lower branch',
+            'Sárosi eq. 3, a branch per direction',
             tuple(
                 f'{b}_{n}'
-                for b in ('upper', 'lower')
+                for b in ('rising', 'falling')
                 for n in ('c0', 'c1', 'c2', 'd0', 'd1', 'd2')
             ),
             (),
