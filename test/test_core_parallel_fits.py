@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
-from pma_model_ros.core.identification import selection
+from pma_model_ros.core.identification import selection, separable
 from pma_model_ros.core.identification.calibration import Calibration
 from pma_model_ros.core.identification.protocols import fit_paper
 from pma_model_ros.core.identification.selection import identify_all
@@ -74,3 +74,26 @@ def test_workers_give_the_serial_identification(muscle, names, objectives, tmp_p
             assert pids and os.getpid() not in pids
     assert _same(runs[1], runs[2])
     assert _same(runs[1], runs[3])
+
+
+def test_no_fit_is_computed_twice(monkeypatch):
+    """The L0 search of the fold without length j and of the fold without k both fit the map
+    without {j, k}: each such fit is computed once in a process and asked for again.
+    """
+    monkeypatch.setattr(separable, '_SOLVED', separable.OrderedDict())
+    compute, asked = separable.Separable._least_squares, separable.Separable.fit_least_squares
+    counts = {'computed': 0, 'asked': 0}
+
+    def computed(self, near):
+        counts['computed'] += 1
+        return compute(self, near)
+
+    def asked_for(self, near=None):
+        counts['asked'] += 1
+        return asked(self, near)
+
+    monkeypatch.setattr(separable.Separable, '_least_squares', computed)
+    monkeypatch.setattr(separable.Separable, 'fit_least_squares', asked_for)
+    spec, fmap = shipped_spec('DMSP-10-250'), shipped_force_map('DMSP-10-250')
+    identify_all(spec, fmap, (get_model('mckibben'),), Calibration(), ('least_squares',), None, 1)
+    assert counts['computed'] == len(separable._SOLVED) < counts['asked']

@@ -29,6 +29,7 @@ set by a measured force where the model is slack) returned a different optimum o
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 import warnings
 
@@ -53,6 +54,16 @@ class Solution:
 
     theta: np.ndarray  #: every parameter of the model, in its order
     cost: float  #: least squares: sum of squared residuals [N^2]; minimax: worst |residual| [N]
+
+    def __post_init__(self) -> None:
+        self.theta.setflags(write=False)  # shared by every use of a remembered fit (_SOLVED)
+
+
+#: Least-squares fits made in this process, the most recently used last, by what they depend on
+#: (:meth:`Separable.fit_least_squares`).  A nested judgement asks for the same fit in several
+#: folds: the map without lengths j and k in fold j's search of L0 and in fold k's.
+_SOLVED: OrderedDict[tuple, Solution] = OrderedDict()
+_SOLVED_MAX = 4096  #: fits remembered (a few kB each)
 
 
 class Separable:
@@ -129,7 +140,30 @@ class Separable:
         """Eq. 22 on the clipped model: grid over the first nonlinear parameter, the best
         :data:`_REFINED` points refined jointly in every nonlinear parameter; with ``near`` (the
         solution of a neighbouring problem, e.g. the next rest length) only that start is refined.
+
+        A fit this process made already is returned again (:data:`_SOLVED`): it depends on the
+        model, geometry, domain, the map's points and the start only.
         """
+        key = (
+            self.model,
+            self.spec,
+            self.domain,
+            self.pressure.tobytes(),
+            self.length.tobytes(),
+            self.force.tobytes(),
+            None if near is None else near.theta.tobytes(),
+        )
+        solution = _SOLVED.get(key)
+        if solution is None:
+            solution = _SOLVED[key] = self._least_squares(near)
+            if len(_SOLVED) > _SOLVED_MAX:
+                _SOLVED.popitem(last=False)
+        else:
+            _SOLVED.move_to_end(key)
+        return solution
+
+    def _least_squares(self, near: Solution | None) -> Solution:
+        """:meth:`fit_least_squares`, computed."""
         from scipy.optimize import least_squares  # here: force and pressure need no optimizer
 
         if self.nonlinear.size == 0:
