@@ -139,3 +139,24 @@ def test_a_parameter_at_its_bound_is_named_with_what_it_means(tmp_path, capsys):
     assert any('c2 (venting)' in line and 'at its bound' in line for line in header)
     code, printed, out, _ = _fit(tmp_path, capsys, '--hysteresis-input', 'pressure', '--overwrite')
     assert code == 0 and 'at its bound' not in printed.out + out.read_text()
+
+
+def test_a_one_branch_fit_names_a_parameter_at_its_bound(tmp_path, capsys):
+    """Sárosi's one-branch model on Table 2's branch with exp(-400 kappa): c2 ends at the search's
+    bound -100, and fit says so (its output and the file's header).
+    """
+    csv, spec, rows = _map(tmp_path, c2=-400.0)
+    single = tmp_path / 'single.csv'
+    single.write_text(
+        'pressure_pa,length_m,force_n\n'
+        + ''.join(f'{a:.9g},{b:.9g},{c:.9g}\n' for a, b, c, d in rows if d < 0)
+    )
+    out = tmp_path / 'fit.yaml'
+    argv = ['fit', '--data', str(single), '--muscle', str(spec), '--model', 'sarosi']
+    argv += ['--no-calibrate-length', '--no-calibrate-pressure', '--out', str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert read_parameters(out)['models']['sarosi']['params'][2] == -100.0
+    said = [line for line in printed.splitlines() if 'at its bound' in line]
+    assert len(said) == 1 and said[0].strip().startswith('sarosi: c2 at its bound -100: ')
+    assert any('c2 at its bound -100' in line for line in out.read_text().splitlines())

@@ -286,6 +286,7 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
 
 def cmd_fit(args: argparse.Namespace) -> None:
     from ..core.files.param_writer import build_parameters, model_entry, write_parameters
+    from ..core.identification.bounds import at_bounds
     from ..core.identification.protocols import check_fit_map
     from ..core.identification.selection import identify_all, MODEL_RULE
 
@@ -316,6 +317,13 @@ def cmd_fit(args: argparse.Namespace) -> None:
         print('\nidentified geometry (L0 ± its profile 1-sigma; pressure offset ± 1-sigma):')
         for name, rep in reports.items():
             print(f'  {name}: {describe_geometry(rep.shipped, spec.nominal_length)}')
+    bounded = [
+        f'{name}: {line}'
+        for name, rep in reports.items()
+        for line in at_bounds(get_model(name), rep.shipped.theta, rep.shipped.spec, fmap)
+    ]
+    if bounded:
+        print('\nparameters at a bound of the search:\n' + '\n'.join(f'  {b}' for b in bounded))
     print_nested(fmap, {name: rep.nested for name, rep in reports.items()})
     chosen = reports[found.default].shipped
     write_parameters(
@@ -329,7 +337,8 @@ def cmd_fit(args: argparse.Namespace) -> None:
         ),
         f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '
         f'({calibration.describe()}; given nominal_length {spec.nominal_length:g} m).\n'
-        + FILE_LEGEND,
+        + FILE_LEGEND
+        + ''.join(f'\n{line}' for line in bounded),
     )
     # the written model's own figures: the file's, the force band's and /diagnostics'
     written = reports[found.default].nested
