@@ -3,7 +3,7 @@ relay, same run, same settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
-        [--code DIR] [--repeat 1]
+        [--code DIR] [--repeat 1] [--stall MS]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
 stamped with the cycle's time (the stamp is the sequence number), and measures the time until the
@@ -27,7 +27,9 @@ DIR`` runs the model's node from another checkout (PYTHONPATH and working direct
 before/after in one script.  Timings are noisy on a shared machine: read the model/relay ratios,
 not the absolute times; ``--repeat K`` runs the node and its relay in turn K times and prints the
 median of each ratio over the K pairs (a pair's rows run within seconds of each other, under much
-the same load).  Not a pass/fail test.
+the same load).  ``--stall MS`` stops each responder (SIGSTOP) for MS ms halfway through a row and
+prints how long after SIGCONT its first fresh answer came (a round trip within ``FRESH``) and how
+many stale answers it gave before.  Not a pass/fail test.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ import gc
 import os
 from pathlib import Path
 import pstats
+import signal
 import sys
 import tempfile
 import threading
@@ -78,6 +81,7 @@ DRAIN = 0.5  # [s] after the last cycle, for late answers
 ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
 ANGLE = 0.2  # [rad] of every joint
 REPORTS = 50  # /diagnostics reports timed per row of the callback costs
+FRESH = 0.005  # [s] an answer after a stall is fresh when its round trip is within this
 #: [bytes] read before each cycle of the flushed timing: it empties L1 and L2 (1 MiB per core on
 #: these EPYC VMs), not the 32 MiB L3
 FLUSH = 8 << 20
@@ -274,6 +278,17 @@ def publish_loop(
         next_t += period
 
 
+def stall(pid: int, at: float, seconds: float, resumed: list[float]) -> None:
+    """Stop process ``pid`` (SIGSTOP) at ``at`` [perf_counter s] for ``seconds``, then SIGCONT;
+    the time it was resumed into ``resumed``.
+    """
+    time.sleep(max(0.0, at - time.perf_counter()))
+    os.kill(pid, signal.SIGSTOP)
+    time.sleep(seconds)
+    resumed.append(time.perf_counter())
+    os.kill(pid, signal.SIGCONT)
+
+
 def cpu_seconds(pid: int) -> float:
     """User + system CPU time of process ``pid`` [s] (Linux /proc)."""
     fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
@@ -288,9 +303,12 @@ def measure(
     namespace: str,
     joints: bool = False,
     code: Path | None = None,
+    stalled: float = 0.0,
 ) -> dict:
     """Start ``responder`` (from checkout ``code``, if given), ping it, stop it; round trips [ms],
-    loss, its CPU use and the achieved cycle rate.
+    loss, its CPU use and the achieved cycle rate.  ``stalled`` [s]: the responder is stopped that
+    long halfway through; then also how long after it runs again its answers are fresh (a round
+    trip within :data:`FRESH`) and how many stale answers it gave meanwhile.
     """
     env = None if code is None else os.environ | {'PYTHONPATH': str(code)}
     # the pinger must not stall either: what the rows before left (the in-process callback cost
@@ -321,6 +339,12 @@ def measure(
                 daemon=True,
             )
             thread.start()
+            resumed: list[float] = []
+            if stalled:
+                at = start + WARMUP + duration / 2
+                threading.Thread(
+                    target=stall, args=(proc.pid, at, stalled, resumed), daemon=True
+                ).start()
             while thread.is_alive() or time.perf_counter() < start + WARMUP + duration + DRAIN:
                 executor.spin_once(timeout_sec=0.01)
             cpu = (cpu_seconds(proc.pid) - cpu0) / (WARMUP + duration)
@@ -339,7 +363,20 @@ def measure(
     received = sum(min(len(pinger.answers.get(s, ())), per_cycle) for s in measured)
     ms = np.array(trips) * 1e3 if trips else np.array([np.nan])
     span = pinger.sent[measured[-1]] - pinger.sent[measured[0]]
-    return {
+    after = {}
+    if resumed:  # (answer time, round trip) of every answer after the stall, in time order
+        late = sorted(
+            (t, t - pinger.sent[s])
+            for s in measured
+            for t in pinger.answers.get(s, ())
+            if t > resumed[0]
+        )
+        fresh = next((t for t, trip in late if trip <= FRESH), np.nan)
+        after = {
+            'recovery': (fresh - resumed[0]) * 1e3,
+            'stale': sum(trip > FRESH for t, trip in late if t <= fresh or np.isnan(fresh)),
+        }
+    return after | {
         'cycles': len(measured),
         'hz': (len(measured) - 1) / span if span > 0 else np.nan,
         'lost': per_cycle * len(measured) - received,
@@ -549,16 +586,22 @@ def print_rows(
                 for name, cmd in responders(n, executor, folder, profile, joints).items():
                     code = args.code if name == node else None
                     result[name] = r = measure(
-                        cmd, n, args.duration, args.rate, '/bench', joints, code
+                        cmd, n, args.duration, args.rate, '/bench', joints, code, args.stall / 1e3
                     )
                     base, ratio = result[node], ''
                     if name != node:
                         ratios.append([base[k] / r[k] for k in ('p50', 'p99', 'cpu')])
                         ratio = ' '.join(f'{x:>9.2f}' for x in ratios[-1])
+                    stalled = (
+                        f'  after the stall: fresh in {r["recovery"]:.1f} ms, {r["stale"]} stale '
+                        'answers before'
+                        if 'recovery' in r
+                        else ''
+                    )
                     print(
                         f'{n:>3} {executor:<8} {name:<11} {r["cycles"]:>7} {r["hz"]:>6.0f} '
                         f'{r["lost"]:>5} {r["p50"]:>7.3f} {r["p99"]:>7.3f} {r["max"]:>7.2f} '
-                        f'{r["cpu"]:>6.1f} {ratio}',
+                        f'{r["cpu"]:>6.1f} {ratio}{stalled}',
                         flush=True,
                     )
             if args.repeat > 1:
@@ -600,6 +643,13 @@ def main() -> int:
         type=int,
         default=1,
         help='node and relay rows in turn, this many times, and the median ratios (default 1)',
+    )
+    parser.add_argument(
+        '--stall',
+        type=float,
+        default=0.0,
+        help='stop each responder this many ms halfway (SIGSTOP/SIGCONT); print how soon its '
+        f'answers are fresh again (a round trip within {FRESH * 1e3:g} ms)',
     )
     parser.add_argument(
         '--code',

@@ -4,12 +4,15 @@ rclpy name.
 """
 
 import re
+import time
 
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import FluidPressure
 
 from conftest import CONFIGS, REPO
 from pma_model_ros.nodes import rclpy_private
@@ -82,3 +85,25 @@ def test_no_other_module_uses_a_private_rclpy_name():
         if private.search(path.read_text()) and path.name != 'rclpy_private.py'
     ]
     assert users == []
+
+
+def test_take_returns_waiting_messages_with_their_info_then_none(private_node):
+    """What the executor's take does: the raw bytes and DDS's info of each waiting message, in
+    order, then None.
+    """
+    node = private_node(rclpy.node.Node, node_name='taker')
+    sub = node.create_subscription(FluidPressure, 'taken', lambda _: None, 10, raw=True)
+    pub = node.create_publisher(FluidPressure, 'taken', 10)
+    deadline = time.monotonic() + 10
+    while not pub.get_subscription_count() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    for value in (1.0, 2.0, 3.0):
+        pub.publish(FluidPressure(fluid_pressure=value))
+    taken = []
+    while len(taken) < 3 and time.monotonic() < deadline:
+        if (message := rclpy_private.take(sub)) is not None:
+            taken.append(message)
+    values = [deserialize_message(data, FluidPressure).fluid_pressure for data, _ in taken]
+    assert values == [1.0, 2.0, 3.0]
+    assert all(info['received_timestamp'] >= info['source_timestamp'] > 0 for _, info in taken)
+    assert rclpy_private.take(sub) is None

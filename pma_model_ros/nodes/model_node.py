@@ -36,7 +36,7 @@ from . import model_params
 from .managed import ManagedNode
 from .parameters import warn_unknown
 from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
-from .rclpy_private import with_message_info
+from .rclpy_private import take, with_message_info
 from .startup import run
 from ..core.files.node_parameters import SPECS, topic_prefixes
 from ..core.files.param_file import node_engine, node_pairing, NodeSettings
@@ -82,7 +82,7 @@ class ModelNode(ManagedNode):
         self.settings = model_params.all_settings(flat, self._names, self.instance)
         self._pairing = node_pairing(flat)
         self._max_answer_delay = flat.get('max_answer_delay', SPECS['max_answer_delay'].default)
-        #: [ns] an input taken later than this after its reception is skipped (_behind)
+        #: [ns] an input that waited longer than this is not answered (_newest)
         self._max_queue_delay = nanoseconds(
             flat.get('max_queue_delay', SPECS['max_queue_delay'].default)
         )
@@ -120,19 +120,21 @@ class ModelNode(ManagedNode):
         """
         self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
         count = 1 if self.mode == 'combined' else len(self.settings)
-        #: each sensor topic's queue wait (_behind), by input and muscle (combined: one)
+        #: each sensor topic's subscription and queue wait (_newest), by input and muscle
+        #: (combined: one)
         self._waits = {
             s: [QueueDelay() for _ in range(count)] for s in ('pressure', 'muscle_state')
         }
+        self._queues: dict[str, list] = {'pressure': [], 'muscle_state': []}
         if self.mode == 'combined':
             self._estimate_pubs = [publisher(self, JointState, 'force_estimates', RELIABLE)]
             self._command_pubs = [publisher(self, JointState, 'pressure_commands', RELIABLE)]
-            for topic, callback, qos in (
-                ('muscle_pressures', self._on_pressures, SENSOR_INPUT),
-                ('muscle_states', self._on_states, SENSOR_INPUT),
-                ('force_commands', self._on_commands, RELIABLE),
+            for topic, callback, qos, source in (
+                ('muscle_pressures', self._on_pressures, SENSOR_INPUT, 'pressure'),
+                ('muscle_states', self._on_states, SENSOR_INPUT, 'muscle_state'),
+                ('force_commands', self._on_commands, RELIABLE, None),
             ):
-                self._timed(subscription(self, JointState, topic, callback, qos, raw=True))
+                self._timed(subscription(self, JointState, topic, callback, qos, raw=True), source)
             return
         prefixes = topic_prefixes(self._names)
         self._estimate_pubs = [
@@ -142,21 +144,23 @@ class ModelNode(ManagedNode):
             publisher(self, FluidPressure, f'{p}pressure_command', RELIABLE) for p in prefixes
         ]
         for k, p in enumerate(prefixes):
-            for kind, topic, callback, qos in (
-                (FluidPressure, 'pressure', self._on_pressure, SENSOR_INPUT),
-                (JointState, 'muscle_state', self._on_state, SENSOR_INPUT),
-                (WrenchStamped, 'force_command', self._on_command, RELIABLE),
+            for kind, topic, callback, qos, source in (
+                (FluidPressure, 'pressure', self._on_pressure, SENSOR_INPUT, 'pressure'),
+                (JointState, 'muscle_state', self._on_state, SENSOR_INPUT, 'muscle_state'),
+                (WrenchStamped, 'force_command', self._on_command, RELIABLE, None),
             ):
-                self._timed(
-                    subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
-                )
+                sub = subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
+                self._timed(sub, source)
 
-    def _timed(self, sub) -> None:
-        """An input subscription of a sensor's topic gets each message's reception time, where
-        the executor passes it (:attr:`reception_times`).
+    def _timed(self, sub, source: str | None) -> None:
+        """A sensor input's subscription (``source``: pressure or muscle_state) gets each
+        message's info, where the executor passes it (:attr:`reception_times`); a command's
+        (None) does not.
         """
-        if self.reception_times and sub.qos_profile.reliability == SENSOR_INPUT.reliability:
-            with_message_info(sub)
+        if source is not None:
+            self._queues[source].append(sub)
+            if self.reception_times:
+                with_message_info(sub)
 
     def use(self, settings: list[NodeSettings]) -> None:
         """Translate messages for the muscles of ``settings`` (their joint names and frames)."""
@@ -195,49 +199,63 @@ class ModelNode(ManagedNode):
         self.get_logger().info(f'parameters set: {told}')
 
     # --- callbacks: bytes in, bytes out, only while active (the gate: the first line).  With
-    # DDS's message info (``info``), an input that waited longer than max_queue_delay is skipped
-    # (_behind), and each answer's delay since the input would have arrived is counted.
+    # DDS's message info (``info``), an input that waited longer than max_queue_delay makes the
+    # node take what waits behind it and answer the newest (_newest).
     def _on_pressure(self, k: int, data: bytes, info: dict | None = None) -> None:
-        if not self.active or info is not None and self._behind(info, 'pressure', k):
+        if not self.active:
+            return
+        if info is not None and (data := self._newest(data, info, 0, k)) is None:
             return
         now = self.now()
         self._answer(k, self.inputs.pressure(k, data, now), now, info, k)
 
     def _on_state(self, k: int, data: bytes, info: dict | None = None) -> None:
-        if not self.active or info is not None and self._behind(info, 'muscle_state', k):
+        if not self.active:
+            return
+        if info is not None and (data := self._newest(data, info, 1, k)) is None:
             return
         now = self.now()
         self._answer(k, self.inputs.muscle_state(k, data, now), now, info, k)
 
     def _on_pressures(self, data: bytes, info: dict | None = None) -> None:
-        if not self.active or info is not None and self._behind(info, 'pressure', None):
+        if not self.active or info is not None and (data := self._newest(data, info, 0)) is None:
             return
         now = self.now()
         self._answer(0, self.inputs.pressures(data, now), now, info, None)
 
     def _on_states(self, data: bytes, info: dict | None = None) -> None:
-        if not self.active or info is not None and self._behind(info, 'muscle_state', None):
+        if not self.active or info is not None and (data := self._newest(data, info, 1)) is None:
             return
         now = self.now()
         self._answer(0, self.inputs.states(data, now), now, info, None)
 
-    def _behind(self, info: dict, source: str, k: int | None) -> bool:
-        """Whether the input waited longer than ``max_queue_delay`` (:class:`QueueDelay`): then
-        it is counted as skipped, unread (muscle ``k``; None: every muscle).  Else its wait [ns]
-        and when it was taken [ns, system clock] are kept for :meth:`_answer`.
+    def _newest(self, data: bytes, info: dict, side: int, k: int | None = None) -> bytes | None:
+        """The input to answer of a sensor topic (``side`` 0: pressure, 1: muscle_state) of muscle
+        ``k`` (None: every muscle): ``data`` itself if it waited at most ``max_queue_delay``
+        (:class:`QueueDelay`); else the newest of those waiting behind it in the queue, each
+        older one counted as skipped unread, and None (all skipped) if the newest waited too long
+        as well.  The answered input's wait [ns] and when it was taken [ns, system clock] are kept
+        for :meth:`_answer`.
         """
+        source, i = ('pressure', 'muscle_state')[side], k or 0
+        queue = self._waits[source][i]
         taken = time_ns()
-        waited = self._waits[source][k or 0].waited(
-            info['source_timestamp'], info['received_timestamp'], taken
-        )
-        if waited <= self._max_queue_delay:
-            self._waited, self._taken = waited, taken
-            return False
-        self.engine.behind(source, k)
-        now = self.now()
-        if self.engine.status_due(now):
-            self.publish_status(now)
-        return True
+        waited = queue.waited(info['source_timestamp'], info['received_timestamp'], taken)
+        if waited > self._max_queue_delay:
+            subscription = self._queues[source][i]
+            while (behind := take(subscription)) is not None:
+                self.engine.behind(source, k)
+                data, info = behind
+                taken = time_ns()
+                waited = queue.waited(info['source_timestamp'], info['received_timestamp'], taken)
+            if waited > self._max_queue_delay:
+                self.engine.behind(source, k)
+                now = self.now()
+                if self.engine.status_due(now):
+                    self.publish_status(now)
+                return None
+        self._waited, self._taken = waited, taken
+        return data
 
     def _answer(
         self, k: int, estimate: bytes | None, now: int, info: dict | None, muscle: int | None

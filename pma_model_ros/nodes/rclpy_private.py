@@ -14,6 +14,9 @@ fails then).
   None, gets the message info (reception time) as well (``Subscription._callback_type``: rclpy
   decides by whether the callback can be called with one argument); for the
   SingleThreadedExecutor only: this rclpy's EventsExecutor fails on it.
+* :func:`take`: the next message waiting in a subscription's queue, with its info
+  (``Subscription.handle.take_message``, what the executor calls): a node that fell behind takes
+  what waits behind a stale input to answer the newest.
 * :func:`lifecycle_state`: a lifecycle node's state and the transitions it has
   (``LifecycleNode._state_machine``; the public ``get_available_transitions`` is a service),
   to say why a ``change_state`` call is refused.
@@ -51,3 +54,11 @@ def with_message_info(subscription: Subscription) -> Subscription:
     """
     subscription._callback_type = Subscription.CallbackType.WithMessageInfo
     return subscription
+
+
+def take(subscription: Subscription) -> tuple[object, dict] | None:
+    """The next message waiting in ``subscription``'s queue (bytes for a raw one) and its info, or
+    None when none waits.
+    """
+    with subscription.handle:
+        return subscription.handle.take_message(subscription.msg_type, subscription.raw)

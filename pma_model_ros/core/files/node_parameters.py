@@ -303,8 +303,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         'double',
         0.005,
         'an input that waited longer than this since its publisher wrote it (less the usual '
-        'transport time) is skipped (counted `skipped behind`): a node that falls behind answers '
-        'its newest inputs (`executor: single`; the events executor passes no message info)',
+        'transport time) is not answered: the newest input waiting behind it is, the others are '
+        'skipped (counted `skipped behind`), so a node that falls behind answers its newest '
+        'inputs (`executor: single`; the events executor passes no message info)',
         's',
         (1e-4, 3600.0),
         read_only=True,
