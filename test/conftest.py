@@ -124,6 +124,10 @@ def pytest_configure(config):
     of its own (1..100, from the run's), so that one worker's nodes and /diagnostics never reach
     another's tests.  The watchdog's stream: a copy of stderr, which outlives output capture.
     """
+    # as scripts/netns-run, for a run outside it (`colcon test`): this host only, a domain of
+    # the run's own, so that neither the robot's nodes nor another run's reach the tests
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
     worker = os.environ.get('PYTEST_XDIST_WORKER')  # gw0, gw1, ...
     if worker:
         run = int(os.environ.get('ROS_DOMAIN_ID', '0'))

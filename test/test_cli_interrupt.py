@@ -36,16 +36,22 @@ def _start(argv: list[str], cwd: Path) -> subprocess.Popen:
     )
 
 
-def _interrupted(proc: subprocess.Popen) -> list[str]:
-    """SIGINT to the command (as Ctrl-C), its end awaited; its stderr lines but progress ones."""
-    proc.send_signal(signal.SIGINT)
+def _interrupted(proc: subprocess.Popen, group: bool = False) -> list[str]:
+    """SIGINT to the command, or to its whole process group as Ctrl-C in a terminal sends it; its
+    end awaited; its stderr lines but progress ones.
+    """
+    if group:
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=DEADLINE)
     with pytest.raises(ProcessLookupError):  # nothing of its process group is left
         os.killpg(proc.pid, 0)
     return [line for line in err.splitlines() if not line.startswith('[')]
 
 
-def test_ctrl_c_during_fit(tmp_path):
+@pytest.mark.parametrize('group', [False, True])
+def test_ctrl_c_during_fit(tmp_path, group):
     """Interrupted once it has printed its first line (while fitting, in worker processes)."""
     out = tmp_path / 'fit.yaml'
     argv = ['fit', '--model', 'martens', '--data', str(MAP), '--muscle', str(SPEC)]
@@ -55,7 +61,7 @@ def test_ctrl_c_during_fit(tmp_path):
         assert ready.select(DEADLINE), 'fit printed nothing'
     first = proc.stdout.readline()
     assert first.startswith('geometry calibration'), first
-    assert _interrupted(proc) == ['pma-model: interrupted']
+    assert _interrupted(proc, group) == ['pma-model: interrupted']
     assert proc.returncode == 130
     assert list(tmp_path.iterdir()) == []
 
@@ -65,7 +71,9 @@ def _long_bag(folder: Path, seconds: int) -> Path:
     repeated with their header stamps (CDR: 4 bytes of encapsulation, then stamp.sec as int32)
     and log times moved on by a second each time.
     """
-    pytest.importorskip('rosbags', reason='needs rosbags: pip install -r requirements-dev.txt')
+    pytest.importorskip(
+        'rosbags', reason='needs rosbags, a pip-only library: pip install -r requirements-dev.txt'
+    )
     from pma_model_ros.bags.bag_io import BagWriter, messages, open_bag
     from pma_model_ros.bags.synthetic import record_simulation
 

@@ -184,6 +184,7 @@ COLCON_TESTS = [
 HIDE_PIP_ONLY = 'import sys\nsys.modules.update(rosbags=None, ruff=None)\n'
 
 
+@pytest.mark.time_bound(1200)  # three colcon commands of at most 300 s each
 def test_colcon_build_and_test_in_a_clean_workspace(tmp_path):
     """A copy of the source in a fresh workspace: `colcon build`, then `colcon test` of
     :data:`COLCON_TESTS` with the pip-only libraries hidden: no failure, and the tests that need
