@@ -13,12 +13,13 @@ from .bags import add_bag_commands
 from .checks import check_outputs, CliError
 from .identify import add_identify_commands
 from .joint import add_joint_commands
+from .parser import CliParser
 from .plot import add_plot_command
 from .query import add_query_commands
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='pma-model', description=__doc__)
+    parser = CliParser(prog='pma-model', description=__doc__)
     sub = parser.add_subparsers(dest='command', required=True)
     add_identify_commands(sub)
     add_bag_commands(sub)

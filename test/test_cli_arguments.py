@@ -1,0 +1,78 @@
+"""The command line's arguments and the files a user passes: each mistake refused with one line
+naming it (exit code 2), under the usage of the subcommand that got it.
+"""
+
+import pytest
+
+from conftest import CONFIGS, REPO
+from pma_model_ros.cli.main import main
+
+MAP = str(REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_10_250_force_map.csv')
+SPEC = str(REPO / 'config' / 'muscles' / 'dmsp_10_250.yaml')
+CONFIG = str(CONFIGS['DMSP-10-250'])
+
+
+def _refused(capsys, argv: list[str]) -> tuple[str, str]:
+    """The usage's first line and the error line of an argv argparse refuses (exit code 2)."""
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.splitlines()
+    return err[0], err[-1]
+
+
+@pytest.mark.parametrize(
+    'argv, option',
+    [
+        (['fit', '--data', MAP, '--data', MAP, '--muscle', SPEC, '--model', 'martens', '--out',
+          'OUT'], '--data'),
+        (['force', '--config', CONFIG, '--pressure', '3e5', '--length', '.2', '--length', '.3'],
+         '--length'),
+        (['bag', 'estimate', 'b', '--config', CONFIG, '--out', 'OUT', '--out', 'OUT'], '--out'),
+    ],
+)  # fmt: skip
+def test_an_option_given_twice_is_refused(tmp_path, capsys, argv, option):
+    """Refused before any work (argparse alone keeps the last value without a word)."""
+    out = tmp_path / 'out'
+    usage, error = _refused(capsys, [str(out) if a == 'OUT' else a for a in argv])
+    command = ' '.join(a for a in argv[:2] if not a.startswith('-') and a != 'b')
+    assert usage.startswith(f'usage: pma-model {command} ')
+    assert error.startswith(f'pma-model {command}: error: argument {option}: given twice (')
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    'argv, message',
+    [
+        (['fit', '--modle', 'martens'], "unknown option --modle (did you mean '--model'?)"),
+        (['fit', '--overwite'], "unknown option --overwite (did you mean '--overwrite'?)"),
+        (['fit', '--no-calibrate-len'],
+         "unknown option --no-calibrate-len (did you mean '--no-calibrate-length'?)"),
+        (['force', '--config', CONFIG, '--overwrite'],
+         'unknown option --overwrite (pma-model force -h lists its options)'),
+        (['bag', 'estimate', 'b', '--confg=x'],
+         "unknown option --confg (did you mean '--config'?)"),
+    ],
+)  # fmt: skip
+def test_an_unknown_option_is_named_under_its_subcommand(capsys, argv, message):
+    """Named before a missing required option, with the closest option of that subcommand
+    (prefixes are not taken: no abbreviations), under that subcommand's usage.
+    """
+    usage, error = _refused(capsys, argv)
+    command = 'bag estimate' if argv[0] == 'bag' else argv[0]
+    assert usage.startswith(f'usage: pma-model {command} ')
+    assert error == f'pma-model {command}: error: {message}'
+
+
+def test_an_extra_argument_is_named_under_its_subcommand(capsys):
+    argv = ['force', '--config', CONFIG, '--pressure', '3e5', '--length', '0.23', 'extra']
+    usage, error = _refused(capsys, argv)
+    assert usage.startswith('usage: pma-model force ')
+    assert error == 'pma-model force: error: unrecognized arguments: extra'
+
+
+def test_a_negative_value_is_a_value(capsys):
+    """-0.01 after --length-rate is its value, not an unknown option."""
+    argv = ['force', '--config', CONFIG, '--pressure', '3e5', '--length', '0.23']
+    assert main([*argv, '--length-rate', '-0.01']) == 0
+    assert capsys.readouterr().out.startswith('force ')
