@@ -201,7 +201,12 @@ def test_colcon_build_and_test_in_a_clean_workspace(tmp_path):
     hide = tmp_path / 'hide'
     hide.mkdir()
     (hide / 'sitecustomize.py').write_text(HIDE_PIP_ONLY)
-    env = {k: v for k, v in os.environ.items() if k != 'PMA_TEST_ALL_LIBRARIES'}
+    # neither this run's library rule nor its pytest options (`colcon test` passes them there)
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ('PMA_TEST_ALL_LIBRARIES', 'PYTEST_ADDOPTS')
+    }
     env |= {'COLCON_HOME': str(tmp_path / 'colcon_home'), 'PYTHONPATH': str(hide)}
     workspace = tmp_path / 'ws'
     for command in (

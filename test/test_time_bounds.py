@@ -49,6 +49,7 @@ def test_a_hang_ends_the_process_with_the_stacks(tmp_path, case):
         capture_output=True,
         text=True,
         timeout=120,
+        env={k: v for k, v in os.environ.items() if k != 'PYTEST_ADDOPTS'},  # colcon test's
     )
     took = time.monotonic() - began
     assert run.returncode == 1, run.stdout + run.stderr
