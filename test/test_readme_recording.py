@@ -87,4 +87,4 @@ def test_the_documented_recording_is_fitted(tmp_path):
     )
     # docs/cli.md: 3.16 % at b486110 (runs give 3.16-5.05 %: the recording's timing varies);
     # test_bags_calibrate's bound for a bag's fit judged on the measured map
-    assert error < 5.5, error
+    assert error < 5.5, (error, samples, span)  # a shorter span covers less of the map
