@@ -509,6 +509,32 @@ def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_pa
     assert params['muscle']['given_nominal_length'] == 0.296  # for pma-model scale
 
 
+def test_every_model_of_a_fit_all_file_is_served_as_it_was_fitted(tmp_path, capsys):
+    """DMSP-20-300 with L0 given 4 mm short, ``--model all``: martens (the default) moves L0 to
+    0.2993 m, sarosi keeps 0.296 m.  Each model the file holds, served from the file (what
+    model_node does when ``model`` is switched), reproduces its own in-sample err (eq. 23) on the
+    map: sarosi is not served at martens' L0 (10.21 % against its 1.11 %).
+    """
+    from pma_model_ros.core.identification.protocols import quality
+
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text(
+        (REPO / 'pma_model_ros' / 'core' / 'data' / 'dmsp_20_300.yaml')
+        .read_text()
+        .replace('nominal_length: 0.30 ', 'nominal_length: 0.296 ')
+    )
+    fmap = shipped_force_map('DMSP-20-300')
+    csv, out = _map_csv(tmp_path / 'map.csv', fmap), tmp_path / 'all.yaml'
+    argv = ['fit', '--data', csv, '--muscle', str(spec), '--model', 'all', '--out', str(out)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    params = read_parameters(out)
+    for name, entry in params['models'].items():
+        served = muscle_model(params, name).force(fmap.pressure, fmap.length).force
+        err = quality(fmap.force, np.nan_to_num(served), fmap.max_force)[0]
+        assert err == pytest.approx(entry['err'], abs=1e-6), name
+
+
 def test_fit_raises_an_l0_shorter_than_the_longest_row_and_says_so(tmp_path, capsys):
     """Table A2 with L0 given 0.24 m (a tape measure 1 cm off): the map has a 0.250 m row, so L0
     is at least 0.250 m, and the line says it was raised.  With --no-calibrate-length the given L0

@@ -170,10 +170,12 @@ def cmd_make_config(args: argparse.Namespace) -> None:
     else:
         found = identify_shipped([args.muscle])[args.muscle]
         fmap = shipped_force_map(args.muscle)
-        models = {name: model_entry(rep, fmap) for name, rep in found.reports.items()}
-        params = build_parameters(
-            shipped_spec(args.muscle), found.default, domain_of(fmap), models
-        )
+        spec = shipped_spec(args.muscle)
+        models = {
+            name: model_entry(rep, fmap, spec.nominal_length)
+            for name, rep in found.reports.items()
+        }
+        params = build_parameters(spec, found.default, domain_of(fmap), models)
         header += f'\n{FILE_LEGEND}'
     write_parameters(args.out, params, header)
     print(f'wrote {args.out}')
@@ -332,7 +334,10 @@ def cmd_fit(args: argparse.Namespace) -> None:
             chosen.spec,
             found.default,
             chosen.domain,
-            {name: model_entry(rep, fmap) for name, rep in reports.items()},
+            {
+                name: model_entry(rep, fmap, chosen.spec.nominal_length)
+                for name, rep in reports.items()
+            },
             given_length=spec.nominal_length,
         ),
         f'{spec.name} identified from {args.data or args.bag} by `pma-model fit` '

@@ -38,8 +38,10 @@ def fit_entry(fit: Fit) -> dict:
     return entry
 
 
-def model_entry(report: ModelReport, fmap: ForceMap) -> dict:
-    """:func:`fit_entry` of the shipped fit plus its worst nested held-out errors, overall
+def model_entry(report: ModelReport, fmap: ForceMap, nominal_length: float) -> dict:
+    """:func:`fit_entry` of the shipped fit, with its rest length [m] wherever it differs from
+    the file's ``nominal_length`` (the muscle's: else the model would be served at another
+    model's calibrated L0), plus its worst nested held-out errors, overall
     (``cv_err``), on the lengths between the map's shortest and longest (``interior_cv_err``,
     interpolation) and on those two (``edge_cv_err``, extrapolation), whether it is served beyond
     the identified lengths by its own value
@@ -47,7 +49,10 @@ def model_entry(report: ModelReport, fmap: ForceMap) -> dict:
     the error per held-out length (``held_out``: ``lengths`` [m], ``err`` [%] and the ``max_force``
     [N] they are a share of), when every length was judged.
     """
-    return fit_entry(report.shipped) | held_out_entry(report.shipped.model, report.nested, fmap)
+    entry = fit_entry(report.shipped)
+    if report.shipped.spec.nominal_length != nominal_length:
+        entry['nominal_length'] = _num(report.shipped.spec.nominal_length)
+    return entry | held_out_entry(report.shipped.model, report.nested, fmap)
 
 
 def held_out_entry(model: str, nested: np.ndarray, fmap: ForceMap) -> dict:
