@@ -56,7 +56,8 @@ UNIT_ROUNDOFF = float(np.finfo(float).eps) / 2
 def force_terms(muscle, p: float, length: float) -> float:
     """The sum of the magnitudes [N] of the terms of ``muscle``'s force at gauge ``p`` [Pa] and
     ``length`` [m]: Hildebrandt's eq. 20, Sárosi's eq. 19 (the larger of the two hysteresis
-    branches).
+    branches); of any other model, whose coefficients cancel no large terms, those of
+    F = (q2 p + q1) p + q0.
     """
     theta, name = np.abs(np.asarray(muscle.theta, float)), muscle.model.name
     if name == 'hildebrandt':
@@ -72,7 +73,8 @@ def force_terms(muscle, p: float, length: float) -> float:
             (c0 * p + c1) * math.exp(c2 * kappa) + p * (d0 * kappa + d1) + d2
             for c0, c1, c2, d0, d1, d2 in theta.reshape(-1, 6)
         )
-    raise NotImplementedError(f'the terms of {name}')
+    op = muscle.operating(length)
+    return float(abs(op.q2) * p * p + abs(op.q1) * p + abs(op.q0))
 
 
 def force_rounding(muscle, p: float, length: float) -> float:
