@@ -58,9 +58,12 @@ def counting(counter, function):
         return function(*args)
     return counted
 S = separable.Separable
-computes = '_least_squares' if hasattr(S, '_least_squares') else 'fit_least_squares'
-setattr(S, computes, counting(fits, getattr(S, computes)))
-S.linear_least_squares = counting(solves, S.linear_least_squares)
+for counter, asked, computed in (
+    (fits, 'fit_least_squares', '_least_squares'),
+    (solves, 'linear_least_squares', '_linear_least_squares'),
+):
+    name = computed if hasattr(S, computed) else asked  # a checkout that remembers none
+    setattr(S, name, counting(counter, getattr(S, name)))
 options = {}
 if 'workers' in selection.identify_all.__code__.co_varnames:
     options = {'workers': workers} if workers else {}

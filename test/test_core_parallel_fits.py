@@ -12,7 +12,7 @@ import pytest
 from pma_model_ros.core.files.shipped_data import shipped_force_map, shipped_spec
 from pma_model_ros.core.identification import selection, separable
 from pma_model_ros.core.identification.calibration import Calibration
-from pma_model_ros.core.identification.protocols import fit_paper
+from pma_model_ros.core.identification.protocols import domain_of, fit_paper
 from pma_model_ros.core.identification.selection import identify_all
 from pma_model_ros.core.physics.models import get_model
 
@@ -97,3 +97,24 @@ def test_no_fit_is_computed_twice(monkeypatch):
     spec, fmap = shipped_spec('DMSP-10-250'), shipped_force_map('DMSP-10-250')
     identify_all(spec, fmap, (get_model('mckibben'),), Calibration(), ('least_squares',), None, 1)
     assert counts['computed'] == len(separable._SOLVED) < counts['asked']
+
+
+def test_a_fit_solves_each_nonlinear_point_once(monkeypatch):
+    """A refinement starts at a grid point already solved and solves its optimum again: each
+    point's linear least squares is computed once and asked for again.
+    """
+    monkeypatch.setattr(separable, '_SOLVED', separable.OrderedDict())
+    compute, asked = separable.Separable._linear_least_squares, []
+    points = []
+
+    def computed(self, phi):
+        points.append(np.asarray(phi, float).tobytes())
+        return compute(self, phi)
+
+    monkeypatch.setattr(separable.Separable, '_linear_least_squares', computed)
+    spec, fmap = shipped_spec('DMSP-10-250'), shipped_force_map('DMSP-10-250')
+    fitted = separable.Separable(get_model('martens'), spec, domain_of(fmap), fmap)
+    solve = fitted.linear_least_squares
+    monkeypatch.setattr(fitted, 'linear_least_squares', lambda phi: asked.append(1) or solve(phi))
+    fitted.fit_least_squares()
+    assert len(points) == len(set(points)) < len(asked)

@@ -81,6 +81,7 @@ class Separable:
         self.lower = np.array(model.lower, float)[self.nonlinear]
         self.upper = np.array(model.upper, float)[self.nonlinear]
         self.start = start[self.nonlinear]
+        self._solved_at: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def design(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(b, A) at nonlinear parameters ``phi``: force with c = 0 [N] (points) and dF/dc
@@ -107,8 +108,20 @@ class Separable:
 
     def linear_least_squares(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(c, residuals [N]) of the clipped least squares over the linear parameters at ``phi``;
-        residuals inf where the model is not finite (a length beyond the fibre length).
+        residuals inf where the model is not finite (a length beyond the fibre length).  Computed
+        once per ``phi`` (a refinement starts at a grid point already solved, and its optimum is
+        solved again for its linear parameters).
         """
+        key = np.asarray(phi, float).tobytes()
+        if key not in self._solved_at:
+            solved = self._linear_least_squares(phi)
+            for array in solved:
+                array.setflags(write=False)
+            self._solved_at[key] = solved
+        return self._solved_at[key]
+
+    def _linear_least_squares(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`linear_least_squares`, computed."""
         base, columns = self.design(phi)
         y = self.force
         if not (np.all(np.isfinite(base)) and np.all(np.isfinite(columns))):
