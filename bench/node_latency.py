@@ -3,7 +3,7 @@ relay, same run, same settings.
 
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
-        [--code DIR] [--repeat 1] [--stall MS]
+        [--code DIR] [--repeat 1] [--stall MS] [--pairing every_input|approximate_time]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
 stamped with the cycle's time (the stamp is the sequence number), and measures the time until the
@@ -173,14 +173,19 @@ class Pinger(Node):
     """
 
     def __init__(
-        self, namespace: str, muscles: int, context: rclpy.Context, joints: bool = False
+        self,
+        namespace: str,
+        muscles: int,
+        context: rclpy.Context,
+        joints: bool = False,
+        answers: int = ANSWERS,
     ) -> None:
         super().__init__('pinger', context=context)
         self.sent: dict[int, float] = {}  # stamp [ns] -> perf_counter at publish [s]
         self.answers: dict[int, list[float]] = {}
         reliable = QoSProfile(depth=1000)
         self.n, self.joints = muscles, joints
-        self.per_cycle = 1 if joints else ANSWERS  # answers per cycle
+        self.per_cycle = 1 if joints else answers  # answers per cycle
         self._timed = 2 * muscles if joints else 0  # the first answered message: sent from there
         if joints:
             self._pubs = tuple(
@@ -304,6 +309,7 @@ def measure(
     joints: bool = False,
     code: Path | None = None,
     stalled: float = 0.0,
+    answers: int = ANSWERS,
 ) -> dict:
     """Start ``responder`` (from checkout ``code``, if given), ping it, stop it; round trips [ms],
     loss, its CPU use and the achieved cycle rate.  ``stalled`` [s]: the responder is stopped that
@@ -320,7 +326,7 @@ def measure(
         proc = node_process.start(responder, log, env, code)
         context = rclpy.Context()
         rclpy.init(context=context)
-        pinger = Pinger(namespace, muscles, context, joints)
+        pinger = Pinger(namespace, muscles, context, joints, answers)
         executor = EventsExecutor(context=context)
         executor.add_node(pinger)
         try:
@@ -388,12 +394,19 @@ def measure(
 
 
 def responders(
-    muscles: int, executor: str, folder: Path, profile: Path | None, joints: bool = False
+    muscles: int,
+    executor: str,
+    folder: Path,
+    profile: Path | None,
+    joints: bool = False,
+    pairing: str = 'every_input',
 ) -> dict[str, list[str]]:
-    """The command lines of the model's node (model_node, or joint_node with ``muscles`` joints)
-    and of its relay, by name.
+    """The command lines of the model's node (model_node with ``pairing``, or joint_node with
+    ``muscles`` joints) and of its relay, by name.
     """
     params, name = {'executor': executor}, 'joint_node' if joints else 'model_node'
+    if not joints:
+        params['pairing'] = pairing
     if joints:  # N copies of the example elbow; their muscle files are in config/
         arm(path := folder / f'joints_{muscles}.yaml', muscles)
         model = node_process.command(
@@ -583,10 +596,20 @@ def print_rows(
             for repeat in range(args.repeat):
                 profile = args.profile if (joints, n, executor) == last and not repeat else None
                 result = {}
-                for name, cmd in responders(n, executor, folder, profile, joints).items():
+                commands = responders(n, executor, folder, profile, joints, args.pairing)
+                for name, cmd in commands.items():
                     code = args.code if name == node else None
+                    once = name == node and args.pairing == 'approximate_time'
                     result[name] = r = measure(
-                        cmd, n, args.duration, args.rate, '/bench', joints, code, args.stall / 1e3
+                        cmd,
+                        n,
+                        args.duration,
+                        args.rate,
+                        '/bench',
+                        joints,
+                        code,
+                        args.stall / 1e3,
+                        1 if once else ANSWERS,
                     )
                     base, ratio = result[node], ''
                     if name != node:
@@ -643,6 +666,13 @@ def main() -> int:
         type=int,
         default=1,
         help='node and relay rows in turn, this many times, and the median ratios (default 1)',
+    )
+    parser.add_argument(
+        '--pairing',
+        choices=['every_input', 'approximate_time'],
+        default='every_input',
+        help="model_node's pairing; approximate_time: one answer per cycle, the round trip to it "
+        '(the relay still answers each input)',
     )
     parser.add_argument(
         '--stall',
