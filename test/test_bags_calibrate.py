@@ -194,6 +194,21 @@ def test_cli_fit_from_bad_bag(tmp_path, capsys):
     assert 'has type sensor_msgs/msg/FluidPressure' in capsys.readouterr().err
 
 
+def test_cli_fit_from_bag_names_the_recorded_joints(tmp_path, capsys):
+    """The spec of another muscle (DMSP-20-300) on a recording of the DMSP-10-250: the joint it
+    looks for is not recorded, and the error names the entries recorded and --joint.
+    """
+    bag = record_simulation(tmp_path / 'run', 2.0, '/cal')
+    spec = REPO / 'config' / 'muscles' / 'dmsp_20_300.yaml'
+    argv = ['fit', '--bag', str(bag), '--muscle', str(spec), '--model', 'martens']
+    assert main([*argv, '--out', str(tmp_path / 'fit.yaml')]) == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"pma-model: error: {bag}: fewer than 2 valid length samples (joint 'DMSP-20-300'); the "
+        "recording has no JointState entry 'DMSP-20-300', only ['DMSP-10-250']: name the "
+        "muscle's entry with --joint NAME"
+    )
+
+
 def test_two_branch_fit_from_a_bag_recovers_the_simulated_gap(tmp_path, capsys):
     """The simulator adds +8 N on the lengthening branch and -8 N on the shortening one (its play
     operator); a sarosi_hysteresis fit of the recording, each point with the direction it was

@@ -726,3 +726,49 @@ def test_pairing_comes_from_the_parameter_file(tmp_path):
         words[name] = proc.stdout
     assert 'wrote 199 force_estimate' in words['every']
     assert 'wrote 100 force_estimate' in words['approximate']
+
+
+@pytest.mark.parametrize(
+    'config, joint, words',
+    [
+        (
+            'DMSP-20-300',
+            None,
+            "500 × invalid input: joint 'DMSP-20-300' not in ['DMSP-10-250']; the recording's "
+            'JointState names (in brackets) hold no joint of',
+        ),
+        (
+            'DMSP-10-100',
+            'DMSP-10-250',
+            # the simulated DMSP-10-250 at 0.198 m (its shortest) > L0/cos(Theta0) of the 10-100
+            'invalid input: length 0.198 m outside the geometry (0, 0.1139) m (the first); the '
+            'recorded lengths lie outside the geometry of the muscle of',
+        ),
+    ],
+)
+def test_estimate_with_another_muscles_file_says_why_and_writes_nothing(
+    tmp_path, config, joint, words
+):
+    """Another muscle's file: nothing estimated, so nothing written and exit code 2, with the
+    reason of the rejections and their count (5 s at 100 Hz: 500 muscle_states).
+    """
+    bag = record_simulation(tmp_path / 'sim.mcap', 5.0, '/m1', rate=100.0)
+    out, table = tmp_path / 'out', tmp_path / 'est.csv'
+    args = ['--out', str(out), '--csv', str(table), *(['--joint', joint] if joint else [])]
+    proc = bag_estimate(bag, *args, config=CONFIGS[config])
+    assert proc.returncode == 2 and proc.stdout == ''
+    assert proc.stderr.startswith(f'pma-model: error: {bag}: no force estimated, nothing written')
+    assert words in proc.stderr and len(proc.stderr.splitlines()) == 1
+    assert not out.exists() and not table.exists()
+
+
+def test_estimate_joint_maps_the_recorded_entry(tmp_path):
+    """--joint names the recorded JointState entry for a file of another name: the DMSP-20-300's
+    geometry takes the simulated DMSP-10-250's lengths, so every pair is estimated (as
+    test_storage_conversion_and_cli's 199 of 1 s at 100 Hz).
+    """
+    bag = record_simulation(tmp_path / 'sim.mcap', 1.0, '/m1', rate=100.0)
+    out = str(tmp_path / 'out')
+    proc = bag_estimate(bag, '--out', out, '--joint', 'DMSP-10-250', config=CONFIGS['DMSP-20-300'])
+    assert proc.returncode == 0, proc.stderr
+    assert 'wrote 199 force_estimate' in proc.stdout and '(0 inputs rejected)' in proc.stdout

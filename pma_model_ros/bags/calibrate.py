@@ -150,6 +150,7 @@ def read_samples(
             reader, {pressure, state, force_topic}, {pressure: FLUID_PRESSURE, state: JOINT_STATE}
         )
         series: dict[str, list[tuple[float, float]]] = {'pressure': [], 'length': [], 'force': []}
+        names: set[str] = set()  # the JointState entries recorded
         meter = Meter(sum(c.msgcount for c in connections), f'reading {Path(bag).name} (messages)')
         for count, (connection, _, data) in enumerate(messages(reader, connections), 1):
             if count % 1000 == 0:
@@ -160,6 +161,8 @@ def read_samples(
                 series['pressure'].append((stamp, msg.fluid_pressure - ambient_pressure))
             if connection.topic == force_topic and connection.msgtype == WRENCH_STAMPED:
                 series['force'].append((stamp, msg.wrench.force.x))
+            if connection.msgtype == JOINT_STATE:
+                names.update(msg.name)
             if connection.msgtype == JOINT_STATE and joint in msg.name:
                 i = msg.name.index(joint)
                 if connection.topic == state and i < len(msg.position):
@@ -167,11 +170,15 @@ def read_samples(
                 if connection.topic == force_topic and i < len(msg.effort):
                     series['force'].append((stamp, msg.effort[i]))
         meter.update(meter.total)
-    return _align(series, str(bag), joint, force_topic)
+    return _align(series, str(bag), joint, force_topic, names)
 
 
 def _align(
-    series: dict[str, list[tuple[float, float]]], bag: str, joint: str, force_topic: str
+    series: dict[str, list[tuple[float, float]]],
+    bag: str,
+    joint: str,
+    force_topic: str,
+    names: set[str],
 ) -> Samples:
     arrays = {}
     for name, rows in series.items():
@@ -183,8 +190,15 @@ def _align(
                 if name == 'force'
                 else f" (joint '{joint}')"
             )
+            absent = (
+                f'; the recording has no JointState entry {joint!r}, only {sorted(names)}: '
+                "name the muscle's entry with --joint NAME"
+                if name != 'pressure' and joint not in names
+                else ''
+            )
             raise BagError(
                 f'{bag}: fewer than 2 valid {name} samples{where if name != "pressure" else ""}'
+                + absent
             )
         arrays[name] = data[np.argsort(data[:, 0], kind='stable')]
     t, force = arrays['force'].T

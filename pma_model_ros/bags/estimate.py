@@ -216,4 +216,7 @@ def estimate_bag(
         for key, n in node.recording.counts(k).items():
             totals[key] = totals.get(key, 0) + n
     node.summary.counts = totals
+    node.summary.reasons = {
+        s.joint_name: node.recording.reasons(k) for k, s in enumerate(settings)
+    }
     return node.summary

@@ -68,6 +68,9 @@ class Summary:
     diagnostics: int = 0  #: /diagnostics messages written
     #: the engine's counters at the end, summed over muscles
     counts: dict[str, int] = field(default_factory=dict)
+    #: each muscle's rejections by reason (joint name -> reason -> (how many, the first's text);
+    #: :meth:`~pma_model_ros.core.runtime.recording.Recording.reasons`)
+    reasons: dict[str, dict[str, tuple[int, str]]] = field(default_factory=dict)
 
 
 class _Outputs:

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import argparse
 from contextlib import contextmanager
+import os
 from pathlib import Path
 import shutil
 import tempfile
 from typing import Iterator
 
-from .checks import add_overwrite_option
+from .checks import add_overwrite_option, CliError
 from ..core.files.node_parameters import PRESSURE_REFERENCES
 from ..core.identification.force_map import ForceMap
 from ..core.physics.geometry import MuscleSpec, STANDARD_ATMOSPHERE
@@ -60,6 +61,11 @@ def add_bag_commands(sub: argparse._SubParsersAction) -> None:
         '--namespace', help="namespace of the muscle's topics (default: the only one in the bag)"
     )
     p.add_argument('--model', help="override the file's default model")
+    p.add_argument(
+        '--joint',
+        help="JointState entry of the muscle (default: the file's joint_name, else its muscle's "
+        'name); a file with muscles: names them in its blocks',
+    )
     p.add_argument(
         '--pressure-reference',
         choices=PRESSURE_REFERENCES,
@@ -124,8 +130,16 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
     parameters = read_parameters(args.config)
     if args.pressure_reference:
         parameters['pressure_reference'] = args.pressure_reference
+    if args.joint:
+        if parameters.get('muscles'):
+            raise CliError(
+                f"--joint: {args.config} has muscles: {parameters['muscles']}; set each one's "
+                'joint_name in its block'
+            )
+        parameters['joint_name'] = args.joint
     settings = all_node_settings(parameters, args.model)
     pairing = node_pairing(parameters)  # (checked by the engine)
+    new_csv = args.csv is not None and not os.path.lexists(args.csv)
     with replacing(Path(args.out)) as out:
         summary = estimate_bag(
             args.bag,
@@ -139,6 +153,13 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
             outputs_only=args.outputs_only,
             **pairing,
         )
+        if not summary.estimates and any(summary.reasons.values()):
+            if new_csv and os.path.lexists(args.csv):
+                os.unlink(args.csv)
+            raise CliError(
+                f'{args.bag}: no force estimated, nothing written; rejected: '
+                f'{_rejections(summary)}{_mismatch_hint(summary, args.config)}'
+            )
     rejected = sum(n for key, n in summary.counts.items() if key.startswith('rejected'))
     print(
         f'{summary.namespace}: {summary.messages} messages read; wrote {summary.estimates} '
@@ -147,6 +168,40 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
         f'inputs rejected) '
         f'-> {args.out}' + (f' and {args.csv}' if args.csv else '')
     )
+    if rejected:
+        print(f'rejected: {_rejections(summary)}{_mismatch_hint(summary, args.config)}')
+
+
+def _rejections(summary) -> str:
+    """The rejected inputs per muscle and reason: ``500 × invalid input: ...`` (of a reason
+    whose texts differ, the first).
+    """
+    several = len(summary.reasons) > 1
+    return '; '.join(
+        f'{joint + ": " if several else ""}{n} × {text}'
+        + (' (the first)' if n > 1 and not text.endswith(key) else '')
+        for joint, reasons in summary.reasons.items()
+        for key, (n, text) in reasons.items()
+    )
+
+
+def _mismatch_hint(summary, config: str) -> str:
+    """What maps the recording to the file where its rejections say they do not match: the
+    JointState names (--joint, joint_name), or the muscle's geometry (another muscle's file).
+    """
+    keys = [key for reasons in summary.reasons.values() for key in reasons]
+    if any(key.startswith("joint '") for key in keys):
+        return (
+            f"; the recording's JointState names (in brackets) hold no joint of {config} "
+            f'{list(summary.reasons)}: name the recorded entry with --joint NAME (or joint_name '
+            "in the file), or give the recorded muscle's file"
+        )
+    if 'length' in keys:
+        return (
+            f'; the recorded lengths lie outside the geometry of the muscle of {config}: is it '
+            "the recorded muscle's file?"
+        )
+    return ''
 
 
 @contextmanager
@@ -155,7 +210,14 @@ def replacing(out: Path) -> Iterator[Path]:
     moved to ``out`` only when the writing succeeded; ``out`` itself if it does not exist.
     """
     if not (out.exists() or out.is_symlink()):
-        yield out
+        try:
+            yield out
+        except BaseException:  # nothing written: no bag left behind
+            if out.is_dir() and not out.is_symlink():
+                shutil.rmtree(out)
+            elif out.exists():
+                out.unlink()
+            raise
         return
     tmp = Path(tempfile.mkdtemp(prefix=f'.{out.name}.', suffix='.replacing', dir=out.parent))
     try:

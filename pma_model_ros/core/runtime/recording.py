@@ -134,10 +134,18 @@ class Recording:
             for _ in range(len(engine))
         ]
         self.timeline = Timeline(engine)
+        self._reasons: list[dict[str, list]] = [{} for _ in range(len(engine))]
 
     def counts(self, k: int) -> dict[str, int]:
         """Muscle ``k``'s counters so far (non-zero, by label), as :meth:`Engine.counts`."""
         return self.timeline.counts(k)
+
+    def reasons(self, k: int) -> dict[str, tuple[int, str]]:
+        """Muscle ``k``'s rejections so far by reason (a refused message's text, else the check
+        that failed: ``pressure``, ``length``, ``no force``, ``force_command``, ``stale
+        force_command``): (how many, the text of the first).
+        """
+        return {key: (n, text) for key, (n, text) in self._reasons[k].items()}
 
     # --- one stretch
     def step(
@@ -341,22 +349,28 @@ class Recording:
         }
         counters = [at[masks[c]] if c in masks else positions[c] for c in Counter]
         texts = []  # what each rejection latches, as Health.reject and Health.stale_command
+        reasons = self._reasons[k]
         for i in np.flatnonzero(rejected).tolist():
             if stale_c[i]:
                 age = now.item(i) - stamp.item(i)
-                texts.append(stale_text('force_command', 'stamp', age, self.max_age))
-                continue
-            if i in ev.refused:
-                reason = ev.refused[i]
-            elif i in why_not:
-                reason = no_force_problem(length.item(i), why_not[i])
-            elif is_p[i]:
-                reason = pressure_problem(prep.absolute.item(i))
-            elif is_l[i]:
-                reason = length_problem(value.item(i), model.max_length)
+                key, text = (
+                    'stale force_command',
+                    stale_text('force_command', 'stamp', age, self.max_age),
+                )
             else:
-                reason = command_problem(value.item(i))
-            texts.append(invalid_text(reason))
+                if i in ev.refused:
+                    key = reason = ev.refused[i]
+                elif i in why_not:
+                    key, reason = 'no force', no_force_problem(length.item(i), why_not[i])
+                elif is_p[i]:
+                    key, reason = 'pressure', pressure_problem(prep.absolute.item(i))
+                elif is_l[i]:
+                    key, reason = 'length', length_problem(value.item(i), model.max_length)
+                else:
+                    key, reason = 'force_command', command_problem(value.item(i))
+                text = invalid_text(reason)
+            texts.append(text)
+            reasons.setdefault(key, [0, text])[0] += 1
         flagged_at = np.concatenate([estimates.at, commands.at])
         flagged = np.concatenate([estimates.flags, commands.flags]).astype(np.int64)
         order = np.argsort(flagged_at, kind='stable')
