@@ -96,7 +96,8 @@ def declare_block(
     node: Node, prefix: str, model: str, given: dict | None = None, read_only: bool = False
 ) -> None:
     """Declare ``models.<model>.*`` of the muscle under ``prefix``, each entry from ``given``
-    (``{dotted name: value}``) if there, else from the parameter file if it sets it, else unset.
+    (``{dotted name: value}``) if there, else from the parameter file if it sets it, else not
+    declared (the file's absent entry: ``muscle.nominal_length``, no offset, no extrapolation).
     """
     for entry, table_spec in BLOCK_SPECS.items():
         spec = replace(table_spec, read_only=read_only)
@@ -109,7 +110,7 @@ def declare_block(
             text = f'identified parameters {list(m.param_names)} of {model} ({m.equation}), SI'
         if given is not None and name in given:
             node.declare_parameter(name, given[name], descriptor(spec, text), ignore_override=True)
-        else:
+        elif overrides(node).get(name) is not None:  # else not declared: no unset parameter
             node.declare_parameter(name, TYPES[spec.kind], descriptor(spec, text))
 
 
@@ -185,7 +186,8 @@ class ModelBlocks:
                     current = values(self.node)
                     self.stored.update({n: current[n] for n in block if n in current})
                     for name in block:
-                        self.node.undeclare_parameter(name)
+                        if self.node.has_parameter(name):
+                            self.node.undeclare_parameter(name)
                 declare_block(self.node, prefix, new, self.stored)
                 self.selected[prefix] = new
         finally:

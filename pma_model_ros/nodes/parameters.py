@@ -56,18 +56,25 @@ def descriptor(spec: ParameterSpec, description: str | None = None) -> Parameter
 
 
 def declare(node: Node, spec: ParameterSpec, prefix: str = '', default: bool = True) -> Parameter:
-    """Declare ``spec`` as ``prefix + spec.name`` with its default (without ``default``, or
-    without one: only its type, so it stays unset unless a file or ``-p`` sets it); the
-    parameter.  Already declared (a managed node configured again after a cleanup: parameters
-    outlive it, as in any ROS node), it is left as it is.
+    """Declare ``spec`` as ``prefix + spec.name`` with the value a file or ``-p`` gives, else its
+    default; the parameter.  Without ``default``, or without one, a parameter nobody gives is not
+    declared (a NOT_SET parameter, value None, is returned): every declared parameter has a value,
+    as ``ros2 param dump`` needs (rclpy answers a GetParameters call naming an unset one with no
+    values at all).  An empty sequence in a file, which rcl reads as NOT_SET, is the default.
+    Already declared (a managed node configured again after a cleanup: parameters outlive it, as
+    in any ROS node), it is left as it is.
     """
     name = prefix + spec.name
     if node.has_parameter(name):
-        return node.get_parameter_or(name)  # unset: a NOT_SET parameter, value None
+        return node.get_parameter_or(name)
+    given = parameter_overrides(node).get(name)
+    empty = given is not None and given.type_ == Parameter.Type.NOT_SET
     if not default or spec.default is None:
+        if given is None or empty:
+            return Parameter(name, Parameter.Type.NOT_SET)
         return node.declare_parameter(name, TYPES[spec.kind], descriptor(spec))
     if spec.default == []:
-        return _declare_empty_array(node, name, spec)
+        return _declare_empty_array(node, name, spec, ignore_override=empty)
     return node.declare_parameter(name, spec.default, descriptor(spec))
 
 
@@ -75,11 +82,14 @@ def declare(node: Node, spec: ParameterSpec, prefix: str = '', default: bool = T
 _ARRAYS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _declare_empty_array(node: Node, name: str, spec: ParameterSpec) -> Parameter:
-    """Declare ``name`` with the default ``[]``.  rclpy infers a parameter's type from its default
-    and has none for ``[]`` (a byte array, to it): the parameter is declared with dynamic typing,
-    and a set-parameters callback of the node (one, added with the first such parameter) refuses
-    a value of any other type than the spec's but an empty array.
+def _declare_empty_array(
+    node: Node, name: str, spec: ParameterSpec, ignore_override: bool = False
+) -> Parameter:
+    """Declare ``name`` with the default ``[]`` (also over a file's ``[]``: ``ignore_override``).
+    rclpy infers a parameter's type from its default and has none for ``[]`` (a byte array, to
+    it): the parameter is declared with dynamic typing, and a set-parameters callback of the node
+    (one, added with the first such parameter) refuses a value of any other type than the spec's
+    but an empty array.
     """
     if node not in _ARRAYS:
         _ARRAYS[node] = {}
@@ -87,7 +97,7 @@ def _declare_empty_array(node: Node, name: str, spec: ParameterSpec) -> Paramete
     _ARRAYS[node][name] = TYPES[spec.kind]
     described = descriptor(spec)
     described.dynamic_typing = True
-    return node.declare_parameter(name, [], described)
+    return node.declare_parameter(name, [], described, ignore_override=ignore_override)
 
 
 def _check_arrays(
