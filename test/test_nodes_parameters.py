@@ -194,3 +194,26 @@ def test_no_subscription_exists_before_the_checks_and_warnings(make, monkeypatch
     monkeypatch.setattr('pma_model_ros.nodes.model_node.warn_unknown', counting)
     node = make(cls, NODES[cls])
     assert seen == [0] and list(node.subscriptions)
+
+
+@pytest.mark.parametrize(
+    'cls, source, name',
+    [
+        (ModelNode, CONFIGS['DMSP-10-250'], 'pressure_range'),
+        (ModelNode, CONFIGS['DMSP-10-250'], 'muscles'),
+        (JointNode, EXAMPLE_JOINT, 'forward_command_order'),
+    ],
+)
+def test_an_empty_array_in_a_file_is_the_documented_default(make, tmp_path, cls, source, name):
+    """An empty array in a file, which rcl reads as no value, is the default ``[]``, as
+    documented, and listed with that value.
+    """
+    lines = [
+        line for line in source.read_text().splitlines() if not line.startswith(f'    {name}:')
+    ]
+    path = tmp_path / 'params.yaml'
+    path.write_text(
+        '\n'.join(lines).replace('ros__parameters:', f'ros__parameters:\n    {name}: []')
+    )
+    node = make(cls, path)
+    assert list(node.get_parameter(name).value) == []
