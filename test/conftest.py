@@ -175,6 +175,14 @@ def pytest_runtest_protocol(item):
         _arm(math.inf)
 
 
+@pytest.hookimpl(trylast=True)
+def pytest_exception_interact():
+    """The test's bound again after a failure (pytest's faulthandler plugin cancels the watchdog
+    there, for a debugger) and after ``--pdb``'s session.
+    """
+    _arm(_watchdog['deadline'])
+
+
 @contextlib.contextmanager
 def bounded_ros_teardown():
     """The block (an rclpy teardown) ends within :data:`ROS_TEARDOWN_BOUND`, else the process

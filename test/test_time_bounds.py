@@ -27,6 +27,17 @@ CASES = {
         'def test_hangs():\n'
         '    time.sleep(600)\n'
     ),
+    'a failed test whose teardown hangs': (
+        'import time\n'
+        'import pytest\n'
+        '@pytest.fixture\n'
+        'def hangs_after():\n'
+        '    yield\n'
+        '    time.sleep(600)\n'
+        '@pytest.mark.time_bound(2)\n'
+        'def test_fails(hangs_after):\n'
+        '    assert False\n'
+    ),
     'a teardown that holds the GIL': (
         'import re\n'
         'import conftest\n'
