@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from pma_model_ros.core.files.shipped_data import shipped_force_map
-from pma_model_ros.core.identification.force_map import ForceMap
 from pma_model_ros.core.simulation.muscle import defaults, GroundTruth, SimulatedMuscle
 
 GAP, DEADBAND = 5.0, 1e-3  # [N], [m]
@@ -74,8 +73,3 @@ def test_clamped_nonnegative_and_monotone():
     for length in np.linspace(0.198, 0.25, 11):
         f = truth.force(p, length)
         assert np.all(f >= 0) and np.all(np.diff(f) >= -1e-9), length
-
-
-def test_needs_a_full_grid():
-    with pytest.raises(ValueError, match='full grid'):
-        GroundTruth(ForceMap([0, 1e5, 2e5], [0.2, 0.25, 0.25], [0, 10, 20]))

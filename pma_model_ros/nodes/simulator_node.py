@@ -1,4 +1,7 @@
-"""simulator_node: a pneumatic muscle whose static force is its measured force map.
+"""simulator_node: a pneumatic muscle whose static force is a measured force map.
+
+The truth is a shipped map (``muscle``), a user's map CSV with its spec (``map_file``,
+``spec_file``) or an identified muscle (``params_file``), optionally drifting (``drift.*``).
 
 Publishes, at ``rate``, ``pressure`` (sensor_msgs/FluidPressure, absolute Pa),
 ``muscle_state`` (sensor_msgs/JointState: position = length [m], velocity = length
@@ -49,7 +52,7 @@ class SimulatorNode(Node):
         subscription(self, FluidPressure, 'pressure_command', self._on_command, RELIABLE)
         self.create_timer(1.0 / p['rate'], self._tick)
         self.get_logger().info(
-            f'simulating {p["muscle"]} ({p["trajectory"]}) at {p["rate"]:g} Hz'
+            f'simulating {self._muscle.name} ({p["trajectory"]}) at {p["rate"]:g} Hz'
             + (f', recording to {record}' if record else '')
         )
 

@@ -1,11 +1,13 @@
-"""A simulated pneumatic muscle whose static force is its measured force map (no ROS).
+"""A simulated pneumatic muscle whose static force is a measured force map (no ROS).
 
 What ``simulator_node`` publishes and what the bag tools record without DDS: at each step, the
 pressure follows its target (a commanded pressure, or a triangle sweep over the map's pressures)
-with a first-order lag, the length follows a trajectory, and the tension is the ground truth
-(:class:`GroundTruth`, a pchip of the map) plus an optional hysteresis half-gap whose sign is the
-branch of the length's play operator (:mod:`~pma_model_ros.core.physics.hysteresis`, the rule
-model_node follows); Gaussian noise is added to what is "measured".
+with a first-order lag, the length follows a trajectory, and the tension is the truth
+(:func:`read_truth`: a shipped map, a user's map CSV with its spec, or an identified muscle's
+parameter file), changed over time by an optional :class:`~.truth.Drift`, plus an optional
+hysteresis half-gap whose sign is the branch of the length's play operator
+(:mod:`~pma_model_ros.core.physics.hysteresis`, the rule model_node follows); Gaussian noise is
+added to what is "measured".
 
 The ground truth is not one of the models: the simulator's truth is the measurement itself, so a
 model is judged against data it was identified on (and, between the measured points, against a
@@ -16,16 +18,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import math
+from typing import Callable, TypeVar
 
 import numpy as np
-from numpy.typing import ArrayLike
-from scipy.interpolate import RegularGridInterpolator
 
+from .truth import Drift, GroundTruth, ModelTruth, Truth
 from ..files.node_parameters import ParameterSpec, read_only, SPECS
+from ..files.param_file import load_muscle
 from ..files.shipped_data import MAPPED_MUSCLES, shipped_force_map
-from ..identification.force_map import ForceMap
+from ..files.user_files import read_spec_yaml
+from ..identification.force_map import read_force_map_csv
 from ..physics.hysteresis import play
 
+T = TypeVar('T')
 TRAJECTORIES = ('constant', 'sine', 'sweep', 'steps')
 #: Share of each 'steps' period spent moving to the next length (the rest holds it).
 STEP_MOVE = 0.25
@@ -46,6 +51,23 @@ PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         'DMSP-10-250',
         f'shipped muscle whose measured map is the truth: {", ".join(MAPPED_MUSCLES)}',
         choices=MAPPED_MUSCLES,
+    ),
+    ParameterSpec(
+        'map_file',
+        'string',
+        '',
+        "a measured force map CSV (pma-model fit --data's format) as the truth, with "
+        "'spec_file'; replaces 'muscle'",
+    ),
+    ParameterSpec(
+        'spec_file', 'string', '', "the muscle spec YAML of 'map_file' (pma-model fit --muscle)"
+    ),
+    ParameterSpec(
+        'params_file',
+        'string',
+        '',
+        'a one-muscle parameter file (pma-model fit --out): its identified model as the truth; '
+        "replaces 'muscle'",
     ),
     ParameterSpec('rate', 'double', 100.0, 'publishing rate', 'Hz', (1.0, 1000.0)),
     replace(SPECS['ambient_pressure'], description='ambient pressure'),
@@ -139,6 +161,43 @@ PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         's',
         (0.01, 1e4),
     ),
+    ParameterSpec(
+        'drift.gain',
+        'double',
+        1.0,
+        "force gain reached at 'drift.start' + 'drift.duration' (1: no drift)",
+        '',
+        (0.0, 10.0),
+    ),
+    ParameterSpec(
+        'drift.start', 'double', 0.0, 'when the gain leaves 1, after start-up', 's', (0.0, 1e7)
+    ),
+    ParameterSpec(
+        'drift.duration',
+        'double',
+        0.0,
+        'time the gain takes from 1 to drift.gain, linearly (0: a step)',
+        's',
+        (0.0, 1e7),
+    ),
+    ParameterSpec(
+        'drift.map_file', 'string', '', "a force map CSV that becomes the truth at 'drift.at'"
+    ),
+    ParameterSpec('drift.spec_file', 'string', '', "the muscle spec YAML of 'drift.map_file'"),
+    ParameterSpec(
+        'drift.params_file',
+        'string',
+        '',
+        "a one-muscle parameter file whose model becomes the truth at 'drift.at'",
+    ),
+    ParameterSpec(
+        'drift.at',
+        'double',
+        0.0,
+        "when the drift's map or model takes over, after start-up",
+        's',
+        (0.0, 1e7),
+    ),
 )
 
 
@@ -161,41 +220,52 @@ def triangle(t: float, period: float) -> tuple[float, float]:
     return (2 * phase, 2 / period) if phase < 0.5 else (2 - 2 * phase, -2 / period)
 
 
-class GroundTruth:
-    """Force [N] over gauge pressure [Pa] and length [m] from a full-grid force map.
-
-    Piecewise cubic Hermite (``pchip``, monotone between measured points) on the
-    (pressure, length) grid; inputs are clamped to the grid and the result to
-    >= 0 N, so the force is 0 where the map's muscle is slack.
+def read_truth(params: dict[str, object], prefix: str = '') -> tuple[str, Truth] | None:
+    """The muscle's name and the truth its ``<prefix>map_file`` and ``spec_file`` or
+    ``params_file`` name; None if none is set. ValueError, one line naming the parameter, for a
+    file that cannot be the truth.
     """
-
-    def __init__(self, force_map: ForceMap) -> None:
-        self.pressures = np.unique(force_map.pressure)
-        self.lengths = np.unique(force_map.length)
-        grid = np.full((self.pressures.size, self.lengths.size), np.nan)
-        grid[
-            np.searchsorted(self.pressures, force_map.pressure),
-            np.searchsorted(self.lengths, force_map.length),
-        ] = force_map.force
-        if np.isnan(grid).any() or grid.size != force_map.force.size:
-            raise ValueError(
-                'ground truth needs a full grid: every pressure measured at every length, once'
-            )
-        self.max_force = force_map.max_force
-        self._interp = RegularGridInterpolator(
-            (self.pressures, self.lengths), grid, method='pchip'
+    names = {key: prefix + key for key in ('map_file', 'spec_file', 'params_file')}
+    given = {key: str(params[name]) for key, name in names.items() if params[name]}
+    if 'params_file' in given and len(given) > 1:
+        raise ValueError(
+            f"parameters '{names['params_file']}' and '{names['map_file']}'/"
+            f"'{names['spec_file']}' both name a truth: set one"
         )
-
-    def force(self, pressure: ArrayLike, length: ArrayLike) -> np.ndarray:
-        """Tension [N] >= 0 at gauge ``pressure`` [Pa] and ``length`` [m] (clamped to the grid)."""
-        p, L = np.broadcast_arrays(np.asarray(pressure, float), np.asarray(length, float))
-        points = np.column_stack(
-            [
-                np.clip(p.ravel(), self.pressures[0], self.pressures[-1]),
-                np.clip(L.ravel(), self.lengths[0], self.lengths[-1]),
-            ]
+    if given.keys() == {'params_file'}:
+        model = _reading(names['params_file'], lambda: load_muscle(given['params_file']))
+        return model.spec.name, ModelTruth(model)
+    if given and given.keys() != {'map_file', 'spec_file'}:
+        raise ValueError(
+            f"parameters '{names['map_file']}' and '{names['spec_file']}' go together: a force "
+            'map CSV and the spec of its muscle (as pma-model fit --data and --muscle)'
         )
-        return np.maximum(self._interp(points), 0.0).reshape(p.shape)
+    if not given:
+        return None
+    spec = _reading(names['spec_file'], lambda: read_spec_yaml(given['spec_file']))
+    fmap = _reading(names['map_file'], lambda: read_force_map_csv(given['map_file']))
+    where = f'{given["map_file"]}: '
+    return spec.name, _reading(names['map_file'], lambda: GroundTruth(fmap), where)
+
+
+def _reading(name: str, read: Callable[[], T], where: str = '') -> T:
+    """``read()``; its ValueError as one line naming the parameter ``name`` (then ``where``)."""
+    try:
+        return read()
+    except ValueError as err:
+        raise ValueError(f"parameter '{name}': {where}{err}") from None
+
+
+def read_drift(params: dict[str, object]) -> Drift:
+    """The :class:`~.truth.Drift` of the ``drift.*`` parameters."""
+    then = read_truth(params, 'drift.')
+    return Drift(
+        float(params['drift.gain']),
+        float(params['drift.start']),
+        float(params['drift.duration']),
+        None if then is None else then[1],
+        float(params['drift.at']),
+    )
 
 
 @dataclass(frozen=True)
@@ -223,9 +293,13 @@ class SimulatedMuscle:
             raise ValueError("parameters 'length_min' < 'length_max' needed for 'sine'")
         if params['trajectory'] == 'steps' and not int(params['steps']) >= 2:
             raise ValueError(f"parameter 'steps' must be >= 2 for 'steps', got {params['steps']}")
-        self.truth = GroundTruth(shipped_force_map(str(params['muscle'])))
+        self.name, self.truth = read_truth(params) or (
+            str(params['muscle']),
+            GroundTruth(shipped_force_map(str(params['muscle']))),
+        )
+        self.drift = read_drift(params)
         self.params = params
-        self.joint = str(params['joint_name'] or params['muscle'])
+        self.joint = str(params['joint_name'] or self.name)
         self._rng = np.random.default_rng(int(params['seed']))
         self._pressure = float(params['initial_pressure'])  # gauge [Pa]
         self._command: float | None = None  # commanded gauge pressure [Pa]
@@ -304,7 +378,7 @@ class SimulatedMuscle:
             )
             state[i] = (self._pressure, length, rate, self._branch)
         gauge, length, rate, branch = state.T
-        force = self.truth.force(gauge, length)
+        force = self.drift.force(self.truth, np.asarray(times) - self._start, gauge, length)
         force += branch * np.minimum(p['hysteresis_gap'], force)
         noise = self._rng.normal(size=(n, 3)) * [
             p['noise.pressure_std'],
