@@ -19,7 +19,8 @@ def test_docs_table_is_the_schema():
 @pytest.mark.parametrize(
     'name, inside, outside',
     [
-        ('ambient_pressure', [0.0, 101325.0, 2e5], [-1.0, 2.5e5, 5e6]),
+        # Everest's summit 33.7 kPa (West 1999) to the sea-level record 108.48 kPa (WMO)
+        ('ambient_pressure', [33.7e3, 101325.0, 108.48e3], [0.0, -1.0, 2.5e5, 5e6]),
         ('max_input_age', [1e-3, 0.1, 3600.0], [0.0, 5e-4, 4000.0]),
     ],
 )
@@ -42,3 +43,21 @@ def test_node_declares_each_row_with_its_range_and_flags(private_node):
         assert described.read_only == spec.read_only and described.description.startswith(
             spec.description
         )
+
+
+@pytest.mark.parametrize(
+    'value, unit',
+    # one standard atmosphere, 101325 Pa, in each unit (ISO 80000-4: 1 bar = 1e5 Pa, 1 hPa =
+    # 100 Pa; 1 psi = 6894.757 Pa)
+    [(1.01325, 'bar'), (101.325, 'kPa'), (14.696, 'psi'), (1013.25, 'hPa'), (0.101325, 'MPa')],
+)
+def test_an_ambient_pressure_in_another_unit_is_named(value, unit):
+    """A bar or kPa ambient pressure read as Pa gauged a 4 bar reading as about 5 bar: refused,
+    naming the unit it looks like and the value in Pa.
+    """
+    with pytest.raises(ValueError, match='ambient_pressure') as refused:
+        SPECS['ambient_pressure'].check(value)
+    hint = str(refused.value).rpartition('(')[2]
+    assert hint.startswith(f'{unit}? ') and float(hint.split('= ')[1].split()[0]) == (
+        pytest.approx(101325.0, rel=1e-4)
+    )

@@ -9,11 +9,12 @@ from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.parameter import Parameter
 import yaml
 
-from conftest import CONFIGS, REPO
+from conftest import CONFIGS, lines_of_failed_start, REPO
 from pma_model_ros.nodes.joint_node import JointNode
 from pma_model_ros.nodes.joint_simulator_node import JointSimulatorNode
 from pma_model_ros.nodes.model_node import ModelNode
 from pma_model_ros.nodes.simulator_node import SimulatorNode
+from pma_model_ros.tools import node_process
 
 EXAMPLE_JOINT = REPO / 'config' / 'example_joint.yaml'
 MULTI = REPO / 'config' / 'example_multi_muscle.yaml'
@@ -217,3 +218,21 @@ def test_an_empty_array_in_a_file_is_the_documented_default(make, tmp_path, cls,
     )
     node = make(cls, path)
     assert list(node.get_parameter(name).value) == []
+
+
+@pytest.mark.parametrize(
+    'override, words',
+    [
+        # a string beside the file's double: rcl kept the file's 0.1 without a word
+        ('max_input_age:=0.5ms', ["'max_input_age'", "a string ('0.5ms')", 'a double (0.1)']),
+        ('ambient_pressure:=1.01325', ["'ambient_pressure'", 'bar? 1.01325 bar = 101325 Pa']),
+        ('ambient_pressure:=101.325', ["'ambient_pressure'", 'kPa? 101.325 kPa = 101325 Pa']),
+    ],
+)
+@pytest.mark.parametrize('node, params_file', [('model_node', 'DMSP-10-250'), ('joint_node', '')])
+def test_a_wrong_value_ends_the_process_with_one_line(node, params_file, override, words):
+    path = CONFIGS[params_file] if params_file else EXAMPLE_JOINT
+    cmd = node_process.command(node, '/', path, {})
+    lines = lines_of_failed_start([*cmd, '-p', override])
+    assert len(lines) == 1 and 'FATAL' in lines[0], lines
+    assert all(w in lines[0] for w in words), lines

@@ -21,6 +21,9 @@ PRESSURE_UNITS = (
     ('psi', 6894.757293168, 150.0),
     ('kPa', 1e3, math.inf),
 )
+#: (unit, Pa per unit) of barometers (an ambient pressure of 1013.25 hPa), tried after
+#: :data:`PRESSURE_UNITS`.
+BAROMETER_UNITS = (('hPa', 100.0),)
 #: (unit, m per unit) of lengths written in another unit than metres.
 LENGTH_UNITS = (('cm', 1e-2), ('mm', 1e-3))
 #: [m] A length a muscle typically has, for lengths without a muscle to compare with.
@@ -57,11 +60,20 @@ def missing_key(key: str, mapping: dict, known: Iterable[str], where: str = '') 
     return f"'{where}{key}' is missing"
 
 
-def pressure_hint(magnitude: float) -> str:
+def pressure_hint(magnitude: float, within: tuple[float, float] | None = None) -> str:
     """The unit a pressure ``magnitude`` below 1 kPa (a bare number) looks like, and the value in
-    Pa: ``bar? 3 bar = 300000 Pa``.
+    Pa: ``bar? 3 bar = 300000 Pa``.  With ``within`` [Pa] (e.g. the ambient pressures on Earth):
+    the first unit of :data:`PRESSURE_UNITS` or :data:`BAROMETER_UNITS` in which it lands there;
+    ``''`` where none does.
     """
-    unit, scale = next((u, s) for u, s, most in PRESSURE_UNITS if abs(magnitude) <= most)
+    if within is None:
+        unit, scale = next((u, s) for u, s, most in PRESSURE_UNITS if abs(magnitude) <= most)
+    else:
+        units = [(u, s) for u, s, *_ in (*PRESSURE_UNITS, *BAROMETER_UNITS)]
+        landing = [(u, s) for u, s in units if within[0] <= magnitude * s <= within[1]]
+        if not landing:
+            return ''
+        unit, scale = landing[0]
     return f'{unit}? {magnitude:g} {unit} = {magnitude * scale:.6g} Pa'
 
 

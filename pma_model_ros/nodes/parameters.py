@@ -11,13 +11,15 @@ holds, without descriptors.
 from __future__ import annotations
 
 import array
+from dataclasses import replace
 from functools import partial
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Iterator, Sequence
 import weakref
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+import yaml
 
 from .rclpy_private import parameter_overrides
 from ..core.files.node_parameters import ParameterSpec, PROCESS_PARAMETERS
@@ -69,6 +71,8 @@ def declare(node: Node, spec: ParameterSpec, prefix: str = '', default: bool = T
         return node.get_parameter_or(name)
     given = parameter_overrides(node).get(name)
     empty = given is not None and given.type_ == Parameter.Type.NOT_SET
+    if spec.kind == 'double' and given is not None and not empty:
+        replace(spec, name=name).check(given.value)  # the table's words: unit, range, hint
     if not default or spec.default is None:
         if given is None or empty:
             return Parameter(name, Parameter.Type.NOT_SET)
@@ -199,3 +203,84 @@ def nest(flat: dict[str, object]) -> dict:
             node = node.setdefault(key, {})
         node[leaf] = value
     return nested
+
+
+def check_given_types(args: Sequence[str]) -> None:
+    """ValueError naming a parameter that two of the command line's sources (``--params-file``
+    files, ``-p name:=value``) give one node with values of different types: rcl then keeps one
+    of them without a word (``-p max_input_age:=0.5ms`` beside a file's ``0.1`` left the 0.1).
+    """
+    seen: dict[tuple[str, str], tuple[str, object, str]] = {}
+    for where, node, name, value in _given(args):
+        kind = _kind(value)
+        first = seen.setdefault((node, name), (kind, value, where))
+        if kind and first[0] and kind != first[0]:
+            raise ValueError(
+                f"parameter '{name}' is {first[0]} ({first[1]!r}) in {first[2]} and {kind} "
+                f'({value!r}) in {where}: rcl would keep one of them without a word; give one type'
+            )
+
+
+def _given(args: Sequence[str]) -> Iterator[tuple[str, str, str, object]]:
+    """(source, node key, dotted name, value) of every parameter the files and ``-p`` give; a
+    file rcl cannot read is left to rcl's own message.
+    """
+    for option, text in zip(args, args[1:]):
+        if option in ('-p', '--param') and ':=' in text:
+            name, _, value = text.partition(':=')
+            try:
+                yield f'-p {text}', '/**', name, yaml.safe_load(value)
+            except yaml.YAMLError:
+                yield f'-p {text}', '/**', name, value
+        elif option == '--params-file':
+            try:
+                with open(text, encoding='utf-8') as file:
+                    data = yaml.safe_load(file)
+            except (OSError, UnicodeDecodeError, yaml.YAMLError):
+                continue
+            for node, block in _blocks(data):
+                for name, value in _flat(block).items():
+                    yield text, node, name, value
+
+
+def _blocks(data: object, path: str = '') -> Iterator[tuple[str, dict]]:
+    """(node key, ``ros__parameters``) of a parameter file's (possibly namespaced) node keys."""
+    if not isinstance(data, dict):
+        return
+    for key, value in data.items():
+        if key == 'ros__parameters' and isinstance(value, dict):
+            yield path, value
+        else:
+            yield from _blocks(value, f'{path}/{key}'.lstrip('/') if path else str(key))
+
+
+def _flat(block: dict, prefix: str = '') -> dict[str, object]:
+    """``{'a': {'b': 1}}`` as ``{'a.b': 1}``."""
+    out: dict[str, object] = {}
+    for key, value in block.items():
+        if isinstance(value, dict):
+            out |= _flat(value, f'{prefix}{key}.')
+        else:
+            out[f'{prefix}{key}'] = value
+    return out
+
+
+def _kind(value: object) -> str:
+    """The ROS parameter type rcl reads ``value`` (PyYAML's reading) as, in words; '' for an
+    empty or mixed array (rcl reads no value or refuses it itself).  A text float() reads is a
+    double to rcl (``1e3``, which YAML 1.1 leaves a string).
+    """
+    if isinstance(value, list):
+        kinds = {_kind(v) for v in value}
+        return f'{kinds.pop().split()[-1]} array' if len(kinds) == 1 else ''
+    if isinstance(value, bool):
+        return 'a bool'
+    if isinstance(value, int):
+        return 'an integer'
+    if isinstance(value, float):
+        return 'a double'
+    try:
+        float(str(value))
+        return 'a double'
+    except ValueError:
+        return 'a string'

@@ -26,7 +26,7 @@ from rclpy.logging import get_logger_level, LoggingSeverity, set_logger_level
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from .parameters import declare
+from .parameters import check_given_types, declare
 from .rclpy_private import RCLError
 from ..core.files.node_parameters import SPECS
 from ..core.files.param_file import check_params_file
@@ -74,6 +74,7 @@ def init(args: list[str] | None) -> None:
         for option, path in zip(given, given[1:]):
             if option == '--params-file':
                 check_params_file(path)
+        check_given_types(given)
     except ValueError as err:
         raise StartupError(str(err)) from None
     level = get_logger_level('rcl')

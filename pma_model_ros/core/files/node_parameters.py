@@ -16,11 +16,17 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import math
 
+from ..hints import pressure_hint
 from ..physics.geometry import STANDARD_ATMOSPHERE
 from ..physics.hysteresis import DEFAULT_DEADBANDS, DEFAULT_FOLLOW
 from ..physics.hysteresis import INPUTS as HYSTERESIS_INPUTS
 from ..physics.models import ALIASES, MODELS
 
+#: [Pa] The ambient (absolute) pressures on Earth, with a margin: below the summit of Mount Everest
+#: (ISO 2533:1975 standard atmosphere at 8848 m: 31.4 kPa; measured there: 33.7 kPa, J. B. West,
+#: J. Appl. Physiol. 86 (1999) 1062) and above the highest sea-level pressure on record (WMO:
+#: 1084.8 hPa, Tosontsengel, Mongolia, 2001).  A value in bar, kPa, psi or hPa lies outside.
+AMBIENT_PRESSURES = (30e3, 120e3)
 #: Pairing rules of the engine (see :mod:`pma_model_ros.core.runtime.engine`).
 PAIRINGS = ('every_input', 'approximate_time')
 #: Input modes of a node serving several muscles.
@@ -57,9 +63,10 @@ class ParameterSpec:
                 )
             low, high = self.limits or (-math.inf, math.inf)
             if not low <= value <= high:  # NaN too
+                hint = pressure_hint(value, self.limits) if self.unit.startswith('Pa') else ''
                 raise ValueError(
                     f"parameter '{self.name}' must be in [{low:g}, {high:g}] {self.unit}, got "
-                    f'{value!r}'
+                    f'{value!r}' + (f' ({hint})' if hint else '')
                 )
             return float(value)
         if self.kind == 'integer' and (isinstance(value, bool) or not isinstance(value, int)):
@@ -260,7 +267,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         STANDARD_ATMOSPHERE,
         'ambient pressure; gauge = `fluid_pressure` − `ambient_pressure`',
         'Pa absolute',
-        (0.0, 2e5),
+        AMBIENT_PRESSURES,
     ),
     ParameterSpec(
         'pressure_reference',
