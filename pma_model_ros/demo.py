@@ -4,6 +4,8 @@ Starts ``simulator_node`` (a slow sweep over the measured map, small sensor nois
 and ``model_node`` (the identified muscle of ``config/dmsp_10_250.yaml``) as
 separate processes, compares the estimate with the simulator's measured force
 at equal stamps, prints a few lines per second and a summary, then stops both.
+``--config`` names another identified muscle; ``--map`` and ``--spec`` the measured map
+the simulator plays (a user's muscle: any map ``pma-model fit --data`` reads).
 Run with ``scripts/demo`` (it provides the loopback-only network namespace).
 """
 
@@ -26,8 +28,11 @@ from sensor_msgs.msg import FluidPressure, JointState
 
 from .core.files.param_file import muscle_model, read_parameters
 from .core.files.shipped_data import MAPPED_MUSCLES, share_directory, shipped_force_map
+from .core.files.user_files import read_spec_yaml
+from .core.identification.force_map import ForceMap, read_force_map_csv
 from .core.physics.geometry import STANDARD_ATMOSPHERE
 from .core.physics.muscle_model import MuscleModel
+from .core.simulation.truth import GroundTruth
 from .tools import node_process
 
 NAMESPACE = '/pma_demo'
@@ -135,9 +140,30 @@ def _line(t: float, c: Comparison) -> str:
     )
 
 
-def demo_muscle(config: Path) -> tuple[dict, MuscleModel]:
+@dataclass(frozen=True)
+class UserMap:
+    """A measured map the simulator plays instead of a shipped one: ``--map`` and ``--spec``."""
+
+    map_file: Path
+    spec_file: Path
+
+    def read(self) -> tuple[str, ForceMap]:
+        """The muscle's name and its map; ValueError (one line, naming the file) for a file that
+        cannot be the simulator's truth.
+        """
+        name = read_spec_yaml(self.spec_file).name
+        fmap = read_force_map_csv(self.map_file)
+        try:
+            GroundTruth(fmap)
+        except ValueError as err:
+            raise ValueError(f'{self.map_file}: {err}') from None
+        return name, fmap
+
+
+def demo_muscle(config: Path, user_map: UserMap | None = None) -> tuple[dict, MuscleModel]:
     """The parameters and muscle of ``config``; ValueError (one line, naming the file) for a file
-    the demo cannot run: a joint file, several muscles, a muscle without a shipped map.
+    the demo cannot run: a joint file, several muscles, a muscle without a shipped map and no
+    ``user_map``.
     """
     params = read_parameters(config)
     one = 'the demo runs one muscle: --config config/dmsp_10_250.yaml or config/dmsp_20_300.yaml'
@@ -149,26 +175,39 @@ def demo_muscle(config: Path) -> tuple[dict, MuscleModel]:
         model = muscle_model(params)
     except ValueError as err:
         raise ValueError(f'{config}: {err}') from None
-    if model.spec.name not in MAPPED_MUSCLES:
+    if model.spec.name not in MAPPED_MUSCLES and user_map is None:
         raise ValueError(
             f'{config}: muscle.name {model.spec.name}: the simulator needs a shipped force map '
-            f'({", ".join(MAPPED_MUSCLES)})'
+            f'({", ".join(MAPPED_MUSCLES)}) or its measured map: --map CSV --spec YAML'
         )
     return params, model
 
 
-def run(duration: float, config: Path) -> int:
-    params, model = demo_muscle(config)
+def run(duration: float, config: Path, user_map: UserMap | None = None) -> int:
+    params, model = demo_muscle(config, user_map)
     identified = params['models'][model.model.name].get('err', float('nan'))
-    comparison = Comparison(shipped_force_map(model.spec.name).max_force)
+    if user_map is None:
+        name, truth = model.spec.name, 'its measured map'
+        fmap = shipped_force_map(name)
+        sim_params = dict(SIMULATOR, sweep_period=duration, muscle=name)
+    else:
+        (name, fmap), truth = user_map.read(), f'the measured map {user_map.map_file}'
+        sim_params = dict(
+            SIMULATOR,
+            sweep_period=duration,
+            map_file=user_map.map_file.resolve(),
+            spec_file=user_map.spec_file.resolve(),
+            joint_name=params.get('joint_name') or model.spec.name,  # the entry model_node reads
+        )
+    comparison = Comparison(fmap.max_force)
+    scale = f'{comparison.max_force:g} N'
+    if user_map is not None:  # the fit's err is in % of its own map's max force
+        scale = f"its map's max force); errors in % of this map's max force ({scale}"
     print(
-        f'pma_model_ros demo: simulated {model.spec.name} (truth = its measured map) vs '
-        f'model_node '
-        f'({model.model.name}, identification err {identified:.2f} % of {comparison.max_force:g} '
-        f'N), '
+        f'pma_model_ros demo: simulated {name} (truth = {truth}) vs model_node '
+        f'({model.model.name}, identification err {identified:.2f} % of {scale}), '
         f'{duration:g} s\n'
     )
-    sim_params = dict(SIMULATOR, sweep_period=duration, muscle=model.spec.name)
     with tempfile.TemporaryDirectory(prefix='pma_demo_') as tmp:
         logs = {
             name: open(Path(tmp) / f'{name}.log', 'w+')
@@ -265,16 +304,31 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help='model_node parameter file (default config/dmsp_10_250.yaml)',
     )
+    parser.add_argument(
+        '--map',
+        type=Path,
+        metavar='CSV',
+        help="the measured force map the simulator plays (pma-model fit --data's format; with "
+        '--spec)',
+    )
+    parser.add_argument(
+        '--spec', type=Path, metavar='YAML', help="the muscle spec of --map's muscle"
+    )
     args = parser.parse_args(argv)
     if args.duration <= 0:
         parser.error('--duration must be > 0')
+    if (args.map is None) != (args.spec is None):
+        parser.error('--map and --spec go together: a force map CSV and the spec of its muscle')
     config = args.config or default_config()
-    try:
-        demo_muscle(config)  # a file the demo cannot run: one line, before any node starts
+    user_map = None if args.map is None else UserMap(args.map, args.spec)
+    try:  # a file the demo cannot run: one line, before any node starts
+        demo_muscle(config, user_map)
+        if user_map is not None:
+            user_map.read()
     except (ValueError, OSError) as err:
         print(f'{parser.prog}: error: {err}', file=sys.stderr)
         return 2
-    return run(args.duration, config)
+    return run(args.duration, config, user_map)
 
 
 if __name__ == '__main__':
