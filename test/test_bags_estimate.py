@@ -128,6 +128,15 @@ def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
         commands
     ) == 30
     assert summary.counts == counts
+    assert summary.reasons == {  # the two rejections of the reference, by reason
+        SETTINGS.joint_name: {
+            'pressure': (1, 'invalid input: pressure is nan Pa'),
+            f"joint '{JOINT}' not in ['elbow']": (
+                1,
+                f"invalid input: joint '{JOINT}' not in ['elbow']",
+            ),
+        }
+    }
     assert (
         counts['rejected pressure'] == 1
         and counts['rejected muscle_state'] == 1

@@ -76,3 +76,40 @@ def test_a_negative_value_is_a_value(capsys):
     argv = ['force', '--config', CONFIG, '--pressure', '3e5', '--length', '0.23']
     assert main([*argv, '--length-rate', '-0.01']) == 0
     assert capsys.readouterr().out.startswith('force ')
+
+
+@pytest.mark.parametrize(
+    'config, message',
+    [
+        ('example_multi_muscle.yaml',
+         "a file of several muscles (muscles: ['biceps', 'triceps', 'wrist_flexor', 'finger']), "
+         "read whole by model_node and bag estimate; pass one muscle's parameter file (force and "
+         'pressure pick one of these with --muscle NAME)'),
+        ('example_joint.yaml',
+         "a joint file (joints: ['elbow']), read by pma-model joint and joint_node; pass one "
+         "muscle's parameter file (its muscles' files, beside it: dmsp_10_250.yaml)"),
+    ],
+)  # fmt: skip
+@pytest.mark.parametrize('command', ['force', 'pressure', 'evaluate'])
+def test_a_file_of_another_kind_says_what_it_is(capsys, config, message, command):
+    path = REPO / 'config' / config
+    value = {'force': ['--pressure', '3e5'], 'pressure': ['--force', '100']}
+    query = [*value.get(command, ['--data', MAP]), *(['--length', '0.23'] if value else [])]
+    assert main([command, '--config', str(path), *query[: 4 if command != 'evaluate' else 2]]) == 2
+    assert capsys.readouterr().err == f'pma-model: error: {path}: {message}\n'
+
+
+def test_muscle_picks_one_muscle_of_a_multi_muscle_file(capsys):
+    """wrist_flexor of the example file is a copy of the shipped DMSP-10-250 file's muscle (the
+    file's header): the same force and pressure, printed alike.
+    """
+    multi = str(REPO / 'config' / 'example_multi_muscle.yaml')
+    for query in (['force', '--pressure', '3e5'], ['pressure', '--force', '100']):
+        argv = [*query, '--length', '0.23']
+        assert main([*argv, '--config', CONFIG]) == 0
+        single = capsys.readouterr().out
+        assert main([*argv, '--config', multi, '--muscle', 'wrist_flexor']) == 0
+        assert capsys.readouterr().out == single
+    argv = ['force', '--pressure', '3e5', '--length', '0.23', '--config', multi]
+    assert main([*argv, '--muscle', 'wrist_flexr']) == 2
+    assert "no muscle 'wrist_flexr' (did you mean 'wrist_flexor'?)" in capsys.readouterr().err

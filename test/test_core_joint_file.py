@@ -128,3 +128,47 @@ def test_the_docstring_example_is_the_example_joint_with_a_hysteresis_mapping():
     )
     assert [m.model.name for m in elbow.muscles] == ['martens', 'hildebrandt']
     assert elbow.follows == (DEFAULT_FOLLOW, Follow('pressure', 10000.0))
+
+
+def _joint_file_beside(folder, muscle_file: str) -> object:
+    """The example elbow written into ``folder`` with both muscles from ``muscle_file``."""
+    parameters = example()
+    for muscle in ('flexor', 'extensor'):
+        parameters['elbow'][muscle]['file'] = muscle_file
+    path = folder / 'elbow.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': parameters}}))
+    return path
+
+
+def test_relative_muscle_files_follow_one_rule(tmp_path):
+    """Beside the joint file (pma-model joint and joint_node alike), unless config_dir is set;
+    the package's config/ only for joints given without a file. The muscle beside it is the
+    DMSP-20-300 (its file, under the name the joint names), not the shipped DMSP-10-250.
+    """
+    (tmp_path / 'mine.yaml').write_text((REPO / 'config' / 'dmsp_20_300.yaml').read_text())
+    path = _joint_file_beside(tmp_path, 'mine.yaml')
+    (elbow,) = load_joints(path)
+    assert elbow.muscles[0].spec.name == 'DMSP-20-300'
+    argv = ['joint_node', '--ros-args', '--params-file', str(CONFIGS['DMSP-10-250'])]
+    assert joint_file.joint_file_of(argv) is None  # a muscle's file: no joints
+    argv += ['--params-file', str(path)]
+    assert joint_file.joint_file_of(argv) == path
+    default = REPO / 'config'
+    rule = joint_file.muscle_folder
+    assert rule('', path, default) == tmp_path.resolve()
+    assert rule(str(default), path, default) == default
+    assert rule('', None, default) == default
+
+
+@pytest.mark.parametrize(
+    'config, what',
+    [('dmsp_10_250.yaml', 'one muscle'), ('example_multi_muscle.yaml', 'several muscles')],
+)
+def test_a_muscle_file_is_not_a_joint_file(config, what):
+    path = REPO / 'config' / config
+    with pytest.raises(ValueError) as err:
+        load_joints(path)
+    assert str(err.value) == (
+        f"{path}: not a joint file (no 'joints:'): a parameter file of {what}, read by "
+        'model_node and pma-model force; a joint file lists its joints (config/example_joint.yaml)'
+    )

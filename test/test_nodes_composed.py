@@ -2,6 +2,7 @@
 and one executor from one parameter file (config/example_composed.yaml).
 """
 
+import shutil
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -104,9 +105,9 @@ def test_every_node_comes_up_and_answers_in_one_process(ros, processes, namespac
     ],
 )
 def test_a_bad_section_ends_the_process_with_one_fatal_line(tmp_path, old, new, words):
-    lines = lines_of_failed_start(
-        composed('--ros-args', '--params-file', edited_copy(EXAMPLE, tmp_path, old, new))
-    )
+    path = edited_copy(EXAMPLE, tmp_path, old, new)
+    shutil.copy(EXAMPLE.parent / 'dmsp_10_250.yaml', tmp_path)  # its muscles' file, beside it
+    lines = lines_of_failed_start(composed('--ros-args', '--params-file', path))
     fatal = [line for line in lines if 'FATAL' in line]
     assert fatal == lines[-1:] and '[pma_composed]: invalid parameters: ' in fatal[0], lines
     assert words in fatal[0], fatal[0]

@@ -243,6 +243,8 @@ def arm_file(tmp_path, n=4):
     ``j<k>_flexor``/``j<k>_extensor``.
     """
     elbow = read_parameters(EXAMPLE)['elbow']
+    for muscle in ('flexor', 'extensor'):  # the shipped files, not beside the file in tmp_path
+        elbow[muscle]['file'] = str(EXAMPLE.parent / elbow[muscle]['file'])
     joints = {}
     for k in range(n):
         joints[f'j{k}'] = {
@@ -363,6 +365,22 @@ def test_without_config_dir_muscle_files_are_the_shipped_ones(make_node, monkeyp
             expected.domain,
         )
         assert muscle.theta.tolist() == expected.theta.tolist()
+
+
+def test_relative_muscle_files_are_found_beside_the_joint_file(make_node, monkeypatch, tmp_path):
+    """``config_dir`` unset, the node started with a joint file (its ``--params-file``): a
+    relative muscle file is found beside it, as ``pma-model joint`` finds it (the muscle there
+    is a DMSP-20-300, not the shipped DMSP-10-250 of the name it is given).
+    """
+    (tmp_path / 'dmsp_10_250.yaml').write_text((REPO / 'config' / 'dmsp_20_300.yaml').read_text())
+    path = tmp_path / 'elbow.yaml'
+    path.write_text(EXAMPLE.read_text())
+    monkeypatch.setattr('sys.argv', ['joint_node', '--ros-args', '--params-file', str(path)])
+    node = make_node(params_file=path)
+    assert [m.spec.name for m in node.engine.joints[0].muscles] == ['DMSP-20-300'] * 2
+    assert [m.spec for m in node.engine.joints[0].muscles] == [
+        m.spec for m in load_joints(path)[0].muscles
+    ]
 
 
 def test_process_with_a_bad_file_exits_1_with_one_line(tmp_path):

@@ -137,7 +137,10 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
                 'joint_name in its block'
             )
         parameters['joint_name'] = args.joint
-    settings = all_node_settings(parameters, args.model)
+    try:
+        settings = all_node_settings(parameters, args.model)
+    except ValueError as err:
+        raise CliError(f'{args.config}: {err}') from None
     pairing = node_pairing(parameters)  # (checked by the engine)
     new_csv = args.csv is not None and not os.path.lexists(args.csv)
     with replacing(Path(args.out)) as out:
@@ -186,17 +189,27 @@ def _rejections(summary) -> str:
 
 
 def _mismatch_hint(summary, config: str) -> str:
-    """What maps the recording to the file where its rejections say they do not match: the
-    JointState names (--joint, joint_name), or the muscle's geometry (another muscle's file).
+    """What maps the recording to the file where most of its lengths were rejected for not
+    matching it: the JointState names (--joint, joint_name), or the muscle's geometry (another
+    muscle's file); '' where they were not.
     """
-    keys = [key for reasons in summary.reasons.values() for key in reasons]
-    if any(key.startswith("joint '") for key in keys):
+    lengths = summary.counts.get('received muscle_state', 0)
+    named, outside = (
+        sum(
+            n
+            for reasons in summary.reasons.values()
+            for key, (n, _) in reasons.items()
+            if pick(key)
+        )
+        for pick in (lambda key: key.startswith("joint '"), lambda key: key == 'length')
+    )
+    if named and 2 * named >= lengths:
         return (
             f"; the recording's JointState names (in brackets) hold no joint of {config} "
             f'{list(summary.reasons)}: name the recorded entry with --joint NAME (or joint_name '
             "in the file), or give the recorded muscle's file"
         )
-    if 'length' in keys:
+    if outside and 2 * outside >= lengths:
         return (
             f'; the recorded lengths lie outside the geometry of the muscle of {config}: is it '
             "the recorded muscle's file?"

@@ -12,6 +12,7 @@ from ..core.files.param_file import (
     held_out_band,
     hysteresis_follow,
     load_muscle,
+    one_muscle,
     read_parameters,
 )
 from ..core.hints import length_hint
@@ -33,6 +34,17 @@ def _length(value: float, rest_length: float) -> float:
 
 def _load(args: argparse.Namespace, parameters: dict | None = None):
     return load_muscle(args.config, args.model, parameters)
+
+
+def _parameters(args: argparse.Namespace) -> dict:
+    """The parameters of the muscle asked for: the file's, or ``--muscle``'s of a ``muscles:``
+    file; a joint file is named as such.
+    """
+    parameters = read_parameters(args.config)
+    try:
+        return one_muscle(parameters, args.muscle)
+    except ValueError as err:
+        raise CliError(f'{args.config}: {err}') from None
 
 
 def _branch(args: argparse.Namespace, parameters: dict, muscle) -> float | None:
@@ -68,7 +80,7 @@ def _check_geometry(flags: int, length: float, muscle) -> None:
 
 def cmd_force(args: argparse.Namespace) -> None:
     pressure = gauge_pressure('--pressure', args.pressure)
-    parameters = read_parameters(args.config)
+    parameters = _parameters(args)
     muscle = _load(args, parameters)
     length = _length(args.length, muscle.spec.nominal_length)
     result = muscle.force(pressure, length, _branch(args, parameters, muscle))
@@ -126,7 +138,7 @@ def expected_error(
 
 def cmd_pressure(args: argparse.Namespace) -> None:
     force = finite('--force', args.force, -1e7, 1e7, 'N', 'force in newtons')
-    parameters = read_parameters(args.config)
+    parameters = _parameters(args)
     muscle = _load(args, parameters)
     length = _length(args.length, muscle.spec.nominal_length)
     result = muscle.pressure(force, length, _branch(args, parameters, muscle))
@@ -161,4 +173,5 @@ def add_query_commands(sub: argparse._SubParsersAction) -> None:
             'lengthening or shortening (length)',
         )
         p.add_argument('--model', default=None, help="override the file's default model")
+        p.add_argument('--muscle', help="the muscle of a file with 'muscles:' (its name)")
         p.set_defaults(func=func)

@@ -30,7 +30,6 @@ namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge
 from __future__ import annotations
 
 from functools import partial
-from pathlib import Path
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -43,7 +42,13 @@ from .managed import ManagedNode
 from .model_node import DESERIALIZE
 from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
-from ..core.files.joint_file import forward_order, identification, joints
+from ..core.files.joint_file import (
+    forward_order,
+    identification,
+    joint_file_of,
+    joints,
+    muscle_folder,
+)
 from ..core.files.node_parameters import (
     JOINT_MUSCLE_PARAMETERS,
     JOINT_NODE_PARAMETERS,
@@ -94,7 +99,9 @@ class JointNode(ManagedNode):
         # the overrides: also what is not declared, e.g. an inline muscle's other models
         flat = parameters.overrides(self) | parameters.values(self)
         nested = parameters.nest(flat)
-        base = Path(flat.get('config_dir') or share_directory() / 'config')
+        base = muscle_folder(
+            flat.get('config_dir') or '', joint_file_of(sys.argv), share_directory() / 'config'
+        )
         found = joints(nested, base)
         self.identification = [identification(j, nested, base) for j in found]
         settings = [

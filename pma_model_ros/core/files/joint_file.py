@@ -21,19 +21,22 @@ Layout (SI units; ``config/example_joint.yaml``)::
           # without file: the muscle inline, as a single-muscle parameter file's keys (muscle,
           # model, length_range, models, ...)
 
-A muscle's ``file`` is a single-muscle parameter file (``config/dmsp_10_250.yaml``), relative to
-``base`` (the joint file's directory, or joint_node's ``config_dir``); keys beside ``file`` (e.g.
-``model``) override the file's.  A hysteresis muscle's ``hysteresis`` mapping says what its branch
+A muscle's ``file`` is a single-muscle parameter file (``config/dmsp_10_250.yaml``); a relative one
+is found beside the joint file, or in ``config_dir`` if that is set (:func:`muscle_folder`, for
+``pma-model joint`` and joint_node alike); keys beside ``file`` (e.g. ``model``) override the
+file's.  A hysteresis muscle's ``hysteresis`` mapping says what its branch
 follows in joint_node (:func:`~pma_model_ros.core.files.param_file.hysteresis_follow`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 from .node_parameters import JOINT_PARAMETERS, names_of
-from .param_file import hysteresis_follow, muscle_model, read_parameters
+from .param_file import file_kind, hysteresis_follow, muscle_model, read_parameters
 from .param_file import identification as muscle_identification
+from .user_files import load_yaml_mapping, read_user_file
 from ..hints import did_you_mean, missing_key
 from ..physics.hysteresis import Follow
 from ..physics.joint import Joint, Transmission
@@ -155,6 +158,12 @@ def joints(parameters: dict, base: Path) -> list[Joint]:
     list.
     """
     names = parameters.get('joints')
+    if not names and {'muscle', 'muscles'} & set(parameters):
+        what = 'several muscles' if file_kind(parameters) == 'muscles' else 'one muscle'
+        raise ValueError(
+            f"not a joint file (no 'joints:'): a parameter file of {what}, read by model_node "
+            'and pma-model force; a joint file lists its joints (config/example_joint.yaml)'
+        )
     if not (isinstance(names, list) and names and all(isinstance(n, str) and n for n in names)):
         raise ValueError(f'joints must be a non-empty list of joint names, got {names!r}')
     if len(set(names)) != len(names):
@@ -184,6 +193,38 @@ def forward_order(order: list[str], found: list[Joint]) -> list[str]:
     return list(order) or muscles
 
 
+def muscle_folder(config_dir: str, joint_file: str | Path | None, default: Path) -> Path:
+    """The folder of a joint file's relative muscle ``file``s, one rule for ``pma-model joint``
+    and joint_node: ``config_dir`` if set; else the joint file's folder; else (joints given
+    without a file, as parameters) ``default``, the package's shipped ``config/``.
+    """
+    if config_dir:
+        return Path(config_dir)
+    return Path(joint_file).resolve().parent if joint_file is not None else default
+
+
+def joint_file_of(argv: Sequence[str]) -> Path | None:
+    """The joint file of a node's command line: the last ``--params-file`` with ``joints:`` (rcl
+    reads them in order, the last one wins); None if none has.
+    """
+    for path in reversed([p for o, p in zip(argv, argv[1:]) if o == '--params-file']):
+        try:
+            data = load_yaml_mapping(read_user_file(path, 'parameter file'), path)
+        except ValueError:
+            continue
+        nodes = [v.get('ros__parameters') for v in data.values() if isinstance(v, dict)]
+        if any(isinstance(n, dict) and 'joints' in n for n in nodes):
+            return Path(path)
+    return None
+
+
 def load_joints(path: str | Path) -> list[Joint]:
-    """The joints of a joint parameter file; relative muscle files are found beside it."""
-    return joints(read_parameters(path), Path(path).resolve().parent)
+    """The joints of a joint parameter file; relative muscle files are found by
+    :func:`muscle_folder` (beside it, unless it sets ``config_dir``).
+    """
+    parameters = read_parameters(path)
+    base = muscle_folder(parameters.get('config_dir') or '', path, Path(path).parent)
+    try:
+        return joints(parameters, base)
+    except ValueError as err:
+        raise ValueError(f'{path}: {err}') from None

@@ -378,8 +378,8 @@ JOINT_NODE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         'config_dir',
         'string',
         '',
-        "directory of relative muscle `file`s (empty: the package's shipped `config/`, found "
-        'through ament_index from any working directory)',
+        "directory of relative muscle `file`s (empty: the joint file's, the --params-file with "
+        "`joints:`; joints given without a file: the package's shipped `config/`)",
     ),
     SPECS['ambient_pressure'],
     SPECS['pressure_reference'],

@@ -57,7 +57,7 @@ from .node_parameters import (
     SPECS,
 )
 from .user_files import load_yaml_mapping, read_user_file
-from ..hints import missing_key, unknown_keys
+from ..hints import did_you_mean, missing_key, unknown_keys
 from ..identification import calibration
 from ..identification.validation import HeldOutBand
 from ..physics.geometry import MuscleSpec
@@ -290,17 +290,88 @@ def muscle_model(parameters: dict, model: str | None = None) -> MuscleModel:
     return MuscleModel(spec, model, params, domain)
 
 
+def file_kind(parameters: dict) -> str:
+    """What a parameter file is, from its ``ros__parameters``: ``'joint'`` (``joints:``, read by
+    joint_node and ``pma-model joint``), ``'muscles'`` (several muscles, ``muscles:``) or
+    ``'muscle'`` (one muscle).
+    """
+    if 'joints' in parameters:
+        return 'joint'
+    return 'muscles' if parameters.get('muscles') else 'muscle'
+
+
+def muscle_parameters(parameters: dict, name: str) -> dict:
+    """Muscle ``name``'s parameters of a ``muscles:`` file: its block ``<name>:`` over the
+    node-wide settings, its joint name defaulting to ``name``.
+    """
+    own = parameters.get(name)
+    if not isinstance(own, dict):
+        raise ValueError(f"no parameters under '{name}:'")
+    common = {key: parameters[key] for key in NODE_DEFAULTS if key in parameters}
+    return common | own | {'joint_name': own.get('joint_name') or name}
+
+
+def one_muscle(parameters: dict, muscle: str | None = None) -> dict:
+    """The parameters of one muscle of a file's ``ros__parameters``: those of a one-muscle file,
+    or of the muscle named ``muscle`` of a ``muscles:`` file; ValueError saying what the file is
+    and what to pass instead (a joint file, a muscles: file without ``muscle``).
+    """
+    kind = file_kind(parameters)
+    if kind == 'joint':
+        raise _joint_file(parameters)
+    if kind == 'muscle':
+        if muscle is not None:
+            raise ValueError(f"--muscle {muscle}: a file of one muscle, not of 'muscles:'")
+        return parameters
+    names = parameters['muscles']
+    if muscle is None:
+        raise ValueError(
+            f'a file of several muscles (muscles: {names}), read whole by model_node and bag '
+            "estimate; pass one muscle's parameter file (force and pressure pick one of these "
+            'with --muscle NAME)'
+        )
+    if muscle not in names:
+        raise ValueError(f"no muscle '{muscle}'{did_you_mean(muscle, names)} in muscles: {names}")
+    try:
+        return muscle_parameters(parameters, muscle)
+    except ValueError as err:
+        raise ValueError(f"muscle '{muscle}': {err}") from None
+
+
+def _joint_file(parameters: dict) -> ValueError:
+    """The error of a joint file where a muscle's parameter file is wanted, with its muscles'
+    files.
+    """
+    return ValueError(
+        f'a joint file (joints: {parameters["joints"]}), read by pma-model joint and joint_node; '
+        "pass one muscle's parameter file" + _muscle_files(parameters)
+    )
+
+
+def _muscle_files(parameters: dict) -> str:
+    """`` (its muscles' files: a.yaml, b.yaml)`` of a joint file's muscles given by ``file``."""
+    files = [
+        str(block[m]['file'])
+        for j in parameters.get('joints') or []
+        if isinstance(block := parameters.get(j), dict)
+        for m in block.get('muscles') or []
+        if isinstance(block.get(m), dict) and block[m].get('file')
+    ]
+    return f" (its muscles' files, beside it: {', '.join(dict.fromkeys(files))})" if files else ''
+
+
 def load_muscle(
     path: str | Path, model: str | None = None, parameters: dict | None = None
 ) -> MuscleModel:
     """:func:`muscle_model` of the parameter file ``path`` (``parameters``: its
-    :func:`read_parameters`, if read already); errors of the file name it.
+    :func:`read_parameters`, if read already); errors of the file name it, and a file of
+    another kind (:func:`one_muscle`) says what it is.
     """
     if model is not None:
         get_model(model)  # an unknown override is the caller's, not the file's
     parameters = read_parameters(path) if parameters is None else parameters
     try:
-        return muscle_model(parameters, model)
+        return muscle_model(one_muscle(parameters), model)
     except ValueError as err:
         raise ValueError(f'{path}: {err}') from None
 
@@ -442,22 +513,16 @@ def all_node_settings(
     defaults to ``<name>``.  ValueError names the muscle and the problem.
     """
     names = parameters.get('muscles') or []
+    if file_kind(parameters) == 'joint':
+        raise _joint_file(parameters)
     if not names:
         return [node_settings(parameters, model, instance)]
     if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
         raise ValueError(f'muscles must be a list of names, got {names!r}')
-    common = {key: parameters[key] for key in NODE_DEFAULTS if key in parameters}
     result = []
     for name in names:
-        own = parameters.get(name)
-        if not isinstance(own, dict):
-            raise ValueError(f"muscle '{name}': no parameters under '{name}:'")
         try:
-            result.append(
-                node_settings(
-                    common | own | {'joint_name': own.get('joint_name') or name}, model, instance
-                )
-            )
+            result.append(node_settings(muscle_parameters(parameters, name), model, instance))
         except ValueError as err:
             raise ValueError(f"muscle '{name}': {err}") from None
     joints = [s.joint_name for s in result]
