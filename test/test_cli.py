@@ -877,12 +877,16 @@ def _table_a2(**change):
             '(101325 Pa), so absolute pressures; the map takes gauge pressure = absolute - '
             'ambient (e.g. 5000 Pa)',
         ),
-        (  # 542.5 N, Table A2's largest force, in kN; the bound: test_core_geometry
+        (  # 542.5 N, Table A2's largest force, in kN, against the braid's pull there:
+            # pi (D0 + 2 H0)^2 / 4 (3 cos^2 Theta0 - 1) / sin^2 Theta0 x 650 kPa = 540.9 N at L0
             {'force': lambda f: f / 1e3},
-            'force_n reaches 0.5425 at 650000 Pa, where the geometry of DMSP-10-250 pulls at '
-            'most 952.9 N',
+            'force_n reaches 0.5425 at 650000 Pa, 0.25 m: 0.001003 x the 540.9 N the ideal braid '
+            'of DMSP-10-250 (D0 10 mm + 2 H0, Theta0 28.6 deg, L0 0.25 m) pulls there, the whole '
+            'map alike: force in newtons; kN? 0.5425 kN = 542.5 N (the map x 1000)',
         ),
-        ({'force': lambda f: f * 1e3}, 'N·mm or mN? 542500 mN = 542.5 N'),
+        ({'force': lambda f: f * 1e3}, 'N·mm or mN? 542500 mN = 542.5 N (the map x 0.001)'),
+        ({'force': lambda f: f / 9.80665}, ' = 542.5 N (the map x 9.80665)'),  # kgf
+        ({'force': lambda f: f / 4.4482216152605}, ' = 542.5 N (the map x 4.44822)'),  # lbf
         (
             {'keep': lambda m: np.isin(m.length, (0.25, 0.219))},
             'a fit needs a map of at least 3 lengths, got 2 (0.25, 0.219 m): with 2 no length '
@@ -895,8 +899,9 @@ def _table_a2(**change):
         ),
         (  # the DMSP-10-250, L0 0.25 m: its fibre length 0.25 / cos(28.6 deg) = 0.284744 m
             {'length': lambda L: np.where(L == 0.25, 0.29, L)},
-            'length_m reaches 0.29 m, beyond what the geometry of DMSP-10-250 can take (0 < L < '
-            '0.284744 m, its fibre length L0/cos(Theta0))',
+            'the map and the spec DMSP-10-250 do not belong together: length_m reaches 0.29 m, '
+            '16.0 % beyond its L0 0.25 m, beyond the 0.284744 m a braid of the spec reaches (its '
+            'fibre length L0/cos(Theta0))',
         ),
     ],
 )
@@ -912,6 +917,94 @@ def test_fit_names_a_map_it_cannot_identify_before_fitting(tmp_path, capsys, cha
     out_text, err = capsys.readouterr()
     assert out_text == '' and err.startswith('pma-model: error: ') and message in err, err
     assert err.count('\n') == 1 and not out.exists()
+
+
+def _refused(tmp_path, capsys, text: str, spec, before_fit: bool = True) -> str:
+    """The one error line of ``fit --model martens`` of the map ``text`` with ``spec``; no file,
+    and nothing printed if refused ``before_fit``.
+    """
+    csv, out = tmp_path / 'map.csv', tmp_path / 'fit.yaml'
+    csv.write_text(text)
+    argv = ['fit', '--data', str(csv), '--muscle', str(spec), '--model', 'martens']
+    assert main([*argv, '--out', str(out)]) == 2
+    out_text, err = capsys.readouterr()
+    assert err.startswith('pma-model: error: ') and err.count('\n') == 1
+    assert out_text == '' or not before_fit
+    assert not out.exists()
+    return err
+
+
+def test_fit_names_an_outlying_row_by_its_line(tmp_path, capsys):
+    """5000 N typed at 196250 Pa, 0.25 m in Table A2 (139.5 N measured there) is that row's
+    mistake, not the map's unit: named by its file line (header line 2 after a comment).
+    """
+    fmap = shipped_force_map('DMSP-10-250')
+    row = int(np.flatnonzero((fmap.pressure == 196250) & (fmap.length == 0.25))[0])
+    force = np.where(np.arange(fmap.force.size) == row, 5000, fmap.force)
+    text = '# Table A2, one force mistyped\npressure_pa,length_m,force_n\n' + ''.join(
+        f'{p:.9g},{L:.9g},{F:.9g}\n' for p, L, F in zip(fmap.pressure, fmap.length, force)
+    )
+    err = _refused(tmp_path, capsys, text, SPEC_10_250)
+    assert (
+        f'1 row(s) of force_n far above the rest of the map: line {row + 3}: 5000 at 196250 '
+        in err
+    )
+    assert 'mN' not in err and 'unit' not in err
+
+
+def test_fit_names_absolute_pressures_above_ambient(tmp_path, capsys):
+    """Table A1 with 101325 Pa added: its first step (35 kPa gauge) is no ambient, but its rest-
+    length row (0.296 m) pulls nothing at 136325 Pa, where the gauge map pulls from 35..60 kPa.
+    """
+    fmap = shipped_force_map('DMSP-20-300')
+    text = 'pressure_pa,length_m,force_n\n' + ''.join(
+        f'{p + 101325:.9g},{L:.9g},{F:.9g}\n'
+        for p, L, F in zip(fmap.pressure, fmap.length, fmap.force)
+    )
+    err = _refused(tmp_path, capsys, text, REPO / 'config' / 'muscles' / 'dmsp_20_300.yaml')
+    threshold = float(err.split('the map pulls only from about ')[1].split()[0])
+    assert 136.325 <= threshold <= 161.325  # no force at 136325 Pa, 54.9 N at 161325 Pa
+    assert 'absolute' in err and 'gauge pressure = absolute - ambient' in err
+
+
+def test_fit_blames_a_wrong_fiber_angle_on_the_spec(tmp_path, capsys):
+    """fiber_angle 0.9 rad: the braid contracts fully at 0.25 / cos(0.9) / sqrt(3) = 0.2322 m,
+    but Table A2 pulls at 0.219 and 0.204 m.
+    """
+    spec = tmp_path / 'spec.yaml'
+    spec.write_text(
+        SPEC_10_250.read_text().replace('fiber_angle: 0.4991641660703783', 'fiber_angle: 0.9')
+    )
+    err = _refused(tmp_path, capsys, MAP_10_250.read_text(), spec)
+    contracted = 'the braid of the spec DMSP-10-250 is fully contracted at 0.2322 m'
+    assert f'pulls 46 N at 0.204 m, but {contracted}' in err
+    assert 'the spec is the suspect' in err and 'mN' not in err
+
+
+def test_fit_names_a_map_of_another_muscle(tmp_path, capsys):
+    """Table A1 (DMSP-20-300, 0.296 m) with the DMSP-10-250 spec: 0.296 / 0.25 = 18.4 % beyond
+    L0; 1653.5 N at 675 kPa against pi (13.6 mm)^2 / 4 x 5.744 x 675 kPa = 561.7 N at L0.
+    """
+    err = _refused(
+        tmp_path,
+        capsys,
+        MAP_10_250.parent.joinpath('dmsp_20_300_force_map.csv').read_text(),
+        SPEC_10_250,
+    )
+    assert 'the map and the spec DMSP-10-250 do not belong together' in err
+    assert '18.4 % beyond its L0 0.25 m' in err and 'against 561.7 N' in err
+
+
+def test_fit_names_a_failed_least_squares(tmp_path, capsys, monkeypatch):
+    """A LinAlgError in the fit (SVD did not converge) is one line naming the likely cause."""
+    from pma_model_ros.core.identification import selection
+
+    def fail(*args, **kwargs):
+        raise np.linalg.LinAlgError('SVD did not converge')
+
+    monkeypatch.setattr(selection, 'identify_all', fail)
+    err = _refused(tmp_path, capsys, MAP_10_250.read_text(), SPEC_10_250, before_fit=False)
+    assert "the fit's least squares found no solution (SVD did not converge): the map and" in err
 
 
 def test_fit_names_points_measured_twice_at_other_forces(tmp_path, capsys):

@@ -42,7 +42,7 @@ def test_the_direction_column_is_each_points_branch():
     [
         ('pressure,length,force\n0,0.2,0\n', 'header must be'),
         ('pressure_pa,length_m,force_n\n0,0.2,nan\n', 'NaN or infinite'),
-        ('pressure_pa,length_m,force_n\n0,0.2\n', 'row 2 is not 3 numbers'),
+        ('pressure_pa,length_m,force_n\n0,0.2\n', 'line 2 is not 3 numbers'),
         ('pressure_pa,length_m,force_n\n', 'no data rows'),
     ],
 )
@@ -75,7 +75,33 @@ def test_another_separator_is_named(separator, name):
 def test_a_decimal_comma_is_named():
     """0,25 m written with a decimal comma: four fields where the header has three."""
     text = 'pressure_pa,length_m,force_n\n300000,0,25,410\n'
-    with pytest.raises(ValueError, match='row 2 has 4 fields, the header 3; decimals'):
+    with pytest.raises(ValueError, match='line 2 has 4 fields, the header 3; decimals'):
+        parse_force_map_csv(text, 'user.csv')
+
+
+def test_rows_are_named_by_the_line_of_the_file():
+    """A comment, the header and 9 data rows, the 9th bad: line 11 of the file, as an editor
+    numbers it; a blank line counts too.  Each point keeps its line.
+    """
+    rows = [f'{p},0.2,{p / 1e4}' for p in range(0, 800000, 100000)]
+    text = '# a map\npressure_pa,length_m,force_n\n' + '\n'.join(rows) + '\n900000,0.2,x\n'
+    with pytest.raises(ValueError, match='^user.csv: line 11 is not 3 numbers'):
+        parse_force_map_csv(text, 'user.csv')
+    fmap = parse_force_map_csv(text.replace(',x', ',90').replace('# a map', '# a map\n'), 'u')
+    assert fmap.line.tolist() == list(range(4, 13))
+    assert fmap.subset(fmap.force >= 50).line.tolist() == [9, 10, 11, 12]
+
+
+@pytest.mark.parametrize(
+    'text, message',
+    [
+        ('', 'user.csv: the file is empty; a force map CSV starts with the header pressure_pa,'),
+        ('# only\n\n# comments\n', 'user.csv: the file is empty but for comments; a force map'),
+        ('p,L,F\n1,2,3\n', 'user.csv: line 1: header must be pressure_pa,length_m,force_n'),
+    ],
+)
+def test_an_empty_file_or_a_wrong_header_is_named(text, message):
+    with pytest.raises(ValueError, match=message):
         parse_force_map_csv(text, 'user.csv')
 
 

@@ -86,12 +86,16 @@ def test_user_spec_yaml(tmp_path):
         read_spec_yaml(path)
 
 
-def test_the_pull_bound_is_the_ideal_cylinder_at_the_outer_diameter():
-    """By hand: pi 0.0136^2 / 4 = 1.45267e-4 m^2, 3 / tan^2(28.6 deg) = 10.0921: 952.9 N at
-    650 kPa, above the 542.5 N that Table A2 measured there at L0 (0.57 of it).
+def test_the_braid_pull_is_the_ideal_cylinder_at_the_outer_diameter():
+    """By hand at L0: pi 0.0136^2 / 4 = 1.45267e-4 m^2, (3 cos^2 - 1) / sin^2 (28.6 deg) =
+    5.7434: 540.9 N at 650 kPa, where Table A2 measured 542.5 N.  DMSP-20-300 at 0.296 m: cos^2
+    Theta = (0.296 / 0.3)^2 cos^2 Theta0 = 0.75044, D^2 = D0^2 sin^2 Theta / sin^2 Theta0: pi
+    (0.0236 m)^2 / 4 x 1.08911 x 5.01395 x 675 kPa = 1612.4 N (Table A1: 1653.5 N).  Zero at full
+    contraction.
     """
     spec = shipped_spec('DMSP-10-250')
-    assert geo.pull_bound(spec, 0.25) * 650e3 == pytest.approx(952.9, abs=0.05)
-    assert geo.pull_bound(spec, 0.2) == geo.pull_bound(spec, 0.25)  # contracted: L0's
-    # stretched 10 % beyond L0: (1.1)^2 times
-    assert geo.pull_bound(spec, 0.275) == pytest.approx(1.21 * geo.pull_bound(spec, 0.25))
+    assert geo.braid_pull(spec, 0.25) * 650e3 == pytest.approx(540.87, abs=0.01)
+    assert geo.braid_pull(shipped_spec('DMSP-20-300'), 0.296) * 675e3 == pytest.approx(
+        1612.4, abs=0.05
+    )
+    assert geo.braid_pull(spec, geo.shortest_length(spec)) == pytest.approx(0, abs=1e-12)

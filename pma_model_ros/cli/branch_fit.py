@@ -39,6 +39,7 @@ def fit_branches(args: argparse.Namespace, spec) -> None:
         write_parameters,
     )
     from ..core.identification.bounds import at_bounds
+    from ..core.identification.map_checks import unsolvable
     from ..core.identification.protocols import check_fit_map, fit_best, judge_branches
     from ..core.physics.hysteresis import DEFAULT_DEADBANDS, Follow
 
@@ -54,12 +55,15 @@ def fit_branches(args: argparse.Namespace, spec) -> None:
     given = f'L0 {spec.nominal_length:g} m and no pressure offset, as given'
     print(f'geometry: {given} (a two-branch fit is not calibrated)')
     nested = None
-    if len(length_folds(fmap)) < 3:  # no length between others to judge it on
-        fit = fit_best(model, spec, fmap, args.objective)
-        entry = fit_entry(fit)
-    else:
-        fit, nested = judge_branches(model, spec, fmap, args.objective)
-        entry = fit_entry(fit) | held_out_entry(model.name, nested, fmap)
+    try:
+        if len(length_folds(fmap)) < 3:  # no length between others to judge it on
+            fit = fit_best(model, spec, fmap, args.objective)
+            entry = fit_entry(fit)
+        else:
+            fit, nested = judge_branches(model, spec, fmap, args.objective)
+            entry = fit_entry(fit) | held_out_entry(model.name, nested, fmap)
+    except np.linalg.LinAlgError as err:
+        raise CliError(unsolvable(spec, err)) from None
     print_in_sample(
         args.objective, {model.name: (fit, worst(nested) if nested is not None else math.nan)}
     )

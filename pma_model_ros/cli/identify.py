@@ -289,6 +289,7 @@ def describe_geometry(fit: Fit, given_length: float) -> str:
 def cmd_fit(args: argparse.Namespace) -> None:
     from ..core.files.param_writer import build_parameters, model_entry, write_parameters
     from ..core.identification.bounds import at_bounds
+    from ..core.identification.map_checks import unsolvable
     from ..core.identification.protocols import check_fit_map
     from ..core.identification.selection import identify_all, MODEL_RULE
 
@@ -310,9 +311,12 @@ def cmd_fit(args: argparse.Namespace) -> None:
         )
     print(calibration.describe() + ' (switch off: --no-calibrate-length, --no-calibrate-pressure)')
     names = TABLE3_MODELS if args.model == 'all' else (args.model,)
-    found = identify_all(
-        spec, fmap, tuple(get_model(m) for m in names), calibration, (args.objective,)
-    )
+    try:
+        found = identify_all(
+            spec, fmap, tuple(get_model(m) for m in names), calibration, (args.objective,)
+        )
+    except np.linalg.LinAlgError as err:
+        raise CliError(unsolvable(spec, err)) from None
     reports = found.reports
     print_in_sample(args.objective, {name: (r.shipped, r.cv_err) for name, r in reports.items()})
     if calibration.any:

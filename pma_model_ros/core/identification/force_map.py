@@ -35,6 +35,8 @@ class ForceMap:
     force: np.ndarray  #: measured tension [N]
     #: hysteresis branch of each point, +1 or -1 (None: not recorded)
     direction: np.ndarray | None = None
+    #: the line of the file each point was read from, 1-based (None: not read from a file)
+    line: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.direction is not None:
@@ -86,6 +88,7 @@ class ForceMap:
             self.length[mask],
             self.force[mask],
             None if self.direction is None else self.direction[mask],
+            None if self.line is None else self.line[mask],
         )
 
 
@@ -96,9 +99,20 @@ def read_force_map_csv(path: str | Path) -> ForceMap:
 
 def parse_force_map_csv(text: str, source: str) -> ForceMap:
     """Parse the text of a force map CSV; ``source`` names it in errors."""
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith('#')]
+    numbered = [
+        (number, ln)
+        for number, ln in enumerate(text.splitlines(), start=1)
+        if ln.strip() and not ln.lstrip().startswith('#')
+    ]
+    if not numbered:
+        raise ValueError(
+            f'{source}: the file is empty'
+            + (' but for comments' if text.strip() else '')
+            + f'; a force map CSV starts with the header {",".join(COLUMNS)}'
+        )
+    numbers, lines = zip(*numbered)
     for name, separator in (('semicolons', ';'), ('tabs', '\t')):
-        if lines and separator in lines[0] and ',' not in lines[0]:
+        if separator in lines[0] and ',' not in lines[0]:
             raise ValueError(
                 f'{source}: columns separated by {name}; a force map CSV separates them by commas '
                 '(and writes decimals with a point)'
@@ -107,24 +121,25 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
     header = [f.strip() for f in reader.fieldnames or []]
     if header not in (list(COLUMNS), [*COLUMNS, DIRECTION]):
         raise ValueError(
-            f'{source}: header must be {",".join(COLUMNS)}[,{DIRECTION}], got {reader.fieldnames}'
+            f'{source}: line {numbers[0]}: header must be {",".join(COLUMNS)}[,{DIRECTION}], '
+            f'got {lines[0].strip()!r}'
         )
     columns = [raw for raw, name in zip(reader.fieldnames, header)]
     rows = []
-    for number, row in enumerate(reader, start=2):
+    for number, row in zip(numbers[1:], reader):
         if None in row:  # more fields than the header: a decimal comma splits a number in two
             raise ValueError(
-                f'{source}: data row {number} has {len(columns) + len(row[None])} fields, the '
+                f'{source}: line {number} has {len(columns) + len(row[None])} fields, the '
                 f'header {len(columns)}; decimals are written with a point'
             )
         try:
             values = [float(row[c]) for c in columns]
         except (TypeError, ValueError):
             raise ValueError(
-                f'{source}: data row {number} is not {len(columns)} numbers: {row}'
+                f'{source}: line {number} is not {len(columns)} numbers: {row}'
             ) from None
         if not all(math.isfinite(v) for v in values):
-            raise ValueError(f'{source}: data row {number} has NaN or infinite values')
+            raise ValueError(f'{source}: line {number} has NaN or infinite values')
         rows.append(values)
     if not rows:
         raise ValueError(f'{source}: no data rows')
@@ -137,7 +152,11 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
         )
     try:
         return ForceMap(
-            data[:, 0], data[:, 1], data[:, 2], data[:, 3] if data.shape[1] == 4 else None
+            data[:, 0],
+            data[:, 1],
+            data[:, 2],
+            data[:, 3] if data.shape[1] == 4 else None,
+            np.array(numbers[1:], int),
         )
     except ValueError as err:
         raise ValueError(f'{source}: {err}') from None

@@ -38,11 +38,10 @@ import numpy as np
 from . import calibration as cal
 from .calibration import Calibration, OFF
 from .force_map import ForceMap
+from .map_checks import check_against_spec
 from .separable import Separable, Solution
 from .validation import HeldOut, length_folds, OBJECTIVES, within_tie
-from ..hints import length_hint
-from ..physics import geometry as geo
-from ..physics.geometry import MuscleSpec, STANDARD_ATMOSPHERE
+from ..physics.geometry import MuscleSpec
 from ..physics.models import Domain, extrapolates, force_raw, get_model, Model
 from ..physics.muscle_model import MuscleModel
 
@@ -116,14 +115,6 @@ def domain_of(fmap: ForceMap) -> Domain:
     return Domain(float(fmap.length.min()), float(fmap.length.max()), float(fmap.pressure.max()))
 
 
-#: Pressures [Pa] between these fractions of the standard atmosphere, with no force measured at the
-#: lowest of them, are absolute: ambient from 4000 m altitude (0.6) to the highest weather (1.08),
-#: plus a first step of a map (Table A2's 5 kPa: 1.13), rounded out.
-_AMBIENT_BAND = (0.5, 1.2)
-#: The largest measured force of a map in newtons lies within these fractions of what the geometry
-#: pulls at the map's top pressure (:func:`~pma_model_ros.core.physics.geometry.pull_bound`; the
-#: shipped maps: 0.55..0.57): kN are a thousandth, N·mm or mN a thousand times.
-_PULL_RANGE = (0.01, 2.0)
 #: [fraction of the max force] Two measurements of one point (pressure, length, direction) that
 #: differ by more than this conflict: 5 sigma of 1 % noise each (:data:`~.calibration._PULLING`).
 _CONFLICT = 0.07
@@ -132,7 +123,7 @@ _CONFLICT = 0.07
 def check_fit_map(fmap: ForceMap, spec: MuscleSpec, folds: int) -> None:
     """Refuse (ValueError) a map no fit of ``spec`` can use, naming why, before any fitting:
     fewer than ``folds`` held-out lengths (3 to judge a fit on an interior length, 2 to fit at
-    all), lengths the geometry cannot take, absolute pressures, forces in another unit than N,
+    all), a map the spec's braid cannot have measured (:func:`~.map_checks.check_against_spec`),
     conflicting repeated points.
     """
     have = len(length_folds(fmap))
@@ -147,35 +138,7 @@ def check_fit_map(fmap: ForceMap, spec: MuscleSpec, folds: int) -> None:
                 else 'measure the force map at several lengths between full contraction and L0'
             )
         )
-    top_length, fibre = float(fmap.length.max()), float(geo.fiber_length(spec))
-    if top_length >= fibre:
-        raise ValueError(
-            f'length_m reaches {top_length:g} m, beyond what the geometry of {spec.name} can take '
-            f'(0 < L < {fibre:.6g} m, its fibre length L0/cos(Theta0))'
-            + (f'; {length_hint(top_length, spec.nominal_length)}' if top_length > 1 else '')
-        )
-    lowest = float(fmap.pressure.min())
-    low, high = (f * STANDARD_ATMOSPHERE for f in _AMBIENT_BAND)
-    if low <= lowest <= high and not np.any(fmap.force[fmap.pressure == lowest]):
-        raise ValueError(
-            f'pressure_pa starts at {lowest:g} Pa with no force at any length: about ambient '
-            f'({STANDARD_ATMOSPHERE:g} Pa), so absolute pressures; the map takes gauge pressure '
-            f'= absolute - ambient (e.g. {lowest - STANDARD_ATMOSPHERE:g} Pa)'
-        )
-    top = float(fmap.pressure.max())
-    bound = geo.pull_bound(spec, top_length) * top
-    if not _PULL_RANGE[0] * bound <= fmap.max_force <= _PULL_RANGE[1] * bound:
-        high = fmap.max_force > bound
-        raise ValueError(
-            f'force_n reaches {fmap.max_force:g} at {top:g} Pa, where the geometry of {spec.name} '
-            f'pulls at most {bound:.4g} N (ideal cylinder, pressure x pi (D0 + 2 H0)^2/4 x '
-            f'3/tan^2(Theta0)): force in newtons; '
-            + (
-                f'N·mm or mN? {fmap.max_force:g} mN = {fmap.max_force / 1e3:g} N'
-                if high
-                else f'kN? {fmap.max_force:g} kN = {fmap.max_force * 1e3:g} N'
-            )
-        )
+    check_against_spec(fmap, spec)
     direction = np.zeros(fmap.force.size) if fmap.direction is None else fmap.direction
     points = np.column_stack([fmap.pressure, fmap.length, direction])
     _, group = np.unique(points, axis=0, return_inverse=True)

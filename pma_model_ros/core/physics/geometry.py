@@ -180,15 +180,15 @@ def diameter_slope(
     return braid(spec, length, fiber_angle)[1]
 
 
-def pull_bound(spec: MuscleSpec, length: float) -> float:
-    """[m^2] F <= p * this at lengths up to ``length`` [m]: the ideal cylinder's force (Chou and
-    Hannaford) p pi D^2/4 (3 (L/L0)^2 / tan^2 Theta0 - 1 / sin^2 Theta0) without its negative
-    term, with the outer diameter D0 + 2 H0 (the shipped maps pull 0.55..0.57 of it at their top
-    pressure) and L at least L0.
+def braid_pull(spec: MuscleSpec, length: ArrayLike) -> np.ndarray:
+    """[m^2] F = p * this: the ideal braid's pull at ``length`` [m] (Chou and Hannaford), -dV/dL
+    (eq. 4) = pi D^2/4 (3 cos^2 Theta - 1) / sin^2 Theta at the braid's diameter D(L) and angle
+    Theta(L) (cos Theta = L / L_Fiber), scaled to the outer diameter by ((D0 + 2 H0) / D0)^2;
+    <= 0 at and below full contraction (:func:`shortest_length`).  Measured maps pull up to
+    about this much (Tables A1/A2: 1.03 / 1.00 of it at their rest-length rows).
     """
-    outer = spec.inner_diameter + 2 * spec.membrane_thickness
-    stretch = max(length, spec.nominal_length) / spec.nominal_length
-    return math.pi * outer**2 / 4 * 3 * stretch**2 / math.tan(spec.fiber_angle) ** 2
+    outer = (spec.inner_diameter + 2 * spec.membrane_thickness) / spec.inner_diameter
+    return -(outer**2) * volume_slope(spec, length)
 
 
 def shortest_length(spec: MuscleSpec) -> float:
