@@ -634,3 +634,103 @@ def test_an_empty_array_default_is_declared_typed(make_node):
     assert node.get_parameter('forward_command_order').value == []
     with pytest.raises(StartupError, match='must be of type STRING_ARRAY, got INTEGER'):
         make_node(forward_command_order=3)
+
+
+def test_pressures_of_one_joint_state_give_the_worked_example(make_node):
+    """``pressure_input: joint_state``: the muscles' pressures in one ``muscle_pressures``
+    JointState (joint_state_broadcaster's message: every joint of the robot, the angle and each
+    muscle's ``pressure`` interface mapped to ``position``), absolute or gauge by
+    ``pressure_reference``, or in the ``pressure_field`` named; the per-muscle topics are gone.
+    The same message as ``joint_states`` too: docs/joints.md's worked example, -0.692 N·m.
+    """
+    expected = ELBOW.forward(0.5, 400e3, 300e3)
+    for reference, offset, field in (
+        ('absolute', AMBIENT, 'position'),
+        ('gauge', 0.0, 'position'),
+        ('absolute', AMBIENT, 'effort'),
+    ):
+        node = make_node(
+            pressure_input='joint_state', pressure_reference=reference, pressure_field=field
+        )
+        topics = {s.topic_name for s in node.subscriptions}
+        assert '/muscle_pressures' in topics and '/flexor/pressure' not in topics, topics
+        torques = record(node._torque_pub)
+        pressures = [0.5, offset + 300e3, offset + 400e3]  # elbow's angle first
+        msg = JointState(name=['elbow', 'extensor', 'flexor'], position=pressures)
+        if field == 'effort':  # the positions no pressures: the efforts'
+            msg.position, msg.effort = [0.5, 1e9, 1e9], [0.0, *pressures[1:]]
+        msg.header.stamp = node.get_clock().now().to_msg()
+        node._on_pressures(raw(msg))
+        node._on_states(raw(msg))
+        assert torques[-1].name == ['elbow'], (reference, field)
+        assert torques[-1].effort[0] == pytest.approx(float(expected.torque), rel=1e-9)
+        assert round(torques[-1].effort[0], 3) == -0.692
+
+
+def test_a_pressure_joint_state_without_a_muscle_is_an_error_naming_it(make_node):
+    """A ``muscle_pressures`` lacking the extensor: the flexor's pressure is taken, the joint's
+    status is ERROR naming the missing entry, and no estimate is made without it.
+    """
+    node = make_node(pressure_input='joint_state')
+    torques, diagnostics = record(node._torque_pub), record(node._diag_pub)
+    msg = JointState(name=['flexor'], position=[AMBIENT + 400e3])
+    msg.header.stamp = node.get_clock().now().to_msg()
+    node._on_pressures(raw(msg))
+    node._on_states(raw(joint_state(node, 0.5)))
+    assert torques == []
+    node.publish_status(node.now())
+    status = diagnostics[-1].status[0]
+    assert status.level == b'\x02' and "'extensor' not in ['flexor']" in status.message, status
+    values = {v.key: v.value for v in status.values}
+    assert values['received pressure'] == '2' and values['rejected pressure'] == '1', values
+
+
+def test_a_bad_pressure_input_fails_configure(make_node):
+    with pytest.raises(StartupError, match="unknown input 'joint_states'; one of per_muscle"):
+        make_node(pressure_input='joint_states')
+
+
+@pytest.mark.ros
+def test_stand_in_joint_state_broadcaster(ros, processes, namespace, tmp_path):
+    """joint_node (a process) with ``pressure_input: joint_state``, ``muscle_pressures`` remapped
+    to ``joint_states``, and in this process a stand-in of ros2_control's joint_state_broadcaster:
+    one JointState per cycle with both joints' angles and the four muscles' pressures (their
+    ``pressure`` state interfaces in ``position``).  Each torque estimate is the joints' forward
+    model at the pressures of that message.
+    """
+    from node_messages import RELIABLE_QOS
+
+    path = arm_file(tmp_path, 2)  # two copies of the example elbow
+    proc = processes.start(
+        node_process.command(
+            'joint_node',
+            namespace,
+            path,
+            {'pressure_input': 'joint_state', 'config_dir': str(REPO / 'config')},
+        )
+        + ['-r', 'muscle_pressures:=joint_states']
+    )
+    why = lambda: processes.output(proc)  # noqa: E731
+    estimates = ros.collect(JointState, f'{namespace}/torque_estimate', RELIABLE_QOS)
+    broadcaster = ros.node.create_publisher(JointState, f'{namespace}/joint_states', RELIABLE_QOS)
+    names = ['j0', 'j1', 'j0_flexor', 'j0_extensor', 'j1_flexor', 'j1_extensor']
+    gauges = [400e3, 300e3, 250e3, 500e3]  # [Pa]
+
+    def broadcast():
+        msg = JointState(name=names, position=[0.2, -0.3, *(AMBIENT + g for g in gauges)])
+        msg.velocity = [0.0] * len(names)
+        msg.effort = [0.0] * len(names)
+        msg.header.stamp = ros.now().to_msg()
+        broadcaster.publish(msg)
+
+    ros.spin_until(
+        lambda: any(list(e.name) == ['j0', 'j1'] for e in estimates),
+        20,
+        'an estimate of both joints from the broadcaster alone',
+        every=broadcast,
+        diagnose=why,
+    )
+    answer = next(e for e in estimates if list(e.name) == ['j0', 'j1'])
+    for theta, (p0, p1), torque in zip((0.2, -0.3), (gauges[:2], gauges[2:]), answer.effort):
+        assert torque == pytest.approx(float(ELBOW.forward(theta, p0, p1).torque), rel=1e-9)
+    print(f'\nstand-in joint_state_broadcaster: torques {list(answer.effort)} N·m')

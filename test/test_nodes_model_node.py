@@ -400,3 +400,62 @@ def test_a_parameter_change_is_logged(make_node, logged):
     node = make_node(CONFIGS['DMSP-10-250'])
     assert node.set_parameters([Parameter('model', value='hildebrandt')])[0].successful
     assert ('info', "parameters set: model = 'hildebrandt'") in logged
+
+
+def callback_of(node, topic: str):
+    """The callback of ``node``'s subscription of ``topic``: what the executor calls."""
+    return next(s.callback for s in node.subscriptions if s.topic_name == topic)
+
+
+def test_forward_commands_are_the_pressure_commands_in_the_configured_order(make_node):
+    """``forward_command_topic``, combined: one Float64MultiArray per force_commands message that
+    commanded a muscle, every value the muscle's pressure command (absolute Pa) in
+    ``forward_command_order`` (by joint_name); nothing until every muscle had a command, then the
+    others' last values.  Each value gives the wanted tension at the muscle's length.
+    """
+    order = ['finger', 'biceps', 'wrist_flexor', 'triceps']
+    node = make_node(
+        EXAMPLE,
+        forward_command_topic='muscle_controller/commands',
+        forward_command_order=order,
+    )
+    assert node._forward_pub.topic_name == '/muscle_controller/commands'
+    forward, pressures = record(node._forward_pub), record(node._command_pubs[0])
+    stamp = frozen_clock(node)
+    node._on_states(raw(joint_states(stamp, INPUTS, [v[2] for v in INPUTS.values()])))
+    on_commands = callback_of(node, '/force_commands')
+    on_commands(raw(JointState(name=['biceps', 'finger'], effort=[100.0, 20.0])))
+    assert len(pressures) == 1 and forward == []  # triceps and wrist_flexor never commanded
+    wanted = {'biceps': 150.0, 'triceps': 300.0, 'wrist_flexor': 80.0, 'finger': 40.0}
+    on_commands(raw(JointState(name=list(wanted), effort=list(wanted.values()))))
+    on_commands(raw(JointState(name=['triceps'], effort=[200.0])))
+    assert len(forward) == 2
+    both = [dict(zip(p.name, p.position)) for p in pressures[1:]]
+    assert list(forward[0].data) == [both[0][m] for m in order]
+    assert list(forward[1].data) == [both[0][m] for m in order[:3]] + [both[1]['triceps']]
+    forces = expected_forces(
+        {
+            m: (INPUTS[m][0], forward[0].data[i] - AMBIENT, INPUTS[m][2], 0.0)
+            for i, m in enumerate(order)
+        }
+    )
+    assert forces == pytest.approx(wanted, abs=1e-6)  # [N]
+
+
+def test_one_muscle_forwards_its_pressure_command(make_node):
+    """One muscle, ``forward_command_order`` empty: the array holds its one pressure command."""
+    node = make_node(CONFIGS['DMSP-10-250'], forward_command_topic='pressure_controller/commands')
+    forward, commands = record(node._forward_pub), record(node._command_pubs[0])
+    now = frozen_clock(node)
+    node._on_state(0, raw(state(now, 0.23, 0.0)))
+    callback_of(node, '/force_command')(raw(force_command(100.0)))
+    assert [list(m.data) for m in forward] == [[commands[-1].fluid_pressure]]
+    gauge = forward[0].data[0] - AMBIENT
+    assert float(MARTENS.force(gauge, 0.23).force) == pytest.approx(100.0, abs=1e-6)
+
+
+def test_a_bad_model_node_forward_command_order_fails_configure(make_node):
+    from pma_model_ros.nodes.startup import StartupError
+
+    with pytest.raises(StartupError, match=r"'bicep' is no muscle's joint_name \(did you mean"):
+        make_node(EXAMPLE, forward_command_topic='c/commands', forward_command_order=['bicep'])

@@ -265,3 +265,60 @@ def test_bad_multi_muscle_file_fails_with_one_line(case, tmp_path, namespace):
         f'exit {proc.returncode}, output:\n' + '\n'.join(lines)
     )
     assert 'FATAL' in lines[0] and words in lines[0] and 'Traceback' not in lines[0], lines[0]
+
+
+def test_stand_in_forward_command_controller(ros, processes, namespace):
+    """model_node (a process, combined) with ``forward_command_topic`` and, in this process, a
+    stand-in of ros2_control's forward_command_controller on ``<controller>/commands``: each
+    Float64MultiArray holds every muscle's absolute pressure command [Pa] in the controller's
+    order (``forward_command_order``), the pressures that give the wanted tensions by each
+    muscle's own model, and equals the node's ``pressure_commands`` of the same force command.
+    """
+    from std_msgs.msg import Float64MultiArray
+
+    from node_messages import RELIABLE_QOS
+
+    order = ['triceps', 'finger', 'biceps', 'wrist_flexor']
+    node = processes.node(
+        'model_node',
+        namespace,
+        EXAMPLE,
+        forward_command_topic='muscle_controller/commands',
+        forward_command_order='[' + ', '.join(order) + ']',
+    )
+    controller = ros.collect(Float64MultiArray, f'{namespace}/muscle_controller/commands')
+    commands = ros.collect(JointState, f'{namespace}/pressure_commands', RELIABLE_QOS)
+    publisher = ros.node.create_publisher(JointState, f'{namespace}/force_commands', 10)
+    inputs = combined_inputs(ros, namespace)
+    wanted = {'biceps': 150.0, 'triceps': 300.0, 'wrist_flexor': 80.0, 'finger': 40.0}
+    example = read_parameters(EXAMPLE)
+    expected = [
+        float(
+            muscle_model(
+                read_parameters(REPO / 'config' / f'{INPUTS[name][0]}.yaml'),
+                example[name]['model'],
+            )
+            .pressure(wanted[name], INPUTS[name][2], 0.0)
+            .pressure
+        )
+        + AMBIENT  # held at one length: a hysteresis branch is unknown (0)
+        for name in order
+    ]
+
+    def publish():
+        inputs()  # keeps the lengths fresh
+        publisher.publish(JointState(name=list(wanted), effort=list(wanted.values())))
+
+    ros.spin_until(
+        lambda: len(controller) >= 3,
+        30,
+        'three forward commands',
+        every=publish,
+        diagnose=lambda: f'last: {controller[-1:]}\n{processes.output(node)}',
+    )
+    for message in controller:
+        assert list(message.data) == pytest.approx(expected, rel=1e-9)
+    ros.spin_until(lambda: len(commands) >= len(controller), 10, 'the pressure commands')
+    first = dict(zip(commands[0].name, commands[0].position))
+    assert list(controller[0].data) == [first[name] for name in order]
+    print(f'\nstand-in controller: {len(controller)} arrays {order}: {list(controller[0].data)}')

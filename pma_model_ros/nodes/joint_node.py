@@ -7,7 +7,11 @@ namespace applies; pressures absolute, or gauge with ``pressure_reference: gauge
 
 * in ``joint_states`` (sensor_msgs/JointState: position θ [rad], entries by joint name; the
   velocity is not used: a hysteresis muscle's branch follows its length or pressure with memory)
-  and each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa);
+  and each muscle's ``<muscle>/pressure`` (sensor_msgs/FluidPressure, absolute Pa), or with
+  ``pressure_input: joint_state`` one ``muscle_pressures`` (sensor_msgs/JointState: an entry per
+  muscle by its name, the pressure in ``pressure_field``, as ros2_control's
+  joint_state_broadcaster publishes a ``pressure`` state interface), read as model_node's
+  combined ``muscle_pressures`` (:mod:`pma_model_ros.wire.joint_state`);
 * out, once per joint_states message, for its joints whose pressures are fresh: ``torque_estimate``
   (JointState: effort = torque [N·m], positive counter-clockwise) and ``stiffness_estimate``
   (JointState: effort = K = -dτ/dθ [N·m/rad]), both with the joint_states stamp; ``/diagnostics``
@@ -43,7 +47,6 @@ from .model_node import DESERIALIZE
 from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
 from .startup import run
 from ..core.files.joint_file import (
-    forward_order,
     identification,
     joint_file_of,
     joints,
@@ -58,9 +61,11 @@ from ..core.files.shipped_data import share_directory
 from ..core.runtime.health import node_timing
 from ..core.runtime.joint_engine import JointEngine, Settings
 from ..wire.cdr import fluid_pressure, joint_state, MALFORMED, MalformedMessage
-from ..wire.forward_commands import ForwardCommands
-from ..wire.joint_state import JointStateArrays, JointStateReader
+from ..wire.forward_commands import forward_order, ForwardCommands
+from ..wire.joint_state import JointIndex, JointStateArrays, JointStateReader
 from ..wire.muscle_inputs import stamped_value
+
+SPECS_BY_NAME = {spec.name: spec for spec in JOINT_NODE_PARAMETERS}
 
 
 def declare(node: Node) -> None:
@@ -120,9 +125,16 @@ class JointNode(ManagedNode):
             **node_timing(len(found)),
             pressure_reference=str(flat['pressure_reference']),
         )
+        self._pressure_index = self._pressure_index_of(flat, found)
         topic = str(flat['forward_command_topic'])
         self._forward_order = (
-            forward_order(list(flat['forward_command_order'] or []), found) if topic else None
+            forward_order(
+                list(flat['forward_command_order'] or []),
+                [m for j in found for m in j.muscle_names],
+                'muscle of the joints',
+            )
+            if topic
+            else None
         )
         self.reset()
         self._hardware = [
@@ -136,6 +148,7 @@ class JointNode(ManagedNode):
             topic: JointStateReader(DESERIALIZE['JointState'])
             for topic in (
                 'joint_states',
+                'muscle_pressures',
                 'torque_command',
                 'stiffness_command',
                 'cocontraction_command',
@@ -180,12 +193,17 @@ class JointNode(ManagedNode):
         for k, joint in enumerate(self.engine.joints):
             pubs = []
             for m, muscle in enumerate(joint.muscle_names):
-                callback = partial(self._on_pressure, k, m)
-                subscription(
-                    self, FluidPressure, f'{muscle}/pressure', callback, SENSOR_INPUT, raw=True
-                )
+                if self._pressure_index is None:
+                    callback = partial(self._on_pressure, k, m)
+                    subscription(
+                        self, FluidPressure, f'{muscle}/pressure', callback, SENSOR_INPUT, raw=True
+                    )
                 pubs.append(publisher(self, FluidPressure, f'{muscle}/pressure_command', RELIABLE))
             self._command_pubs.append(pubs)
+        if self._pressure_index is not None:
+            subscription(
+                self, JointState, 'muscle_pressures', self._on_pressures, SENSOR_INPUT, raw=True
+            )
         subscription(self, JointState, 'joint_states', self._on_states, SENSOR_INPUT, raw=True)
         subscription(self, JointState, 'torque_command', self._on_torque, RELIABLE, raw=True)
         for topic in ('stiffness_command', 'cocontraction_command'):
@@ -203,6 +221,29 @@ class JointNode(ManagedNode):
             self.engine.reject(k, 'pressure', MALFORMED, now)
         else:
             self.engine.pressure(k, m, value, stamp, now)
+        self.report(now)
+
+    def _on_pressures(self, data: bytes) -> None:
+        """A ``muscle_pressures`` JointState: each muscle's pressure it holds, as
+        :meth:`_on_pressure`; a muscle it gives no value of is rejected with the reason.
+        """
+        if not self.active:
+            return
+        now, engine = self.now(), self.engine
+        if (msg := self._read('muscle_pressures', data, 'pressure', now)) is None:
+            return self.report(now)
+        take, present, problems = self._pressure_index.of(msg)
+        values = getattr(msg, self._pressure_index.field)[take].tolist()
+        if present is None:
+            for (k, m), value in zip(self._muscles, values):
+                engine.pressure(k, m, value, msg.stamp, now)
+        else:
+            problem = iter(problems)
+            for (k, m), value, here in zip(self._muscles, values, present.tolist()):
+                if here:
+                    engine.pressure(k, m, value, msg.stamp, now)
+                else:
+                    engine.reject(k, 'pressure', next(problem), now)
         self.report(now)
 
     def _on_states(self, data: bytes) -> None:
@@ -258,6 +299,19 @@ class JointNode(ManagedNode):
         for name, value in self._entries(msg, now):
             apply(self.engine.index[name], value, now, msg.stamp)
         self.report(now)
+
+    def _pressure_index_of(self, flat: dict, found: list) -> JointIndex | None:
+        """With ``pressure_input: joint_state``: where each muscle's pressure sits in a
+        ``muscle_pressures`` JointState (:attr:`_muscles`: its (joint, muscle) of each entry).
+        """
+        self._muscles = [(k, m) for k, j in enumerate(found) for m, _ in enumerate(j.muscle_names)]
+        source, field = (
+            SPECS_BY_NAME[name].check(str(flat[name]))
+            for name in ('pressure_input', 'pressure_field')
+        )
+        if source == 'per_muscle':
+            return None
+        return JointIndex([name for j in found for name in j.muscle_names], field)
 
     def _read(self, topic: str, data: bytes, source: str, now: int) -> JointStateArrays | None:
         """A JointState of ``topic``; None if its deserializer refused it, then rejected for

@@ -12,7 +12,11 @@ topics under ``<name>/`` (``input_mode: per_muscle``, :class:`MuscleTopics`), or
 length, one ``muscle_pressures`` JointState with every absolute pressure [Pa] in ``position``,
 answered by one ``force_estimates`` JointState (effort = tension [N]); commands come in one
 ``force_commands`` JointState (effort = wanted tension [N]) and go out in one ``pressure_commands``
-JointState (position = absolute pressure [Pa]).  Every decision is the
+JointState (position = absolute pressure [Pa]).  With ``forward_command_topic``, every muscle's
+pressure command also goes out in one std_msgs/Float64MultiArray per command message that
+commanded one, in ``forward_command_order`` (by ``joint_name``), for ros2_control's
+forward_command_controller (:mod:`pma_model_ros.wire.forward_commands`: the others' last values;
+nothing until every muscle had a command).  Every decision is the
 :class:`~pma_model_ros.core.runtime.engine.Engine`'s.  Subscriptions are raw: the wire layer
 (:mod:`pma_model_ros.wire.muscle_inputs`) reads the bytes into its calls and writes the answers'
 bytes; every entity is created in :meth:`ModelNode.create_interfaces`, by the ``configure``
@@ -31,6 +35,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, JointState
+from std_msgs.msg import Float64MultiArray
 
 from . import model_params
 from .managed import ManagedNode
@@ -42,7 +47,8 @@ from ..core.files.node_parameters import SPECS, topic_prefixes
 from ..core.files.param_file import node_engine, node_pairing, NodeSettings
 from ..core.runtime.engine import Engine
 from ..core.runtime.pairing import nanoseconds, QueueDelay
-from ..wire.cdr import fluid_pressure
+from ..wire.cdr import fluid_pressure, Template
+from ..wire.forward_commands import forward_order, ForwardCommands
 from ..wire.muscle_inputs import MuscleInputs
 
 #: rclpy's deserializers of the input types: what the wire layer's fast readers do not read.
@@ -86,6 +92,15 @@ class ModelNode(ManagedNode):
         self._max_queue_delay = nanoseconds(
             flat.get('max_queue_delay', SPECS['max_queue_delay'].default)
         )
+        self._forward_order = (
+            forward_order(
+                list(flat.get('forward_command_order') or []),
+                [s.joint_name for s in self.settings],
+                "muscle's joint_name",
+            )
+            if flat.get('forward_command_topic')
+            else None
+        )
         self.reset()
         warn_unknown(self, model_params.expected_undeclared)
         muscles = [
@@ -104,14 +119,22 @@ class ModelNode(ManagedNode):
         return [(s.joint_name, s.hardware_id) for s in self.settings]
 
     def reset(self) -> None:
-        """A fresh engine of the current settings (no input known, counters at zero)."""
+        """A fresh engine of the current settings (no input known, counters at zero), and no
+        forwarded command known.
+        """
         self.engine = node_engine(
             self.settings, **self._pairing, max_answer_delay=self._max_answer_delay
         )
         self.use(self.settings)
+        joints = [s.joint_name for s in self.settings]
+        self._forward = (
+            ForwardCommands(self._forward_order, [[j] for j in joints])
+            if self._forward_order
+            else None
+        )
 
     def release(self) -> None:
-        self.engine = self.inputs = None
+        self.engine = self.inputs = self._forward = None
         self._estimate_pubs = self._command_pubs = []
 
     def create_interfaces(self) -> None:
@@ -119,6 +142,10 @@ class ModelNode(ManagedNode):
         overridable by parameters (:mod:`.qos`).
         """
         self._diag_pub = publisher(self, DiagnosticArray, '/diagnostics', RELIABLE)
+        forward = self._forward_order is not None  # (then the commands' callbacks forward too)
+        if forward:
+            topic = self.get_parameter('forward_command_topic').value
+            self._forward_pub = publisher(self, Float64MultiArray, topic, RELIABLE)
         count = 1 if self.mode == 'combined' else len(self.settings)
         #: each sensor topic's subscription and queue wait (_newest), by input and muscle
         #: (combined: one)
@@ -132,7 +159,12 @@ class ModelNode(ManagedNode):
             for topic, callback, qos, source in (
                 ('muscle_pressures', self._on_pressures, SENSOR_INPUT, 'pressure'),
                 ('muscle_states', self._on_states, SENSOR_INPUT, 'muscle_state'),
-                ('force_commands', self._on_commands, RELIABLE, None),
+                (
+                    'force_commands',
+                    self._forward_commands if forward else self._on_commands,
+                    RELIABLE,
+                    None,
+                ),
             ):
                 self._timed(subscription(self, JointState, topic, callback, qos, raw=True), source)
             return
@@ -147,7 +179,13 @@ class ModelNode(ManagedNode):
             for kind, topic, callback, qos, source in (
                 (FluidPressure, 'pressure', self._on_pressure, SENSOR_INPUT, 'pressure'),
                 (JointState, 'muscle_state', self._on_state, SENSOR_INPUT, 'muscle_state'),
-                (WrenchStamped, 'force_command', self._on_command, RELIABLE, None),
+                (
+                    WrenchStamped,
+                    'force_command',
+                    self._forward_command if forward else self._on_command,
+                    RELIABLE,
+                    None,
+                ),
             ):
                 sub = subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
                 self._timed(sub, source)
@@ -270,9 +308,10 @@ class ModelNode(ManagedNode):
         if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
 
-    def _on_command(self, k: int, data: bytes) -> None:
+    def _on_command(self, k: int, data: bytes) -> float | None:
+        """A ``force_command`` of muscle ``k``; the pressure commanded, if any."""
         if not self.active:
-            return
+            return None
         now = self.now()
         pressure = self.inputs.force_command(k, data, now)
         if pressure is not None:
@@ -281,17 +320,37 @@ class ModelNode(ManagedNode):
             self._command_pubs[k].publish(command(now))
         if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
+        return pressure
 
-    def _on_commands(self, data: bytes) -> None:
-        """Pressure commands of the muscles named in the message (the others are not commanded)."""
+    def _on_commands(self, data: bytes) -> Template | None:
+        """Pressure commands of the muscles named in the message (the others are not commanded);
+        the message published, if any.
+        """
         if not self.active:
-            return
+            return None
         now = self.now()
         commands = self.inputs.force_commands(data, now)
         if commands is not None:
             self._command_pubs[0].publish(commands(now))
         if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
+        return commands
+
+    # --- with forward_command_topic: the commands' callbacks, then the array
+    def _forward_command(self, k: int, data: bytes) -> None:
+        if (pressure := self._on_command(k, data)) is not None:
+            self._forward.command(k, (pressure,))
+            self._publish_forward()
+
+    def _forward_commands(self, data: bytes) -> None:
+        if (commands := self._on_commands(data)) is not None:
+            for k, pressure in zip(self.inputs.commanded, commands.values.tolist()):
+                self._forward.command(k, (pressure,))
+            self._publish_forward()
+
+    def _publish_forward(self) -> None:
+        if (message := self._forward.message()) is not None:
+            self._forward_pub.publish(message)
 
     def publish_status(self, now: int) -> None:
         """One DiagnosticStatus per muscle in one DiagnosticArray: the engine's status, the

@@ -75,6 +75,7 @@ class MuscleInputs:
         self._all = joint_state(joints, 'effort')  # force_estimates of every muscle
         self._unknown = np.full(len(joints), math.nan)  # rates of a muscle_states without
         self._unknown.flags.writeable = False
+        self.commanded: list[int] = []  #: the muscles of the last force_commands answered
 
     # --- per muscle
     def pressure(self, k: int, data: bytes, now: int) -> bytes | None:
@@ -188,7 +189,8 @@ class MuscleInputs:
 
     def force_commands(self, data: bytes, now: int) -> Template | None:
         """A ``force_commands`` JointState (wanted tensions [N] in ``effort``): the
-        pressure_commands (JointState, absolute Pa in ``position``; stamp it), if any.
+        pressure_commands (JointState, absolute Pa in ``position``; stamp it), if any; then
+        :attr:`commanded` holds the muscles it commanded, in its ``values``' order.
         """
         reader, index = self._combined['force_commands']
         try:
@@ -197,7 +199,7 @@ class MuscleInputs:
             self._reject_all('force_command', now)
             return None
         take, present, problems = index.of(msg)
-        joints, pressures = [], []
+        commanded, pressures = [], []
         for k, joint in enumerate(self.joints):
             if joint not in msg.names:
                 continue
@@ -206,10 +208,11 @@ class MuscleInputs:
             elif (
                 pressure := self.engine.command(k, float(msg.effort[take[k]]), now, msg.stamp)
             ) is not None:
-                joints.append(joint)
+                commanded.append(k)
                 pressures.append(pressure)
-        if not joints:
+        if not commanded:
             return None
-        out = joint_state(joints, 'position')
+        self.commanded = commanded
+        out = joint_state([self.joints[k] for k in commanded], 'position')
         out.values[:] = pressures
         return out

@@ -37,7 +37,7 @@ from .node_parameters import JOINT_PARAMETERS, names_of
 from .param_file import file_kind, hysteresis_follow, muscle_model, read_parameters
 from .param_file import identification as muscle_identification
 from .user_files import load_yaml_mapping, read_user_file
-from ..hints import did_you_mean, missing_key
+from ..hints import missing_key
 from ..physics.hysteresis import Follow
 from ..physics.joint import Joint, Transmission
 from ..physics.muscle_model import MuscleModel
@@ -173,24 +173,6 @@ def joints(parameters: dict, base: Path) -> list[Joint]:
     if len(set(muscles)) != len(muscles):
         raise ValueError(f'two joints share a muscle name: {muscles}')
     return result
-
-
-def forward_order(order: list[str], found: list[Joint]) -> list[str]:
-    """The muscles of ``forward_command_order`` (empty: every muscle of ``found``, joint by joint,
-    the positive one first); ValueError for a name that is no muscle of the joints, or one given
-    twice.
-    """
-    muscles = [m for j in found for m in j.muscle_names]
-    for name in order:
-        if name not in muscles:
-            hint = did_you_mean(name, muscles)
-            raise ValueError(
-                f'forward_command_order: {name!r} is no muscle of the joints{hint}; the muscles: '
-                f'{muscles}'
-            )
-    if len(set(order)) != len(order):
-        raise ValueError(f'forward_command_order: a muscle named twice in {order}')
-    return list(order) or muscles
 
 
 def muscle_folder(config_dir: str, joint_file: str | Path | None, default: Path) -> Path:

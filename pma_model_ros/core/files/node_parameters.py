@@ -36,6 +36,10 @@ EXECUTORS = ('single', 'events')
 #: What a FluidPressure's ``fluid_pressure`` holds: absolute (the message's definition) or gauge
 #: pressure.
 PRESSURE_REFERENCES = ('absolute', 'gauge')
+#: Where joint_node reads the muscles' pressures: a FluidPressure per muscle, or one JointState.
+PRESSURE_INPUTS = ('per_muscle', 'joint_state')
+#: The arrays of a sensor_msgs/JointState.
+JOINT_STATE_FIELDS = ('position', 'velocity', 'effort')
 
 
 @dataclass(frozen=True)
@@ -328,6 +332,25 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         read_only=True,
     ),
     ParameterSpec(
+        'forward_command_topic',
+        'string',
+        '',
+        "topic of every muscle's pressure command [Pa, as `pressure_command`] as one "
+        'std_msgs/Float64MultiArray per force command that commanded one, in '
+        "`forward_command_order` (what ros2_control's forward_command_controller takes on "
+        '`<controller>/commands`); empty: none',
+        read_only=True,
+    ),
+    ParameterSpec(
+        'forward_command_order',
+        'string[]',
+        [],
+        'the muscles of the `forward_command_topic` array by `joint_name`, in order (the '
+        "controller's `joints`; some or all of this node's muscles, each once); empty: every "
+        'muscle in the order of `muscles`',
+        read_only=True,
+    ),
+    ParameterSpec(
         'executor',
         'string',
         'single',
@@ -384,6 +407,24 @@ JOINT_NODE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
     SPECS['ambient_pressure'],
     SPECS['pressure_reference'],
     SPECS['max_input_age'],
+    ParameterSpec(
+        'pressure_input',
+        'string',
+        'per_muscle',
+        "where the muscles' pressures come from: `per_muscle` (each muscle's `<muscle>/pressure`, "
+        'FluidPressure) or `joint_state` (one `muscle_pressures` JointState, an entry per muscle '
+        "by its name, as ros2_control's joint_state_broadcaster publishes state interfaces)",
+        choices=PRESSURE_INPUTS,
+    ),
+    ParameterSpec(
+        'pressure_field',
+        'string',
+        'position',
+        '`pressure_input: joint_state`: the JointState array that holds the pressures (Pa, as '
+        "`pressure_reference`; joint_state_broadcaster's `map_interface_to_joint_state`, e.g. "
+        '`position: pressure`)',
+        choices=JOINT_STATE_FIELDS,
+    ),
     ParameterSpec(
         'forward_command_topic',
         'string',
