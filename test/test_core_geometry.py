@@ -49,6 +49,8 @@ def test_dmsp_10_250_numbers():
         ({'inner_diameter': 10.0}, 'inner_diameter must be in metres .* millimetres'),
         ({'membrane_thickness': 1.8}, 'membrane_thickness must be in metres .* millimetres'),
         ({'fiber_angle': 28.6}, r'fiber_angle .*; degrees\? multiply by pi/180'),
+        # 1 rad = 57.3 deg, beyond arctan(sqrt 2) = 54.7 deg where 3 cos^2 - 1 = 0: no pull at L0
+        ({'fiber_angle': 1.0}, r'fiber_angle 1 rad \(57.3 deg\) is at or beyond arctan'),
         ({'max_pressure': '8 bar'}, 'max_pressure'),
         # the Festo data sheet's 8 bar, in bar, kPa, MPa and psi
         ({'max_pressure': 8}, r'max_pressure .* got 8; bar\? 8 bar = 800000 Pa$'),

@@ -63,6 +63,13 @@ class MuscleSpec:
                 f'muscle.fiber_angle must be in (0, pi/2) rad, got {angle!r}'
                 + ('; degrees? multiply by pi/180' if degrees else '')
             )
+        if angle >= _NEUTRAL_ANGLE:
+            raise ValueError(
+                f'muscle.fiber_angle {angle:g} rad ({math.degrees(angle):.1f} deg) is at or '
+                f'beyond arctan(sqrt(2)) = {_NEUTRAL_ANGLE:.4f} rad (54.7 deg), where the braid '
+                'pulls nothing at L0 (eq. 4: dV/dL = 0); a contracting muscle has a smaller angle '
+                '(Festo DMSP: 0.4992 rad = 28.6 deg)'
+            )
         for field, most in _LARGEST.items():
             if getattr(self, field) > most:
                 raise ValueError(
@@ -99,6 +106,8 @@ class MuscleSpec:
         return asdict(self)
 
 
+#: [rad] The braid angle of full contraction, arctan(sqrt(2)): there dV/dL = 0 (eq. 4).
+_NEUTRAL_ANGLE = math.atan(math.sqrt(2))
 _FLOAT_MAX = sys.float_info.max  # an int above it (YAML reads 400 digits as int) is no float
 #: [m] Largest dimensions a muscle spec takes: beyond them, millimetres were meant.
 _LARGEST = {'nominal_length': 10.0, 'inner_diameter': 1.0, 'membrane_thickness': 0.1}
