@@ -49,7 +49,8 @@ PARAMETERS: tuple[ParameterSpec, ...] = read_only(
         'muscle',
         'string',
         'DMSP-10-250',
-        f'shipped muscle whose measured map is the truth: {", ".join(MAPPED_MUSCLES)}',
+        f'shipped muscle whose measured map is the truth: {", ".join(MAPPED_MUSCLES)} (unless '
+        "'map_file' or 'params_file' is set)",
         choices=MAPPED_MUSCLES,
     ),
     ParameterSpec(
