@@ -202,4 +202,6 @@ def test_joint_node_dump_reloads_to_the_same_answers(ros, processes, namespace, 
     assert after == pytest.approx(before, rel=0, abs=1e-12)
     # the flexor's higher pressure turns the joint the positive way, the extensor's the other
     assert before[0] > 0 > before[1]
+    # the muscle files' folder, the joint file's, listed absolute: the dump, elsewhere, finds them
     assert dumped['elbow']['flexor']['file'] == 'dmsp_10_250.yaml'
+    assert dumped['config_dir'] == str(JOINT.parent.resolve())

@@ -238,3 +238,17 @@ def test_a_wrong_value_ends_the_process_with_one_line(node, params_file, overrid
     lines = lines_of_failed_start([*cmd, '-p', override])
     assert len(lines) == 1 and 'FATAL' in lines[0], lines
     assert all(w in lines[0] for w in words), lines
+
+
+@pytest.mark.parametrize(
+    'node, params_file, words',
+    [
+        ('model_node', EXAMPLE_JOINT, ['a joint file', 'joint_node', 'dmsp_10_250.yaml']),
+        ('joint_node', CONFIGS['DMSP-10-250'], ['not a joint file', 'one muscle', 'model_node']),
+        ('joint_node', MULTI, ['not a joint file', 'several muscles', 'model_node']),
+    ],
+)
+def test_the_other_nodes_file_is_named_as_such(node, params_file, words):
+    lines = lines_of_failed_start(node_process.command(node, '/', params_file, {}))
+    assert len(lines) == 1 and 'FATAL' in lines[0], lines
+    assert all(w in lines[0] for w in words), lines

@@ -70,8 +70,22 @@ SPECS_BY_NAME = {spec.name: spec for spec in JOINT_NODE_PARAMETERS}
 
 def declare(node: Node) -> None:
     """Declare every joint_node parameter, read-only: node-wide, per joint, per muscle (by file or
-    inline; a model's block only where the muscle names its ``model`` inline).
+    inline; a model's block only where the muscle names its ``model`` inline).  ``config_dir``
+    holds the folder the muscle files are read from (:func:`muscle_folder`), absolute, so that
+    ``ros2 param dump``'s file loads them from anywhere.
     """
+    if not node.has_parameter('config_dir'):
+        folder = muscle_folder(
+            str(parameters.overrides(node).get('config_dir') or ''),
+            joint_file_of(sys.argv),
+            share_directory() / 'config',
+        )
+        node.declare_parameter(
+            'config_dir',
+            str(folder.resolve()),
+            parameters.descriptor(SPECS_BY_NAME['config_dir']),
+            ignore_override=True,
+        )
     names = parameters.declare_table(node, JOINT_NODE_PARAMETERS)['joints'] or []
     for joint in names:
         for muscle in (

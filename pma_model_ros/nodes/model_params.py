@@ -31,7 +31,13 @@ from ..core.files.node_parameters import (
     PROCESS_PARAMETERS,
     SPECS,
 )
-from ..core.files.param_file import all_node_settings, GIVEN_LENGTH, NodeSettings
+from ..core.files.param_file import (
+    all_node_settings,
+    file_kind,
+    GIVEN_LENGTH,
+    NodeSettings,
+    one_muscle,
+)
 from ..core.physics.models import ALIASES, get_model, MODELS
 
 #: Parameters required per muscle (no default: from the file), without the models.* entries.
@@ -57,6 +63,9 @@ def declare(node: Node) -> tuple[list[str], str]:
     Raises rclpy parameter exceptions on bad overrides, ValueError on a bad ``muscles`` list or
     mode.
     """
+    given = nest(overrides(node))
+    if file_kind(given) == 'joint':
+        one_muscle(given)  # raises: a joint file, read by joint_node, and its muscles' files
     names = list(declare_spec(node, SPECS['muscles']).value or [])
     mode = declare_spec(node, SPECS['input_mode']).value
     _check_names(names, mode)
