@@ -133,6 +133,39 @@ def test_an_unknown_parameter_is_named_with_the_nearest(make, warnings, cls, typ
     assert warnings == [f"unknown parameter '{typo}' (did you mean '{near}'?): ignored"]
 
 
+@pytest.mark.parametrize(
+    'cls, topic',
+    [
+        (ModelNode, '/diagnostics.publisher'),
+        (JointNode, '/flexor/pressure.subscription'),
+        (SimulatorNode, '/pressure.publisher'),
+        (JointSimulatorNode, '/joint_states.publisher'),
+    ],
+)
+def test_a_qos_override_is_known_of_a_topic_the_node_has_only(make, warnings, cls, topic):
+    """``qos_overrides.<topic>.<entity>.<policy>`` of one of the node's topics is no unknown
+    parameter (it is applied); of a topic it has not, or a policy not overridable, it is.
+    """
+    known = f'qos_overrides.{topic}.reliability'
+    typo = f'qos_overrides.{topic}.depht'
+    node = make(
+        cls,
+        NODES[cls],
+        overrides=[
+            (known, 'best_effort'),
+            ('qos_overrides./nope.publisher.depth', '5'),
+            (typo, '5'),
+        ],
+    )
+    assert node.get_parameter(known).value == 'best_effort'
+    nope, near = sorted(warnings, key=lambda w: '/nope' not in w)
+    assert (
+        near
+        == f"unknown parameter '{typo}' (did you mean 'qos_overrides.{topic}.depth'?): ignored"
+    )
+    assert nope.startswith("unknown parameter 'qos_overrides./nope.publisher.depth'"), nope
+
+
 def test_entries_read_undeclared_are_no_unknown_parameters(make, warnings):
     """The other models' blocks and the identification results of a file: read, not declared."""
     make(ModelNode, MULTI)

@@ -44,7 +44,7 @@ from std_msgs.msg import Float64MultiArray
 from . import model_params, parameters
 from .managed import ManagedNode
 from .model_node import DESERIALIZE
-from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription
+from .qos import publisher, RELIABLE, SENSOR_INPUT, subscription, warn_unknown_overrides
 from .startup import run
 from ..core.files.joint_file import (
     identification,
@@ -223,6 +223,7 @@ class JointNode(ManagedNode):
         for topic in ('stiffness_command', 'cocontraction_command'):
             callback = partial(self._on_level, topic)
             subscription(self, JointState, topic, callback, RELIABLE, raw=True)
+        warn_unknown_overrides(self, parameters.overrides(self))
 
     # --- callbacks: bytes in, bytes out, only while active (the gate: the first line)
     def _on_pressure(self, k: int, m: int, data: bytes) -> None:

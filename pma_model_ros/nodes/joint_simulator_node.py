@@ -20,7 +20,8 @@ from rclpy.node import Node
 from sensor_msgs.msg import FluidPressure, JointState
 
 from .parameters import declare_table, warn_unknown
-from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription
+from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription, warn_unknown_overrides
+from .rclpy_private import parameter_overrides
 from .ros_time import now_seconds
 from .startup import refusing, run
 from ..core.simulation.joint import PARAMETERS, SimulatedJoint
@@ -44,6 +45,7 @@ class JointSimulatorNode(Node):
             callback = partial(self._on_command, k)
             subscription(self, FluidPressure, f'{muscle}/pressure_command', callback, RELIABLE)
         subscription(self, JointState, 'angle_command', self._on_angle, RELIABLE)
+        warn_unknown_overrides(self, parameter_overrides(self))
         self.create_timer(1.0 / p['rate'], self._tick)
         self.get_logger().info(
             f"simulating joint '{self._name}' ({p['mode']}) of {p['maps'][0]} and "

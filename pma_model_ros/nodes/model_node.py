@@ -40,8 +40,15 @@ from std_msgs.msg import Float64MultiArray
 from . import model_params
 from .managed import ManagedNode
 from .parameters import warn_unknown
-from .qos import only_overrides, publisher, RELIABLE, SENSOR_INPUT, subscription
-from .rclpy_private import take, with_message_info
+from .qos import (
+    only_overrides,
+    publisher,
+    RELIABLE,
+    SENSOR_INPUT,
+    subscription,
+    warn_unknown_overrides,
+)
+from .rclpy_private import parameter_overrides, take, with_message_info
 from .startup import run
 from ..core.files.node_parameters import SPECS, topic_prefixes
 from ..core.files.param_file import node_engine, node_pairing, NodeSettings
@@ -167,7 +174,14 @@ class ModelNode(ManagedNode):
                 ),
             ):
                 self._timed(subscription(self, JointState, topic, callback, qos, raw=True), source)
-            return
+        else:
+            self._per_muscle_topics(forward)
+        warn_unknown_overrides(self, parameter_overrides(self))
+
+    def _per_muscle_topics(self, forward: bool) -> None:
+        """The topics of each muscle, under ``<name>/`` (one muscle: at the node's namespace);
+        ``forward``: its force_command's callback forwards the pressure commands too.
+        """
         prefixes = topic_prefixes(self._names)
         self._estimate_pubs = [
             publisher(self, WrenchStamped, f'{p}force_estimate', RELIABLE) for p in prefixes

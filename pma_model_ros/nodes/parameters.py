@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 import yaml
 
+from .qos import PREFIX as QOS_PREFIX
 from .rclpy_private import parameter_overrides
 from ..core.files.node_parameters import ParameterSpec, PROCESS_PARAMETERS
 from ..core.hints import did_you_mean
@@ -150,7 +151,9 @@ def warn_unknown(node: Node, expected: Callable[[str], bool] = lambda name: Fals
     """Log one warning per name the node's parameter files and ``-p`` set that the node neither
     declared nor ``expected`` accepts (a file's entry it reads undeclared), with the nearest
     declared name; the warnings.  The process's parameters are known: :func:`.startup.run`
-    declares ``executor`` once the node is built.
+    declares ``executor`` once the node is built.  The QoS overrides (``qos_overrides.*``) are
+    declared as the entities are created, after these checks: :func:`.qos.warn_unknown_overrides`
+    names the unknown ones then.
 
     One key under several blocks (``<block>.<key>``, e.g. a node-wide key copied into each
     muscle's block) is one warning naming the blocks.  The nearest name of ``<block>.<key>`` is
@@ -162,7 +165,10 @@ def warn_unknown(node: Node, expected: Callable[[str], bool] = lambda name: Fals
     unknown = [
         name
         for name in sorted(overrides(node))
-        if name not in known and not node.has_parameter(name) and not expected(name)
+        if name not in known
+        and not node.has_parameter(name)
+        and not expected(name)
+        and not name.startswith(QOS_PREFIX)
     ]
     by_block: dict[str, list[str]] = {}
     top = []

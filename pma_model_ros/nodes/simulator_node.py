@@ -28,7 +28,8 @@ from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, JointState
 
 from .parameters import declare_table, warn_unknown
-from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription
+from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription, warn_unknown_overrides
+from .rclpy_private import parameter_overrides
 from .ros_time import now_seconds
 from .startup import refusing, run
 from ..core.simulation.muscle import PARAMETERS, SimulatedMuscle
@@ -50,6 +51,7 @@ class SimulatorNode(Node):
         with refusing(self):
             self._recorder = self._open_record(record, storage) if record else None
         subscription(self, FluidPressure, 'pressure_command', self._on_command, RELIABLE)
+        warn_unknown_overrides(self, parameter_overrides(self))
         self.create_timer(1.0 / p['rate'], self._tick)
         self.get_logger().info(
             f'simulating {self._muscle.name} ({p["trajectory"]}) at {p["rate"]:g} Hz'
