@@ -56,6 +56,8 @@ _REST_THRESHOLD = 0.9
 _AT_REST = 0.985
 #: [fraction of the max force] Pulling points: above the force sensor's zero.
 _PULLING = 0.03
+#: [fraction of the top pressure] Points judged against the braid's pull: working pressures.
+_WORKING = 0.25
 
 
 def check_against_spec(fmap: ForceMap, spec: MuscleSpec) -> None:
@@ -127,9 +129,15 @@ def rest_threshold(fmap: ForceMap, length: float) -> float | None:
 
 
 def _check_absolute(fmap: ForceMap, spec: MuscleSpec) -> None:
-    """Absolute pressures: the map starts at ambient with no force, or pulls at its rest-length
-    row only from about one atmosphere on.
+    """Absolute pressures: the map pulls at its rest-length row only from about one atmosphere
+    on; where it has no such row to judge by, it starts at ambient with no force.  A map whose
+    rest-length row pulls from tens of kPa is gauge, wherever it starts (a sensor's zero).
     """
+    longest = float(fmap.length.max())
+    at_rest = longest >= _AT_REST * spec.nominal_length
+    threshold = rest_threshold(fmap, longest) if at_rest else None
+    if threshold is not None and threshold < _REST_THRESHOLD * STANDARD_ATMOSPHERE:
+        return
     lowest = float(fmap.pressure.min())
     low, high = (f * STANDARD_ATMOSPHERE for f in _AMBIENT_BAND)
     gauge = 'the map takes gauge pressure = absolute - ambient'
@@ -139,11 +147,7 @@ def _check_absolute(fmap: ForceMap, spec: MuscleSpec) -> None:
             f'({STANDARD_ATMOSPHERE:g} Pa), so absolute pressures; {gauge} '
             f'(e.g. {lowest - STANDARD_ATMOSPHERE:g} Pa)'
         )
-    longest = float(fmap.length.max())
-    if longest < _AT_REST * spec.nominal_length:
-        return
-    threshold = rest_threshold(fmap, longest)
-    if threshold is not None and threshold >= _REST_THRESHOLD * STANDARD_ATMOSPHERE:
+    if threshold is not None:
         raise ValueError(
             f'pressure_pa: at its longest length {longest:g} m (L0 {spec.nominal_length:g} m) '
             f'the map pulls only from about {threshold / 1e3:.0f} kPa on, where a muscle at its '
@@ -155,11 +159,17 @@ def _check_absolute(fmap: ForceMap, spec: MuscleSpec) -> None:
 
 def _pull_ratio(fmap: ForceMap, spec: MuscleSpec) -> np.ndarray:
     """Each point's force over the braid's pull at its pressure and length
-    (:func:`~pma_model_ros.core.physics.geometry.braid_pull`); 0 where the point does not pull,
-    has no pressure or the braid pulls nothing.
+    (:func:`~pma_model_ros.core.physics.geometry.braid_pull`); 0 where the braid pulls nothing,
+    the point pulls less than :data:`_PULLING` of the map's max force, or its pressure is below
+    :data:`_WORKING` of the map's top: there a force sensor's zero, the sleeve's stretch beyond L0
+    or a pressure sensor's zero outweigh the braid's pull.
     """
     area = geo.braid_pull(spec, fmap.length)
-    use = (fmap.force > 0) & (fmap.pressure > 0) & (area > 0)
+    use = (
+        (fmap.force > _PULLING * fmap.max_force)
+        & (fmap.pressure >= _WORKING * fmap.pressure.max())
+        & (area > 0)
+    )
     ratio = np.zeros(fmap.force.size)
     ratio[use] = fmap.force[use] / (fmap.pressure[use] * area[use])
     return ratio
