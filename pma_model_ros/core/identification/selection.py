@@ -228,20 +228,27 @@ def _fit_everything(
     meter = Meter(len(tasks), f'{len(held)} model(s), fits with and without each length')
     workers = min(workers, len(tasks))
     if workers > 1 and (method == 'fork' or expected > _PARALLEL_ABOVE):
+        from concurrent.futures import as_completed, ProcessPoolExecutor
         import multiprocessing
         import warnings
 
-        with warnings.catch_warnings(), _environment(_WORKER_ENVIRONMENT):
-            # Python >= 3.12 warns of a fork beside OpenBLAS's threads (_start_method)
-            warnings.filterwarnings(
-                'ignore', 'This process .* is multi-threaded', DeprecationWarning
-            )
-            pool = multiprocessing.get_context(method).Pool(workers, _ignore_interrupts)
-        with pool:  # leaving it (done, an error, Ctrl-C) terminates the workers
-            done = pool.imap_unordered(_run, enumerate(tasks))
-            for count, (i, result) in enumerate(done, 1):
-                results[i] = result
+        context = multiprocessing.get_context(method)
+        pool = ProcessPoolExecutor(workers, context, _ignore_interrupts)
+        try:
+            with warnings.catch_warnings(), _environment(_WORKER_ENVIRONMENT):
+                # Python >= 3.12 warns of a fork beside OpenBLAS's threads (_start_method)
+                warnings.filterwarnings(
+                    'ignore', 'This process .* is multi-threaded', DeprecationWarning
+                )
+                futures = {pool.submit(f, *args): i for i, (f, args) in enumerate(tasks)}
+            for count, future in enumerate(as_completed(futures), 1):
+                results[futures[future]] = future.result()
                 meter.update(count)
+        except BaseException:  # an error, Ctrl-C: no running fit is waited for
+            _terminate(pool)
+            raise
+        finally:
+            pool.shutdown(cancel_futures=True)
     else:
         for i, (function, args) in enumerate(tasks):
             results[i] = function(*args)
@@ -251,10 +258,12 @@ def _fit_everything(
     return results[len(rest) :]
 
 
-def _run(task: tuple[int, tuple]) -> tuple[int, object]:
-    """A worker's call: (index, function(*args)) of an indexed (function, args)."""
-    i, (function, args) = task
-    return i, function(*args)
+def _terminate(pool) -> None:
+    """End the workers of the ``ProcessPoolExecutor`` ``pool`` now, their fits unfinished."""
+    if hasattr(pool, 'terminate_workers'):  # Python >= 3.14
+        return pool.terminate_workers()
+    for process in list((pool._processes or {}).values()):
+        process.terminate()
 
 
 def _ignore_interrupts() -> None:
