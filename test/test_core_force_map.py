@@ -101,6 +101,7 @@ def test_rows_are_named_by_the_line_of_the_file():
     ],
 )
 def test_an_empty_file_or_a_wrong_header_is_named(text, message):
+    """An empty file is no header problem; a wrong header names its line."""
     with pytest.raises(ValueError, match=message):
         parse_force_map_csv(text, 'user.csv')
 
@@ -118,8 +119,12 @@ def test_a_subset_keeps_the_chosen_points():
         ([0, 300, 650], [0.2, 0.2, 0.25], r'reaches only 650 Pa.*; kPa\? 650 kPa = 650000 Pa$'),
         ([0, 0.3, 0.65], [0.2, 0.2, 0.25], r'; MPa\? 0.65 MPa = 650000 Pa$'),
         ([0, 43.5, 94.27], [0.2, 0.2, 0.25], r'; psi\? 94.27 psi = 649969 Pa$'),
-        ([-5e3, 3e5, 6e5], [0.2, 0.2, 0.25], r'>= 0 Pa \(absolute - ambient\), got -5000$'),
-        ([-6e5, 3e5, 6e5], [0.2, 0.2, 0.25], r'got -600000; that is below vacuum$'),
+        (
+            [-5e3, 3e5, 6e5],
+            [0.2, 0.2, 0.25],
+            r'>= 0 Pa \(absolute - ambient\), got -5000 at line 2$',
+        ),
+        ([-6e5, 3e5, 6e5], [0.2, 0.2, 0.25], r'got -600000 at line 2; that is below vacuum$'),
         ([0, 3e5, 6e5], [20, 20, 25], r'got 20..25; cm\? 25 cm = 0.25 m$'),
         ([0, 3e5, 6e5], [200, 200, 250], r'got 200..250; mm\? 250 mm = 0.25 m$'),
     ],
@@ -129,4 +134,14 @@ def test_a_csv_in_other_units_gets_the_hint_of_its_case(pressures, lengths, hint
         f'{p},{L},{F}\n' for p, L, F in zip(pressures, lengths, [0, 50, 90])
     )
     with pytest.raises(ValueError, match=hint):
+        parse_force_map_csv(text, 'map.csv')
+
+
+def test_a_value_out_of_range_names_its_line():
+    """A negative force on line 4 (after the header and a comment), 60 bar typed as 6e6 Pa on 5."""
+    text = 'pressure_pa,length_m,force_n\n# c\n1e5,0.2,5\n2e5,0.2,-3\n3e5,0.25,9\n'
+    with pytest.raises(ValueError, match=r'a muscle only pulls\), got -3 at line 4$'):
+        parse_force_map_csv(text, 'map.csv')
+    text = text.replace(',-3', ',3').replace('3e5,', '6e6,')
+    with pytest.raises(ValueError, match=r'\(0..5e6\), got 6e\+06 at line 5$'):
         parse_force_map_csv(text, 'map.csv')

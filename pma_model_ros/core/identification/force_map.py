@@ -62,16 +62,28 @@ class ForceMap:
         if np.any(p < 0):
             raise ValueError(
                 f'pressure_pa must be gauge pressure >= 0 Pa (absolute - ambient), got {p.min():g}'
+                + self._at(p == p.min())
                 + ('; that is below vacuum' if p.min() < -STANDARD_ATMOSPHERE else '')
             )
         if np.any(p > 5e6):
-            raise ValueError(f'pressure_pa must be gauge pressure in Pa (0..5e6), got {p.max():g}')
+            raise ValueError(
+                f'pressure_pa must be gauge pressure in Pa (0..5e6), got {p.max():g}'
+                + self._at(p == p.max())
+            )
         if np.any(F < 0):
-            raise ValueError('force_n must be >= 0 (a muscle only pulls)')
+            raise ValueError(
+                f'force_n must be >= 0 (a muscle only pulls), got {F.min():g}' + self._at(F < 0)
+            )
         if F.max() <= 0:
             raise ValueError('a force map needs some positive force')
         for name, value in (('pressure', p), ('length', L), ('force', F)):
             object.__setattr__(self, name, value)
+
+    def _at(self, points: np.ndarray) -> str:
+        """`` at line N``: the file's line of the first of ``points`` (``''``: no file)."""
+        if self.line is None:
+            return ''
+        return f' at line {int(np.asarray(self.line).ravel()[np.argmax(points)])}'
 
     @property
     def lengths(self) -> np.ndarray:
