@@ -40,7 +40,10 @@ def test_node_settings_default_to_the_standard_atmosphere_and_the_muscles_name(p
     }
     settings = node_settings(bare)
     assert settings.config.ambient_pressure == 101325.0  # ISO 2533 sea-level pressure
-    assert settings.joint_name == 'DMSP-10-250' and settings.frame_id == 'DMSP-10-250'
+    # the frame: the joint name as a URDF link and tf2 take it (lower case, '_' for '-')
+    assert settings.joint_name == 'DMSP-10-250' and settings.frame_id == 'dmsp_10_250'
+    named = node_settings(bare | {'joint_name': 'Left arm/Biceps.2'})
+    assert named.frame_id == 'left_arm_biceps_2'
 
 
 @pytest.mark.parametrize(

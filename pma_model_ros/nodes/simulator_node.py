@@ -32,6 +32,7 @@ from .qos import publisher, RELIABLE, SENSOR_OUTPUT, subscription, warn_unknown_
 from .rclpy_private import parameter_overrides
 from .ros_time import now_seconds
 from .startup import refusing, run
+from ..core.files.node_parameters import frame_of
 from ..core.simulation.muscle import PARAMETERS, SimulatedMuscle
 
 
@@ -43,6 +44,7 @@ class SimulatorNode(Node):
         with refusing(self):
             p = declare_table(self, PARAMETERS)
             self._muscle = SimulatedMuscle(p, now_seconds(self))
+        self._frame = frame_of(self._muscle.joint)  # model_node's default frame of the muscle
         warn_unknown(self)
         self._pressure_pub = publisher(self, FluidPressure, 'pressure', SENSOR_OUTPUT)
         self._state_pub = publisher(self, JointState, 'muscle_state', SENSOR_OUTPUT)
@@ -101,7 +103,7 @@ class SimulatorNode(Node):
             (self._force_pub, wrench),
         ):
             msg.header.stamp = stamp
-            msg.header.frame_id = joint
+            msg.header.frame_id = self._frame
             pub.publish(msg)
             if self._recorder is not None:
                 writer, topics = self._recorder

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import math
+import re
 
 from ..hints import pressure_hint
 from ..physics.geometry import STANDARD_ATMOSPHERE
@@ -254,7 +255,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         'frame_id',
         'string',
         '',
-        'header.frame_id of `force_estimate` (empty: `joint_name`)',
+        "header.frame_id of `force_estimate` and `pressure_command`: the muscle's frame, its x "
+        'axis along the muscle, so that force.x is the tension (empty: `joint_name` lower-cased, '
+        'other characters than [a-z0-9_] replaced by `_`, e.g. `dmsp_10_250`)',
         per_muscle=True,
     ),
     ParameterSpec(
@@ -499,6 +502,15 @@ JOINT_MUSCLE_PARAMETERS: tuple[ParameterSpec, ...] = read_only(
 def names_of(table: tuple[ParameterSpec, ...]) -> tuple[str, ...]:
     """The parameter names of ``table``."""
     return tuple(p.name for p in table)
+
+
+def frame_of(name: str) -> str:
+    """The ``frame_id`` of a muscle of joint (JointState) name ``name`` that sets none: ``name``
+    lower-cased, each character other than ``[a-z0-9_]`` replaced by ``_`` (``DMSP-10-250`` →
+    ``dmsp_10_250``), a name a URDF link and tf2 take as it is; what ``fit`` and ``make-config``
+    write into a parameter file.
+    """
+    return re.sub('[^a-z0-9_]', '_', name.lower())
 
 
 def topic_prefixes(names: list[str]) -> list[str]:

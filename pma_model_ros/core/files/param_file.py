@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Sequence
 
 from .node_parameters import (
+    frame_of,
     IDENTIFICATION,
     JOINT_MUSCLE_PARAMETERS,
     JOINT_NODE_PARAMETERS,
@@ -496,7 +497,7 @@ def node_settings(parameters: dict, model: str | None = None, instance: str = ''
     return NodeSettings(
         config,
         joint,
-        str(parameters.get('frame_id') or joint),
+        str(parameters.get('frame_id') or frame_of(joint)),
         str(parameters.get('hardware_id') or (f'{instance}/{joint}' if instance else joint)),
         identification(parameters, model),
         held_out_band(parameters, model),

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .node_parameters import frame_of
 from .param_file import GIVEN_LENGTH, NODE_DEFAULTS
 from ..identification.force_map import ForceMap
 from ..identification.protocols import Fit
@@ -115,7 +116,7 @@ def build_parameters(
                 ),
                 **NODE_DEFAULTS,
                 'joint_name': spec.name,
-                'frame_id': spec.name.lower().replace('-', '_'),
+                'frame_id': frame_of(spec.name),
             }
         }
     }

@@ -50,6 +50,7 @@ import math
 import re
 
 from .calibration import LENGTH_BOUND
+from ..files.node_parameters import frame_of
 from ..files.param_file import GIVEN_LENGTH, spec_mapping
 from ..hints import length_hint
 from ..physics.geometry import MuscleSpec
@@ -143,11 +144,6 @@ def given_length(parameters: dict, header: str = '') -> tuple[float, str]:
             f'{length:g} m; for a measured rest length X pass X x {length:g} / the given L0'
         )
     return length, ''
-
-
-def frame_of(name: str) -> str:
-    """The frame_id the parameter writer derives from a muscle name."""
-    return name.lower().replace('-', '_')
 
 
 def scale_parameters(
