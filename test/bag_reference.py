@@ -70,13 +70,16 @@ def per_message(
     commands = [fluid_pressure(s.frame_id) for s in settings]
     out, rows, next_status = [], [], None
 
+    # the live model_node in ``namespace``: /<namespace>/model_node (nodes/diagnostics.py)
+    node = f'{namespace.strip("/")}/model_node'.lstrip('/')
+
     def status(time_ns):
         entries = [
             T['diagnostic_msgs/msg/DiagnosticStatus'](
                 int(s.level),
-                f'model_node: {joint}',
+                f'{node}: {joint}',
                 s.message,
-                setting.hardware_id,
+                setting.hardware_id or f'/{node}/{joint}',  # unset: the node's default
                 [
                     T['diagnostic_msgs/msg/KeyValue'](key, v)
                     for key, v in (s.values | setting.status_values(engine.inputs(k)[1])).items()

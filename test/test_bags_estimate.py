@@ -159,7 +159,10 @@ def test_offline_estimate_is_the_node_message_by_message(tmp_path, storage):
     assert any(m.startswith('invalid input: pressure is nan') for _, _, m in levels)
     assert any("joint 'DMSP-10-250' not in ['elbow']" in m for _, _, m in levels)
     assert any(m == 'estimating' for _, level, m in levels) and levels[-1][1] < 2, levels[-1]
-    assert {m.status[0].name for _, m in out['/diagnostics']} == {f'model_node: {JOINT}'}
+    # named as the live node in the recording's namespace names them (nodes/diagnostics.py)
+    assert {(m.status[0].name, m.status[0].hardware_id) for _, m in out['/diagnostics']} == {
+        (f'arm/left/model_node: {JOINT}', f'/arm/left/model_node/{JOINT}')
+    }
     with open(tmp_path / 'est.csv') as f:
         rows = list(csv.DictReader(f))
     assert [(int(r['log_time_ns']), float(r['force_n'])) for r in rows] == [
@@ -359,7 +362,9 @@ def test_multi_muscle_parameter_file(tmp_path, mode):
         assert [got[t][n] for n in names] == pytest.approx(expected[t], rel=1e-9, abs=1e-6), t
     assert summary.counts['estimates'] == summary.estimates == 4 * (2 * len(inputs) - 1)
     statuses = [m.status for topic, _, m in read(tmp_path / 'out') if topic == '/diagnostics']
-    assert {s.name for s in statuses[-1]} == {f'model_node: {n}' for n in names}
+    assert {(s.name, s.hardware_id) for s in statuses[-1]} == {
+        (f'arm/left/model_node: {n}', f'/arm/left/model_node/{n}') for n in names
+    }
 
 
 # --- random recordings: the one pass publishes what the node does, message for message

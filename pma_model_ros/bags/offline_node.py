@@ -28,7 +28,7 @@ from .bag_io import (
 )
 from .offline_inputs import decode, pick
 from ..core.files.node_parameters import SPECS, topic_prefixes
-from ..core.files.param_file import node_engine, NodeSettings
+from ..core.files.param_file import in_node, node_engine, NodeSettings
 from ..core.physics.flags import describe
 from ..core.runtime.recording import COMMAND_IN, Estimates, Recording
 from ..core.runtime.timeline import Report
@@ -45,6 +45,7 @@ COMBINED_INPUTS = ('muscle_pressures', 'muscle_states', 'force_commands')
 OUTPUTS = ('force_estimate', 'pressure_command')
 COMBINED_OUTPUTS = ('force_estimates', 'pressure_commands')
 DIAGNOSTICS = '/diagnostics'
+NODE = 'model_node'  #: the node's name (its executable's default)
 CSV_COLUMNS = (
     'log_time_ns',
     'stamp_s',
@@ -180,6 +181,10 @@ class OfflineNode:
                 if has_commands
                 else []
             )
+        #: the live node's fully qualified name in ``namespace``: its statuses' names and default
+        #: hardware_ids (nodes/diagnostics.py)
+        self.instance = topic(namespace, NODE)
+        settings = in_node(settings, self.instance)
         self.settings, self.writer, self.rows, self.combined = settings, writer, rows, combined
         self.engine = node_engine(settings, pairing, slop)
         self.recording = Recording(self.engine, arrays=combined)
@@ -324,7 +329,7 @@ class OfflineNode:
     def _status(self, report: Report) -> bytes:
         return diagnostic_array(
             report.now,
-            'model_node',
+            self.instance.lstrip('/'),
             (
                 s.status_entry(status, length)
                 for s, status, length in zip(self.settings, report.statuses, report.lengths)

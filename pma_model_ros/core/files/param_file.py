@@ -40,7 +40,7 @@ keys; this module reads only the muscle and its models, and
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from pathlib import Path
 from typing import Sequence
@@ -483,7 +483,7 @@ def node_engine(
 def node_settings(parameters: dict, model: str | None = None, instance: str = '') -> NodeSettings:
     """The model node's settings from ``ros__parameters`` (nested); absent node settings take their
     defaults.  ``instance``: the node's fully qualified name; an unset ``hardware_id`` is then
-    ``<instance>/<joint_name>``, unique per node (else ``joint_name``).
+    ``<instance>/<joint_name>``, unique per node (without: '', until :func:`in_node` names it).
     """
     muscle = muscle_model(parameters, model)
     values = NODE_DEFAULTS | {k: parameters[k] for k in NODE_DEFAULTS if k in parameters}
@@ -498,10 +498,20 @@ def node_settings(parameters: dict, model: str | None = None, instance: str = ''
         config,
         joint,
         str(parameters.get('frame_id') or frame_of(joint)),
-        str(parameters.get('hardware_id') or (f'{instance}/{joint}' if instance else joint)),
+        str(parameters.get('hardware_id') or (f'{instance}/{joint}' if instance else '')),
         identification(parameters, model),
         held_out_band(parameters, model),
     )
+
+
+def in_node(settings: Sequence[NodeSettings], instance: str) -> list[NodeSettings]:
+    """``settings`` (made without an ``instance``) as the node of fully qualified name
+    ``instance`` has them: an unset ``hardware_id`` is ``<instance>/<joint_name>``.
+    """
+    return [
+        s if s.hardware_id else replace(s, hardware_id=f'{instance}/{s.joint_name}')
+        for s in settings
+    ]
 
 
 def all_node_settings(
