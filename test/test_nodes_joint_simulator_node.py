@@ -197,9 +197,9 @@ def test_topics_rate_and_commands_per_muscle(make_node):
 @pytest.mark.parametrize(
     'params, message',
     [
-        ({'rate': 5000.0}, 'Parameter rate out of range Min: 1.0, Max: 1000.0'),
+        ({'rate': 5000.0}, "parameter 'rate' must be in [1, 1000] Hz, got 5000.0"),
         ({'rate': 200}, "parameter 'rate' to '200' of type 'INTEGER', expecting type 'DOUBLE'"),
-        ({'pressure_time_constant': -1.0}, 'pressure_time_constant out of range'),
+        ({'pressure_time_constant': -1.0}, "'pressure_time_constant' must be in [0, 60] s"),
         ({'mode': 'free'}, "parameter 'mode' must be one of ('held', 'link'), got 'free'"),
         ({'maps': ['DMSP-10-250', 'MAS-20']}, "no shipped force map for 'MAS-20'"),
         ({'muscles': ['flexor']}, "parameter 'muscles' needs two entries, got ['flexor']"),

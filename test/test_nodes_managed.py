@@ -142,7 +142,11 @@ def test_a_parameter_changed_while_unconfigured_is_read_by_the_next_configure(ma
 @pytest.mark.parametrize(
     'old, new, reason',
     [
-        ('max_input_age: 0.1', 'max_input_age: -1.0', 'Parameter max_input_age out of range'),
+        (
+            'max_input_age: 0.1',
+            'max_input_age: -1.0',
+            "parameter 'max_input_age' must be in [0.001, 3600] s",
+        ),
         ('    model: martens', '    model: foo', "parameter 'model': unknown model 'foo'"),
     ],
 )
