@@ -70,15 +70,15 @@ def test_the_documented_recording_is_fitted(tmp_path):
     kept, samples = map(
         int, re.search(r'run1: (\d+) of (\d+) samples quasi-static', run.stdout).groups()
     )
-    # every sample the node recorded, by its own clock: at most one per period of the rate it
-    # reports (its timer), spanning the five held lengths (steps:=5, period:=10.0).  A loaded
-    # machine delays its start and its ticks: fewer samples, not other ones.
+    # every sample the node recorded, its own clock spanning the five held lengths (steps:=5,
+    # period:=10.0).  A loaded machine delays its start and its ticks: fewer samples, not other
+    # ones.  (Its timer runs on the steady clock, its stamps on the system clock: no count bound.)
     stamps = np.array([t for _, t, _ in read(tmp_path / 'run1', ['/force'])]) * 1e-9
     rate = float(re.search(r'simulating \S+ \(steps\) at (\S+) Hz', run.stdout + run.stderr)[1])
     span = stamps[-1] - stamps[0]
     print(f"\n{samples} samples over {span:.2f} s of the node's clock at {rate:g} Hz")
     assert samples == len(stamps) and kept > 0.6 * samples, run.stdout
-    assert samples <= span * rate + 1 and span >= 5 * 10.0, (samples, span, rate)
+    assert span >= 5 * 10.0, (samples, span, rate)
     assert 'default model (the one fitted): martens' in run.stdout
     fmap = shipped_force_map('DMSP-10-250')  # the measured map, never seen by the fit
     fitted = muscle_model(read_parameters(tmp_path / 'run1.yaml'))
