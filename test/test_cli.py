@@ -505,8 +505,8 @@ def test_fit_calibrates_a_wrong_rest_length_and_prints_the_held_out_table(tmp_pa
     assert entry['err'] <= 1.32 + 0.5
     assert abs(entry['nominal_length'] - 0.300) <= 0.001
     assert params['muscle']['nominal_length'] == entry['nominal_length']
-    assert 'pressure_offset' not in entry and 'pressure offset kept 0: not identifiable' in text
     assert params['muscle']['given_nominal_length'] == 0.296  # for pma-model scale
+    assert 'pressure_offset' not in entry and 'pressure offset kept 0: not identifiable' in text
 
 
 def test_every_model_of_a_fit_all_file_is_served_as_it_was_fitted(tmp_path, capsys):
@@ -1159,19 +1159,6 @@ def test_scale_refuses_a_length_festo_does_not_cut(tmp_path, capsys, length, mes
     assert not out.exists()
 
 
-@pytest.mark.parametrize(
-    'config, message',
-    [
-        ('example_multi_muscle.yaml', "a file with 'muscles:' has no one muscle to cut"),
-        ('example_composed.yaml', "2 nodes in one file; scale one muscle's file"),
-        ('example_joint.yaml', "a file with 'joints:' has no one muscle to cut"),
-    ],
-)
-def test_scale_takes_one_muscle(tmp_path, capsys, config, message):
-    path = REPO / 'config' / config
-    argv = ['scale', '--config', str(path), '--length', '0.2', '--out', str(tmp_path / 'o.yaml')]
-    assert main(argv) == 2
-    assert capsys.readouterr().err.startswith(f'pma-model: error: {path}: {message}')
 def test_scale_takes_the_given_rest_length_of_a_fit(tmp_path, capsys):
     """A fit's file with a calibrated L0 (0.305 m, given 0.3 m; the header as fit writes it, the
     key absent as in a file without it): --length is the new cut's measured rest length, the
@@ -1195,3 +1182,16 @@ def test_scale_takes_the_given_rest_length_of_a_fit(tmp_path, capsys):
     assert muscle['nominal_length'] == pytest.approx(0.305 * 0.398 / 0.3, rel=1e-11)
 
 
+@pytest.mark.parametrize(
+    'config, message',
+    [
+        ('example_multi_muscle.yaml', "a file with 'muscles:' has no one muscle to cut"),
+        ('example_composed.yaml', "2 nodes in one file; scale one muscle's file"),
+        ('example_joint.yaml', "a file with 'joints:' has no one muscle to cut"),
+    ],
+)
+def test_scale_takes_one_muscle(tmp_path, capsys, config, message):
+    path = REPO / 'config' / config
+    argv = ['scale', '--config', str(path), '--length', '0.2', '--out', str(tmp_path / 'o.yaml')]
+    assert main(argv) == 2
+    assert capsys.readouterr().err.startswith(f'pma-model: error: {path}: {message}')
