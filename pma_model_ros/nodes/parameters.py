@@ -212,9 +212,10 @@ def nest(flat: dict[str, object]) -> dict:
 
 
 def check_given_types(args: Sequence[str]) -> None:
-    """Raise ValueError naming a parameter that two of the command line's sources (``--params-file``
-    files, ``-p name:=value``) give one node with values of different types: rcl then keeps one
-    of them without a word (``-p max_input_age:=0.5ms`` beside a file's ``0.1`` left the 0.1).
+    """Raise ValueError naming a parameter that two of the command line's sources
+    (``--params-file`` files, ``-p name:=value``) give one node with values of different types:
+    rcl then keeps one of them without a word (``-p max_input_age:=0.5ms`` beside a file's
+    ``0.1`` left the 0.1).
     """
     seen: dict[tuple[str, str], tuple[str, object, str]] = {}
     for where, node, name, value in _given(args):
