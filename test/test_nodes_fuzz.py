@@ -131,7 +131,9 @@ def run(module_ros):
 
     ros, processes = module_ros
     ns = '/fuzz'
-    node = processes.node('model_node', ns, CONFIGS['DMSP-10-250'])
+    # every input read, however long the fuzz bursts wait in the queue (a node that falls behind
+    # answers only its newest inputs: test_nodes_faults.py tests that)
+    node = processes.node('model_node', ns, CONFIGS['DMSP-10-250'], max_queue_delay=3600.0)
     out = Run()
     estimates = ros.collect(WrenchStamped, f'{ns}/force_estimate', RELIABLE_QOS)
     commands = ros.collect(FluidPressure, f'{ns}/pressure_command', RELIABLE_QOS)
