@@ -264,7 +264,9 @@ class Live:
         from sensor_msgs.msg import FluidPressure, JointState
 
         self.ros, self.processes, self.namespace = ros, processes, f'/t{uuid.uuid4().hex[:10]}'
-        self.node = processes.node('model_node', self.namespace, CONFIG)
+        # every input read, however long it waits in a loaded node's queue (a node that falls
+        # behind answers only its newest inputs: test_nodes_faults.py)
+        self.node = processes.node('model_node', self.namespace, CONFIG, max_queue_delay=3600.0)
         ns = self.namespace
         self.estimates = ros.collect(WrenchStamped, f'{ns}/force_estimate', RELIABLE_QOS)
         self.commands = ros.collect(FluidPressure, f'{ns}/pressure_command', RELIABLE_QOS)
