@@ -2,6 +2,7 @@
 one process, whatever the number of workers.
 """
 
+import multiprocessing
 import os
 from pathlib import Path
 import sys
@@ -14,6 +15,7 @@ from pma_model_ros.core.identification import selection, separable
 from pma_model_ros.core.identification.calibration import Calibration
 from pma_model_ros.core.identification.protocols import domain_of, fit_paper
 from pma_model_ros.core.identification.selection import identify_all
+from pma_model_ros.core.identification.validation import fit_or_none
 from pma_model_ros.core.physics.models import get_model
 
 #: (muscle, models, objectives): both objectives (the objective chosen again in each fold: fits
@@ -31,6 +33,13 @@ def _recorded_paper_fit(model, spec, fmap):
     """``fit_paper``, leaving the id of the process it ran in as a file in ``_PIDS``."""
     (_PIDS / str(os.getpid())).touch()
     return fit_paper(model, spec, fmap)
+
+
+def _fit_or_ending_worker(identify, training_map):
+    """``fit_or_none`` here; in a worker process, the worker's end (exit code 3) instead."""
+    if multiprocessing.parent_process() is not None:
+        os._exit(3)
+    return fit_or_none(identify, training_map)
 
 
 def _figures(found: selection.Identification) -> list:
@@ -118,3 +127,21 @@ def test_a_fit_solves_each_nonlinear_point_once(monkeypatch):
     monkeypatch.setattr(fitted, 'linear_least_squares', lambda phi: asked.append(1) or solve(phi))
     fitted.fit_least_squares()
     assert len(points) == len(set(points)) < len(asked)
+
+
+def test_fits_of_a_worker_that_ends_run_here(monkeypatch, capsys):
+    """A worker that ends while fitting (the out-of-memory killer, a crash) costs its speed, not
+    the result: every fit runs here afterwards, to the serial identification, and one stderr line
+    names how the worker ended.
+    """
+    if selection._start_method() != 'fork':
+        pytest.skip('spawned workers would not run the replaced fit_or_none (pytest-xdist forks)')
+    spec, fmap = shipped_spec('DMSP-10-250'), shipped_force_map('DMSP-10-250')
+    models = (get_model('mckibben'),)
+    serial = identify_all(spec, fmap, models, Calibration(), ('least_squares',), None, 1)
+    monkeypatch.setattr(selection, 'fit_or_none', _fit_or_ending_worker)
+    capsys.readouterr()
+    found = identify_all(spec, fmap, models, Calibration(), ('least_squares',), None, 2)
+    assert _same(_figures(found), _figures(serial))
+    lines = [line for line in capsys.readouterr().err.splitlines() if 'worker' in line]
+    assert len(lines) == 1 and 'a worker process ended (exit code 3' in lines[0], lines

@@ -211,7 +211,8 @@ def _fit_everything(
     processes, the largest training maps first.  Forked workers (:func:`_start_method`) take
     every fit; spawned ones only the fits without held-out lengths, and only if the whole-map fits,
     run here first, announce more than :data:`_PARALLEL_ABOVE` of work for them (as long, per
-    model, times the fits left).
+    model, times the fits left).  The fits of a worker that ends while fitting (the out-of-memory
+    killer, a signal) and those left run here afterwards, with a line on stderr.
     """
     workers = available_cores() if workers is None else workers
     method = _start_method()
@@ -225,10 +226,12 @@ def _fit_everything(
     tasks = [(fit_or_none, (held[n].identify, held[n].training_map(s))) for n, s in rest]
     tasks += [(fit_paper, (model, spec, fmap)) for model in models]
     results: list = [None] * len(tasks)
+    left = set(range(len(tasks)))  # the tasks without a result yet
     meter = Meter(len(tasks), f'{len(held)} model(s), fits with and without each length')
     workers = min(workers, len(tasks))
     if workers > 1 and (method == 'fork' or expected > _PARALLEL_ABOVE):
         from concurrent.futures import as_completed, ProcessPoolExecutor
+        from concurrent.futures.process import BrokenProcessPool
         import multiprocessing
         import warnings
 
@@ -241,18 +244,22 @@ def _fit_everything(
                     'ignore', 'This process .* is multi-threaded', DeprecationWarning
                 )
                 futures = {pool.submit(f, *args): i for i, (f, args) in enumerate(tasks)}
-            for count, future in enumerate(as_completed(futures), 1):
+            for future in as_completed(futures):
                 results[futures[future]] = future.result()
-                meter.update(count)
+                left.discard(futures[future])
+                meter.update(len(tasks) - len(left))
+        except BrokenProcessPool:
+            sys.stderr.write(_lost_worker(pool, len(left)))
         except BaseException:  # an error, Ctrl-C: no running fit is waited for
             _terminate(pool)
             raise
         finally:
             pool.shutdown(cancel_futures=True)
-    else:
-        for i, (function, args) in enumerate(tasks):
-            results[i] = function(*args)
-            meter.update(i + 1)
+    for i in sorted(left):
+        function, args = tasks[i]
+        results[i] = function(*args)
+        meter.update(len(tasks) - len(left) + 1)
+        left.discard(i)
     for (name, s), fits in zip(rest, results):
         held[name].store(s, fits)
     return results[len(rest) :]
@@ -264,6 +271,28 @@ def _terminate(pool) -> None:
         return pool.terminate_workers()
     for process in list((pool._processes or {}).values()):
         process.terminate()
+
+
+def _lost_worker(pool, left: int) -> str:
+    """The line for a worker process of ``pool`` that ended while fitting (killed by the kernel's
+    out-of-memory killer or a signal, a crash): its fits and the ``left`` unfinished ones run in
+    this process, to the same result.
+    """
+    ended = [
+        p.exitcode
+        for p in list((getattr(pool, '_processes', None) or {}).values())
+        if p.exitcode not in (None, 0, -signal.SIGTERM)  # SIGTERM: the pool ends the others
+    ]
+    how = ', '.join(
+        f'killed by {signal.Signals(-code).name}'
+        if code < 0 and -code in signal.valid_signals()
+        else f'exit code {code}'
+        for code in ended
+    )
+    return (
+        f'fit: a worker process ended ({how or "exit code unknown"}); the {left} fit(s) left run '
+        'in this process\n'
+    )
 
 
 def _ignore_interrupts() -> None:
