@@ -38,6 +38,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 from std_msgs.msg import Float64MultiArray
 
 from . import model_params
+from .live_reidentification import LiveReidentification
 from .managed import ManagedNode
 from .parameters import warn_unknown
 from .qos import (
@@ -73,6 +74,8 @@ class ModelNode(ManagedNode):
     def __init__(self, **kwargs) -> None:
         self._blocks: model_params.ModelBlocks | None = None  # the parameters' own state
         self.engine: Engine | None = None
+        #: live re-identification (:mod:`.live_reidentification`), built by configure
+        self.reidentification: LiveReidentification | None = None
         super().__init__('model_node', **kwargs)
 
     def declare_all(self) -> None:
@@ -121,6 +124,12 @@ class ModelNode(ManagedNode):
             else f'{len(muscles)} muscles, {self.mode}: ' + '; '.join(muscles)
         )
         self.create_interfaces()
+        self.reidentification = LiveReidentification(
+            self,
+            flat,
+            self._names,
+            [f'the parameters model_node {self.instance} started with'] * len(self.settings),
+        )
 
     def status_names(self) -> list[tuple[str, str]]:
         return [(s.joint_name, s.hardware_id) for s in self.settings]
@@ -141,6 +150,9 @@ class ModelNode(ManagedNode):
         )
 
     def release(self) -> None:
+        if self.reidentification is not None:
+            self.reidentification.close()
+            self.reidentification = None
         self.engine = self.inputs = self._forward = None
         self._estimate_pubs = self._command_pubs = []
 
@@ -374,6 +386,9 @@ class ModelNode(ManagedNode):
             s.status_entry(status, self.engine.inputs(k)[1])
             for k, (s, status) in enumerate(zip(self.settings, self.engine.statuses(now)))
         ]
+        if self.reidentification is not None:
+            values = self.reidentification.values
+            entries = [(*e[:4], e[4] | values(k)) for k, e in enumerate(entries)]
         self.publish_entries(entries, now)
 
 

@@ -354,6 +354,60 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         read_only=True,
     ),
     ParameterSpec(
+        'reidentify.enabled',
+        'bool',
+        False,
+        'identify each muscle again from its measured samples once they cover its identified '
+        'pressures and lengths (`reidentify.*`), off the estimation path, and serve the result '
+        "if it beats the served parameters on samples not fitted; false: the file's parameters",
+    ),
+    ParameterSpec(
+        'reidentify.freeze',
+        'bool',
+        False,
+        "true: serve the file's parameters again and collect nothing until false",
+    ),
+    ParameterSpec(
+        'reidentify.save_file',
+        'string',
+        '',
+        'where the `save_parameters` service writes the served parameters (several muscles: '
+        '`<stem>.<muscle>.yaml`); empty: `<joint_name>_parameters.yaml` in the ROS log directory',
+    ),
+    ParameterSpec(
+        'reidentify.per_cell',
+        'integer',
+        3,
+        'samples for a cell of the 8 x 5 pressure x length grid over the identified ranges to '
+        'count as covered (>= 1)',
+        read_only=True,
+    ),
+    ParameterSpec(
+        'reidentify.cell_share',
+        'double',
+        0.6,
+        'share of the grid cells covered for enough coverage (also: covered cells at '
+        '`reidentify.lengths` lengths, the samples spanning 80 % of each range)',
+        '',
+        (0.05, 1.0),
+        read_only=True,
+    ),
+    ParameterSpec(
+        'reidentify.lengths',
+        'integer',
+        3,
+        'length bins (of 5) with a covered cell for enough coverage (1 to 5)',
+        read_only=True,
+    ),
+    ParameterSpec(
+        'reidentify.check_every',
+        'integer',
+        4,
+        'every n-th sample is a check sample, never fitted, that a new fit must beat the served '
+        'parameters on (>= 2)',
+        read_only=True,
+    ),
+    ParameterSpec(
         'executor',
         'string',
         'single',

@@ -1,0 +1,90 @@
+"""model_node's live re-identification, in-process on a private rclpy Context: samples handed to
+its hook, the fit in its worker process, the swap, freeze and the save_parameters service.
+"""
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from std_srvs.srv import Trigger
+from test_core_reidentify import GAIN, map_err, sweep
+
+from conftest import CONFIGS
+from pma_model_ros.core.files.param_file import muscle_model, read_parameters
+from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.nodes.model_node import ModelNode
+
+FILE = read_parameters(CONFIGS['DMSP-20-300'])
+
+
+def served_force(node, p, L):
+    return node.settings[0].config.model.force(p, L).force
+
+
+def test_off_by_default_keeps_nothing(private_node):
+    node = private_node(ModelNode, '--params-file', CONFIGS['DMSP-20-300'])
+    hook = node.reidentification
+    hook.poll()
+    hook.add_sample(0, 3e5, 0.25, 1000.0)
+    assert len(hook.collectors[0]) == 0 and hook.values(0) == {}
+
+
+def test_weaker_muscle_is_served_saved_and_frozen_back(private_node, tmp_path):
+    saved = tmp_path / 'live.yaml'
+    node = private_node(
+        ModelNode,
+        '--params-file',
+        CONFIGS['DMSP-20-300'],
+        overrides={'reidentify.enabled': True, 'reidentify.save_file': str(saved)},
+    )
+    hook, fmap = node.reidentification, shipped_force_map('DMSP-20-300')
+    p, L = np.meshgrid(np.linspace(0, 6.75e5, 10), np.linspace(0.222, 0.296, 5))
+    before = served_force(node, p, L)
+    np.testing.assert_allclose(before, muscle_model(FILE).force(p, L).force)
+    hook.poll()  # enabled, active: collecting
+    for row in sweep(fmap, FILE, GAIN):
+        hook.add_sample(0, *row)
+    assert hook.values(0)['reidentify coverage'].endswith(': enough')
+    hook.poll()  # enough: the fit starts in the worker
+    assert hook.state[0] == 'fitting'
+    hook._future.result(timeout=120)  # the worker's fit (a spawned interpreter)
+    hook.poll()  # applied in the executor's thread
+    values = hook.values(0)
+    assert values['reidentify last'].startswith('served: check err')
+    assert values['reidentify served'] == 're-identified'
+    assert values['reidentify state'] == 'collecting' and len(hook.collectors[0]) == 0
+    # the engine serves the re-identified muscle: within 3 % of the 0.85 map (core test's bound)
+    assert map_err(hook.served[0].current.parameters, fmap, GAIN) <= 1.31 + 1.7
+    np.testing.assert_allclose(
+        served_force(node, p, L), hook.served[0].current.model.force(p, L).force
+    )
+    response = hook.save(Trigger.Request(), Trigger.Response())
+    assert response.success and response.message == str(saved)
+    np.testing.assert_allclose(
+        muscle_model(read_parameters(saved)).force(p, L).force,
+        served_force(node, p, L),
+        rtol=1e-9,
+    )
+    node.set_parameters([Parameter('reidentify.freeze', value=True)])
+    hook.poll()
+    assert hook.state[0] == 'frozen' and hook.values(0)['reidentify served'] == 'file'
+    np.testing.assert_allclose(served_force(node, p, L), before)
+    hook.add_sample(0, 3e5, 0.25, 1000.0)
+    assert len(hook.collectors[0]) == 0
+
+
+def test_save_into_a_missing_folder_fails_and_says_so(private_node, tmp_path):
+    node = private_node(
+        ModelNode,
+        '--params-file',
+        CONFIGS['DMSP-20-300'],
+        overrides={'reidentify.save_file': str(tmp_path / 'none' / 'x.yaml')},
+    )
+    response = node.reidentification.save(Trigger.Request(), Trigger.Response())
+    assert not response.success and response.message.startswith('not saved:')
+    assert not (tmp_path / 'none').exists()
+
+
+@pytest.mark.parametrize('bad', [{'reidentify.per_cell': 0}, {'reidentify.check_every': 1}])
+def test_bad_thresholds_are_refused(private_node, bad):
+    with pytest.raises(Exception, match='reidentify'):
+        private_node(ModelNode, '--params-file', CONFIGS['DMSP-20-300'], overrides=bad)
