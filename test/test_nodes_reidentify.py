@@ -88,3 +88,25 @@ def test_save_into_a_missing_folder_fails_and_says_so(private_node, tmp_path):
 def test_bad_thresholds_are_refused(private_node, bad):
     with pytest.raises(Exception, match='reidentify'):
         private_node(ModelNode, '--params-file', CONFIGS['DMSP-20-300'], overrides=bad)
+
+
+def test_save_parameters_over_dds_writes_the_served_file(ros, processes, namespace, tmp_path):
+    saved = tmp_path / 'served.yaml'
+    proc = processes.node(
+        'model_node', namespace, CONFIGS['DMSP-20-300'], reidentify__save_file=str(saved)
+    )
+    response = ros.call(Trigger, f'{namespace}/save_parameters', Trigger.Request(), timeout=30)
+    assert response.success, (response.message, processes.output(proc))
+    assert response.message == str(saved)
+    # nothing re-identified: the served parameters are the file's, and so are the saved forces
+    p, L = np.meshgrid(np.linspace(0, 6.75e5, 10), np.linspace(0.222, 0.296, 5))
+    np.testing.assert_allclose(
+        muscle_model(read_parameters(saved)).force(p, L).force,
+        muscle_model(FILE).force(p, L).force,
+        rtol=1e-9,
+    )
+    header = saved.read_text().splitlines()[0]
+    assert (
+        header
+        == f'# the parameters model_node {namespace}/model_node started with (not re-identified).'
+    )

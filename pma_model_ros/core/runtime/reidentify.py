@@ -267,7 +267,9 @@ class Served:
     """The parameters being served; :meth:`swap` replaces them as one reference."""
 
     def __init__(self, parameters: dict, source: str) -> None:
-        self.file = Snapshot(parameters, muscle_model(parameters), f'parameters of {source}')
+        self.file = Snapshot(
+            parameters, muscle_model(parameters), f'{source} (not re-identified).\n' + FILE_LEGEND
+        )
         self.current = self.file
 
     def swap(self, outcome: Outcome, samples: int, source: str, when: float) -> Snapshot:
