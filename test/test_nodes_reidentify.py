@@ -64,6 +64,11 @@ def test_weaker_muscle_is_served_saved_and_frozen_back(private_node, tmp_path):
         served_force(node, p, L),
         rtol=1e-9,
     )
+    # a parameter change rebuilds the muscle from the ROS parameters: the file's, and said so
+    node.set_parameters([Parameter('max_input_age', value=0.5)])
+    np.testing.assert_allclose(served_force(node, p, L), before)
+    hook.poll()
+    assert hook.values(0)['reidentify served'] == 'file'
     node.set_parameters([Parameter('reidentify.freeze', value=True)])
     hook.poll()
     assert hook.state[0] == 'frozen' and hook.values(0)['reidentify served'] == 'file'

@@ -95,6 +95,8 @@ class LiveReidentification:
         self.collectors = [SampleCollector(*ranges(s.file.model), rule) for s in self.served]
         self.state = ['collecting' if flat['reidentify.enabled'] else 'off'] * len(blocks)
         self.last = [''] * len(blocks)
+        #: the model each muscle's engine config was given by :meth:`_apply`
+        self._applied: list = [None] * len(blocks)
         self.sources = sources
         self._pool: ProcessPoolExecutor | None = None
         self._future: Future | None = None
@@ -124,6 +126,12 @@ class LiveReidentification:
             return
         if not self.node.active:
             return
+        for k, served in enumerate(self.served):
+            if served.current is not served.file and (
+                self.node.settings[k].config.model is not self._applied[k]
+            ):  # a parameter change rebuilt the muscle from the ROS parameters: the file's model
+                served.revert()
+                self.last[k] = 'a parameter change served the parameters again'
         if self._future is not None:
             if self._future.done():
                 self._finish()
@@ -176,6 +184,7 @@ class LiveReidentification:
             frame_id=old.frame_id,
             hardware_id=old.hardware_id,
         )
+        self._applied[k] = new.config.model
         settings = [*node.settings[:k], new, *node.settings[k + 1 :]]
         node.engine.configure([s.config for s in settings])
         node.settings = settings
