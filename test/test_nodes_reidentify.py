@@ -115,3 +115,29 @@ def test_save_parameters_over_dds_writes_the_served_file(ros, processes, namespa
         header
         == f'# the parameters model_node {namespace}/model_node started with (not re-identified).'
     )
+
+
+def test_many_muscles_save_one_file_each(private_node, tmp_path):
+    example = CONFIGS['DMSP-20-300'].parent / 'example_multi_muscle.yaml'
+    node = private_node(
+        ModelNode,
+        '--params-file',
+        example,
+        overrides={'reidentify.enabled': True, 'reidentify.save_file': str(tmp_path / 'a.yaml')},
+    )
+    hook = node.reidentification
+    hook.poll()
+    assert all(hook.values(k)['reidentify state'] == 'collecting' for k in range(len(hook.names)))
+    response = hook.save(Trigger.Request(), Trigger.Response())
+    paths = [tmp_path / f'a.{name}.yaml' for name in hook.names]
+    assert response.success and response.message == ', '.join(map(str, paths))
+    names = [node.settings[k].config.model.spec.name for k in range(len(paths))]
+    assert len(set(names)) > 1  # different muscles, each in its own file
+    for k, path in enumerate(paths):
+        assert read_parameters(path)['muscle']['name'] == names[k]
+        L = node.settings[k].config.model.domain.length_min
+        np.testing.assert_allclose(
+            muscle_model(read_parameters(path)).force([1e5, 3e5], L).force,
+            node.settings[k].config.model.force([1e5, 3e5], L).force,
+            rtol=1e-9,
+        )

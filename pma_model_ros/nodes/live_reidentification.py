@@ -21,7 +21,7 @@ log directory's ``<joint_name>_parameters.yaml``.
 
 from __future__ import annotations
 
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import BrokenExecutor, Future, ProcessPoolExecutor
 from dataclasses import replace
 import math
 import multiprocessing
@@ -158,7 +158,9 @@ class LiveReidentification:
         self._future, self._fitting = None, -1
         try:
             outcome = future.result()
-        except Exception as err:  # a fit that failed: collect again
+        except Exception as err:  # a fit that failed (or its worker ended): collect again
+            if isinstance(err, BrokenExecutor):
+                self._pool = None  # the next fit starts a new worker
             self.state[k], self.last[k] = 'refused', f'refused: {type(err).__name__}: {err}'
             self.collectors[k].clear()
             self.state[k] = 'collecting'
