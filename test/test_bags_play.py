@@ -20,7 +20,7 @@ from rosgraph_msgs.msg import Clock
 
 from conftest import CONFIGS
 from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
-from pma_model_ros.bags.bag_io import read, storage_of
+from pma_model_ros.bags.bag_io import qos, read, storage_of
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
 from pma_model_ros.core.files.param_file import node_settings, read_parameters
@@ -44,6 +44,7 @@ def test_replay_into_the_node_equals_offline_estimate(
         period=2.0,
         sweep_period=3.0,
         seed=5,
+        offered=qos(reliable=True, depth=1000),
         **NOISE,
     )
     estimate_bag(
@@ -59,10 +60,19 @@ def test_replay_into_the_node_equals_offline_estimate(
     assert len(offline) == 599
 
     # every replayed input answered, as offline, however long it waits in a loaded node's queue
-    # (live, a node that falls behind answers only its newest inputs: test_nodes_faults.py)
+    # (live, a node that falls behind answers only its newest inputs: test_nodes_faults.py), and
+    # nothing lost on the way: the recording offers reliable QoS with room for all its messages,
+    # and so do the node's inputs and estimates (best effort, or a reliable writer's history of
+    # 10, drop messages when a loaded reader stalls)
     config = CONFIGS['DMSP-10-250']
+    lossless = {
+        f'qos_overrides.{namespace}/{name}.{end}.{policy}': value
+        for name, end in (('pressure', 'subscription'), ('muscle_state', 'subscription'),
+                          ('force_estimate', 'publisher'))
+        for policy, value in (('reliability', 'reliable'), ('depth', 1000))
+    }
     node = processes.node(
-        'model_node', namespace, config, use_sim_time='true', max_queue_delay=3600.0
+        'model_node', namespace, config, use_sim_time='true', max_queue_delay=3600.0, **lossless
     )
     estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)

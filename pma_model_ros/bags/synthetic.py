@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from rosbags.interfaces import Qos
 
 from .bag_io import (
     BagWriter,
@@ -33,12 +34,15 @@ def record_simulation(
     duration: float,
     namespace: str = '/',
     storage: str | None = None,
+    offered: Qos = SENSOR_DATA,
     **params: object,
 ) -> Path:
     """Write ``duration`` [s] of the simulator at ``params['rate']`` [Hz] to a new bag ``out``; its
     path.
 
-    ``params`` are simulator parameters (``noise__force_std=1.0`` for ``noise.force_std``).
+    ``params`` are simulator parameters (``noise__force_std=1.0`` for ``noise.force_std``);
+    ``offered`` is the QoS the recording says its topics were published with (the simulator's
+    sensor-data QoS by default; ``pma-model bag play`` publishes with it).
     """
     p = defaults(**params)
     period_ns = round(1e9 / float(p['rate']))
@@ -54,9 +58,9 @@ def record_simulation(
     )
     zero = Vector3(0.0, 0.0, 0.0)
     with BagWriter(out, storage) as bag:
-        pressure_topic = bag.topic(topic(namespace, 'pressure'), FLUID_PRESSURE, [SENSOR_DATA])
-        state_topic = bag.topic(topic(namespace, 'muscle_state'), JOINT_STATE, [SENSOR_DATA])
-        force_topic = bag.topic(topic(namespace, 'force'), WRENCH_STAMPED, [SENSOR_DATA])
+        pressure_topic = bag.topic(topic(namespace, 'pressure'), FLUID_PRESSURE, [offered])
+        state_topic = bag.topic(topic(namespace, 'muscle_state'), JOINT_STATE, [offered])
+        force_topic = bag.topic(topic(namespace, 'force'), WRENCH_STAMPED, [offered])
         times_ns = START_NS + np.arange(int(duration * float(p['rate']))) * period_ns
         for block in np.array_split(times_ns, max(1, times_ns.size // _BLOCK)):
             r = muscle.run(block * 1e-9)

@@ -237,6 +237,7 @@ def _fit_everything(
 
         context = multiprocessing.get_context(method)
         pool = ProcessPoolExecutor(workers, context, _ignore_interrupts)
+        started_workers: list = []
         try:
             with warnings.catch_warnings(), _environment(_WORKER_ENVIRONMENT):
                 # Python >= 3.12 warns of a fork beside OpenBLAS's threads (_start_method)
@@ -244,12 +245,14 @@ def _fit_everything(
                     'ignore', 'This process .* is multi-threaded', DeprecationWarning
                 )
                 futures = {pool.submit(f, *args): i for i, (f, args) in enumerate(tasks)}
+            started_workers = list((pool._processes or {}).values())  # shutdown forgets them
             for future in as_completed(futures):
                 results[futures[future]] = future.result()
                 left.discard(futures[future])
                 meter.update(len(tasks) - len(left))
         except BrokenProcessPool:
-            sys.stderr.write(_lost_worker(pool, len(left)))
+            pool.shutdown()  # the pool's own thread reaps every worker, so each has its exit code
+            sys.stderr.write(_lost_worker(started_workers, len(left)))
         except BaseException:  # an error, Ctrl-C: no running fit is waited for
             _terminate(pool)
             raise
@@ -273,14 +276,14 @@ def _terminate(pool) -> None:
         process.terminate()
 
 
-def _lost_worker(pool, left: int) -> str:
-    """The line for a worker process of ``pool`` that ended while fitting (killed by the kernel's
-    out-of-memory killer or a signal, a crash): its fits and the ``left`` unfinished ones run in
-    this process, to the same result.
+def _lost_worker(workers: list, left: int) -> str:
+    """The line for a process of ``workers`` (ended, reaped) that ended while fitting (killed by
+    the kernel's out-of-memory killer or a signal, a crash): its fits and the ``left`` unfinished
+    ones run in this process, to the same result.
     """
     ended = [
         p.exitcode
-        for p in list((getattr(pool, '_processes', None) or {}).values())
+        for p in workers
         if p.exitcode not in (None, 0, -signal.SIGTERM)  # SIGTERM: the pool ends the others
     ]
     how = ', '.join(
