@@ -67,8 +67,11 @@ def test_replay_into_the_node_equals_offline_estimate(
     config = CONFIGS['DMSP-10-250']
     lossless = {
         f'qos_overrides.{namespace}/{name}.{end}.{policy}': value
-        for name, end in (('pressure', 'subscription'), ('muscle_state', 'subscription'),
-                          ('force_estimate', 'publisher'))
+        for name, end in (
+            ('pressure', 'subscription'),
+            ('muscle_state', 'subscription'),
+            ('force_estimate', 'publisher'),
+        )
         for policy, value in (('reliability', 'reliable'), ('depth', 1000))
     }
     node = processes.node(
