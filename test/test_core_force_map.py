@@ -72,6 +72,17 @@ def test_another_separator_is_named(separator, name):
         parse_force_map_csv(text, 'user.csv')
 
 
+def test_a_row_in_another_separator_is_named_on_its_line():
+    """A comma header and one row typed with semicolons: its line, its text and the separator."""
+    text = 'pressure_pa,length_m,force_n\n5000,0.25,0\n5000;0.234;0\n'
+    with pytest.raises(ValueError) as error:
+        parse_force_map_csv(text, 'user.csv')
+    assert str(error.value) == (
+        "user.csv: line 3 is not 3 numbers: '5000;0.234;0'; columns separated by semicolons, "
+        'where commas separate them'
+    )
+
+
 def test_a_decimal_comma_is_named():
     """0,25 m written with a decimal comma: four fields where the header has three."""
     text = 'pressure_pa,length_m,force_n\n300000,0,25,410\n'

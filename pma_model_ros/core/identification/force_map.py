@@ -109,6 +109,9 @@ def read_force_map_csv(path: str | Path) -> ForceMap:
     return parse_force_map_csv(read_user_file(path, 'force map file'), str(path))
 
 
+_SEPARATORS = (('semicolons', ';'), ('tabs', '\t'))  #: column separators named in errors
+
+
 def parse_force_map_csv(text: str, source: str) -> ForceMap:
     """Parse the text of a force map CSV; ``source`` names it in errors."""
     numbered = [
@@ -123,7 +126,7 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
             + f'; a force map CSV starts with the header {",".join(COLUMNS)}'
         )
     numbers, lines = zip(*numbered)
-    for name, separator in (('semicolons', ';'), ('tabs', '\t')):
+    for name, separator in _SEPARATORS:
         if separator in lines[0] and ',' not in lines[0]:
             raise ValueError(
                 f'{source}: columns separated by {name}; a force map CSV separates them by commas '
@@ -138,7 +141,7 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
         )
     columns = [raw for raw, name in zip(reader.fieldnames, header)]
     rows = []
-    for number, row in zip(numbers[1:], reader):
+    for number, line, row in zip(numbers[1:], lines[1:], reader):
         if None in row:  # more fields than the header: a decimal comma splits a number in two
             raise ValueError(
                 f'{source}: line {number} has {len(columns) + len(row[None])} fields, the '
@@ -147,8 +150,14 @@ def parse_force_map_csv(text: str, source: str) -> ForceMap:
         try:
             values = [float(row[c]) for c in columns]
         except (TypeError, ValueError):
+            named = [name for name, separator in _SEPARATORS if separator in line]
             raise ValueError(
-                f'{source}: line {number} is not {len(columns)} numbers: {row}'
+                f'{source}: line {number} is not {len(columns)} numbers: {line.strip()!r}'
+                + (
+                    f'; columns separated by {named[0]}, where commas separate them'
+                    if named
+                    else ''
+                )
             ) from None
         if not all(math.isfinite(v) for v in values):
             raise ValueError(f'{source}: line {number} has NaN or infinite values')
