@@ -19,7 +19,7 @@ except ImportError:  # pip-only (a -pip rosdep key): colcon test on a ROS instal
 from rosgraph_msgs.msg import Clock
 
 from conftest import CONFIGS
-from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key
+from node_messages import model_statuses, RELIABLE_QOS, SENSOR_QOS, stamp_key, status_values
 from pma_model_ros.bags.bag_io import qos, read, storage_of
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation, START_NS
@@ -60,10 +60,12 @@ def test_replay_into_the_node_equals_offline_estimate(
     assert len(offline) == 599
 
     # every replayed input answered, as offline, however long it waits in a loaded node's queue
-    # (live, a node that falls behind answers only its newest inputs: test_nodes_faults.py), and
-    # nothing lost on the way: the recording offers reliable QoS with room for all its messages,
-    # and so do the node's inputs and estimates (best effort, or a reliable writer's history of
-    # 10, drop messages when a loaded reader stalls)
+    # (live, a node that falls behind answers only its newest inputs: test_nodes_faults.py) and
+    # however far the played /clock has moved on meanwhile (live, an input older than
+    # max_input_age on the node's clock is stale: test_bad_input_matrix.py); and nothing lost on
+    # the way: the recording offers reliable QoS with room for all its messages, and so do the
+    # node's inputs and estimates (best effort, or a reliable writer's history of 10, drop
+    # messages when a loaded reader stalls)
     config = CONFIGS['DMSP-10-250']
     lossless = {
         f'qos_overrides.{namespace}/{name}.{end}.{policy}': value
@@ -75,7 +77,13 @@ def test_replay_into_the_node_equals_offline_estimate(
         for policy, value in (('reliability', 'reliable'), ('depth', 1000))
     }
     node = processes.node(
-        'model_node', namespace, config, use_sim_time='true', max_queue_delay=3600.0, **lossless
+        'model_node',
+        namespace,
+        config,
+        use_sim_time='true',
+        max_queue_delay=3600.0,
+        max_input_age=3600.0,
+        **lossless,
     )
     estimates = ros.collect(WrenchStamped, f'{namespace}/force_estimate', RELIABLE_QOS)
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
@@ -138,7 +146,9 @@ def test_replay_into_the_node_equals_offline_estimate(
         processes.output(player)
     )
     replayed = [(stamp_key(e), e.wrench.force.x) for e in estimates]
-    assert [s for s, _ in replayed] == [s for s, _ in offline]
+    assert [s for s, _ in replayed] == [s for s, _ in offline], [  # what the node counted
+        (s.message, status_values(s)) for s in model_statuses(diagnostics, namespace)[-1:]
+    ]
     # DDS orders messages per topic, not across topics: a tick's pressure and muscle_state may
     # reach the node in the other order than recorded. Then the first of that stamp's two estimates
     # pairs the other input with the previous tick's; the estimate of the complete pair (the last

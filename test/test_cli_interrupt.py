@@ -40,6 +40,8 @@ def _interrupted(proc: subprocess.Popen, group: bool = False) -> list[str]:
     """SIGINT to the command, or to its whole process group as Ctrl-C in a terminal sends it; its
     end awaited; its stderr lines but progress ones.
     """
+    # how the command treats SIGINT when it is sent (blocked, ignored, caught: /proc's masks)
+    masks = [ln for ln in Path(f'/proc/{proc.pid}/status').read_text().splitlines() if 'Sig' in ln]
     if group:
         os.killpg(proc.pid, signal.SIGINT)
     else:
@@ -47,7 +49,9 @@ def _interrupted(proc: subprocess.Popen, group: bool = False) -> list[str]:
     _, err = proc.communicate(timeout=DEADLINE)
     with pytest.raises(ProcessLookupError):  # nothing of its process group is left
         os.killpg(proc.pid, 0)
-    return [line for line in err.splitlines() if not line.startswith('[')]
+    lines = [line for line in err.splitlines() if not line.startswith('[')]
+    assert lines, f'exit code {proc.returncode}, nothing on stderr but progress; {masks}\n{err}'
+    return lines
 
 
 @pytest.mark.parametrize('group', [False, True])
