@@ -394,27 +394,7 @@ class ModelNode(ManagedNode):
         (``residual.enabled``).
         """
         if estimate is not None:
-            engine = self.engine
-            if muscle is not None:
-                gauge, length, _ = engine.inputs(muscle)
-                self.residual.served(
-                    muscle,
-                    engine.stamp,
-                    engine.forces.item(0),
-                    gauge,
-                    length,
-                    engine.flags.item(0),
-                )
-            else:
-                m = engine.muscles
-                self.residual.served_all(
-                    engine.stamp,
-                    None if engine.every else engine.estimated,
-                    engine.forces,
-                    m.pressure - m.ambient,
-                    m.length,
-                    engine.flags,
-                )
+            self.inputs.served(muscle)
         ModelNode._answer(self, k, estimate, now, info, muscle)
 
     # --- with residual.enabled: the measured forces

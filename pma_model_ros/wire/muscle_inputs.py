@@ -135,6 +135,27 @@ class MuscleInputs:
             return None
         return self.engine.command(k, force, now, stamp)
 
+    def served(self, muscle: int | None) -> None:
+        """Keep the estimate just answered, of muscle ``muscle`` (None: of a combined input, every
+        muscle it estimated), for the measured force of its stamp (:attr:`residual`).
+        """
+        engine = self.engine
+        if muscle is not None:
+            gauge, length, _ = engine.inputs(muscle)
+            self.residual.served(
+                muscle, engine.stamp, engine.forces.item(0), gauge, length, engine.flags.item(0)
+            )
+        else:
+            m = engine.muscles
+            self.residual.served_all(
+                engine.stamp,
+                None if engine.every else engine.estimated,
+                engine.forces,
+                m.pressure - m.ambient,
+                m.length,
+                engine.flags,
+            )
+
     def measured_force(self, k: int, data: bytes, now: int) -> tuple[float, float, float] | None:
         """A ``measured_force`` of muscle ``k`` into :attr:`residual`: (gauge pressure [Pa],
         length [m], force [N]) of the sample if it entered the window.

@@ -20,11 +20,12 @@ sample is ``unjudged`` and kept out of the window.  Residuals are in % of the ba
 monitored.
 
 **Window and level** (:meth:`Residuals.report`): over the samples of the last ``window`` [s]
-(at most :data:`CAPACITY` per muscle), bias (mean of measured - served), RMS and worst (largest
-magnitude, signed) [%], and the band (the mean of the samples' figures).  The level follows the
-RMS / band ratio with hysteresis: WARN above ``warn_ratio``, ERROR above ``error_ratio``; a level
-is left only once the ratio is below its threshold times (1 - ``hysteresis``).  With fewer than
-:data:`MIN_SAMPLES` samples in the window the level is OK (nothing to judge).
+(at most ``capacity`` per muscle, :data:`CAPACITY` in the node), bias (mean of measured -
+served), RMS and worst (largest magnitude, signed) [%], and the band (the mean of the samples'
+figures).  The level follows the RMS / band ratio with hysteresis: WARN above ``warn_ratio``,
+ERROR above ``error_ratio``; a level is left only once the ratio is below its threshold times
+(1 - ``hysteresis``).  With fewer than :data:`MIN_SAMPLES` samples in the window the level is OK
+(nothing to judge).
 """
 
 from __future__ import annotations
@@ -105,7 +106,7 @@ class Residuals:
     """Measured - served of each muscle of ``bands`` (a muscle's ``HeldOutBand``, or None: not
     monitored) and its level (module docstring); ``pressure_max`` [Pa]: each muscle's identified
     gauge pressures' top; ``models``: each one's model, named in the refit command.
-    ``max_age`` [ns]: older measured forces are stale.
+    ``max_age`` [ns]: older measured forces are stale; ``capacity``: samples kept per muscle.
     """
 
     def __init__(
@@ -115,6 +116,7 @@ class Residuals:
         models: Sequence[str],
         max_age: int,
         thresholds: Thresholds = Thresholds(),
+        capacity: int = CAPACITY,
     ) -> None:
         n = len(bands)
         self.max_age, self.thresholds = max_age, thresholds
@@ -131,8 +133,9 @@ class Residuals:
         self._flags = np.zeros((n, SERVED), np.uint16)
         self._head = [0] * n
         # the samples: a ring per muscle of time [ns], residual [%], band [%], interior
-        self._time = np.full((n, CAPACITY), np.iinfo(np.int64).min, np.int64)
-        self._sample = np.zeros((n, CAPACITY, 3))
+        self._capacity = capacity
+        self._time = np.full((n, capacity), np.iinfo(np.int64).min, np.int64)
+        self._sample = np.zeros((n, capacity, 3))
         self._next = [0] * n
         self.levels = [Level.OK] * n
         self.counts = [
@@ -217,7 +220,7 @@ class Residuals:
         i = self._next[k]
         self._time[k, i] = time
         self._sample[k, i] = residual, band, interior
-        self._next[k] = (i + 1) % CAPACITY
+        self._next[k] = (i + 1) % self._capacity
 
     # --- the window
     def figures(self, k: int, now: int) -> Figures | None:
