@@ -1,19 +1,31 @@
 """model_node's measured-force input and drift monitor (``residual.*``), in-process on a private
 rclpy Context: messages handed to its callbacks, its /diagnostics read from its publisher.  The
-expected figures are hand-calculated from the shipped files' held-out bands.
+expected figures are hand-calculated from the shipped files' held-out bands.  One test runs the
+simulator and model_node as processes over DDS.
 """
 
 import math
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 import pytest
 from sensor_msgs.msg import JointState
 from test_nodes_model_node import EXAMPLE, expected_forces, frozen_clock, INPUTS, shifted
 
 from conftest import CONFIGS
-from node_messages import AMBIENT, pressure, raw, record, state
+from node_messages import (
+    AMBIENT,
+    model_statuses,
+    pressure,
+    raw,
+    record,
+    RELIABLE_QOS,
+    state,
+    status_values,
+)
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.nodes.model_node import ModelNode
+from pma_model_ros.tools import node_process
 
 MARTENS = muscle_model(read_parameters(CONFIGS['DMSP-10-250']), 'martens')
 #: config/dmsp_10_250.yaml's martens held_out: max_force 542.5 N; between 0.198 and 0.25 m the
@@ -139,3 +151,52 @@ def test_combined_measured_forces_by_name(private_node):
         f = node.residual.figures(k, now)
         assert f.samples == 12 and f.bias == pytest.approx(2, abs=1e-6), name
         assert f.band == pytest.approx(bands[name].at(INPUTS[name][2])[0]), name
+
+
+@pytest.mark.ros
+def test_a_drifting_simulator_makes_model_node_report_model_drift(ros, processes, namespace):
+    """Over DDS: the simulator's muscle gives 60 % of its map's force (``drift.gain``); model_node
+    (``residual.enabled``, its ``measured_force`` remapped to the simulator's ``force``) reports
+    model drift on /diagnostics.
+    """
+    cmd = node_process.command(
+        'model_node',
+        namespace,
+        CONFIGS['DMSP-10-250'],
+        {'residual.enabled': True, 'residual.window': 2.0},
+    )
+    node = processes.start([*cmd, '-r', 'measured_force:=force'])
+    sim = processes.node(
+        'simulator_node',
+        namespace,
+        trajectory='constant',
+        length=0.245,
+        initial_pressure=500e3,  # about 290 N: the drift takes about 21 % of 542.5 N away
+        drift__gain=0.6,
+    )
+    diagnostics = ros.collect(DiagnosticArray, '/diagnostics', RELIABLE_QOS)
+
+    def drift():
+        return next(
+            (s for s in model_statuses(diagnostics, namespace) if 'model drift' in s.message),
+            None,
+        )
+
+    ros.spin_until(
+        lambda: drift() is not None,
+        40,
+        'a model drift status',
+        diagnose=lambda: (
+            f'{(model_statuses(diagnostics, namespace) or [None])[-1]}\n'
+            + processes.output(node)
+            + processes.output(sim)
+        ),
+    )
+    status = drift()
+    values = status_values(status)
+    assert status.level in (b'\x01', b'\x02'), status
+    assert status.message.startswith('model drift: residual ') and '--model martens' in (
+        status.message
+    )
+    assert values['residual level'] in ('WARN', 'ERROR')
+    assert float(values['residual [% of max force]'].split()[1]) < -10  # bias: less than served
