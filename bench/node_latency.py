@@ -4,6 +4,7 @@ relay, same run, same settings.
     scripts/netns-run .venv/bin/python bench/node_latency.py [--duration 10] [--rate 1000]
         [--muscles 1 64] [--joints 4] [--executor single events] [--profile model.prof] [--quick]
         [--code DIR] [--repeat 1] [--stall MS] [--pairing every_input|approximate_time]
+        [--measured]
 
 A pinger (this process) publishes, at ``--rate``, one pressure and one length message per cycle
 stamped with the cycle's time (the stamp is the sequence number), and measures the time until the
@@ -29,7 +30,11 @@ not the absolute times; ``--repeat K`` runs the node and its relay in turn K tim
 median of each ratio over the K pairs (a pair's rows run within seconds of each other, under much
 the same load).  ``--stall MS`` stops each responder (SIGSTOP) for MS ms halfway through a row and
 prints how long after SIGCONT its first fresh answer came (a round trip within ``FRESH``) and how
-many stale answers it gave before.  Not a pass/fail test.
+many stale answers it gave before.  ``--measured``: model_node with ``residual.enabled`` and the
+pinger also publishing, after each cycle's inputs and not timed, a measured force of every muscle
+at the cycle's stamp (``measured_force`` WrenchStamped; N > 1: one ``measured_forces``
+JointState), what the drift monitor costs against a run without it (the relay does not read it).
+Not a pass/fail test.
 """
 
 from __future__ import annotations
@@ -72,7 +77,7 @@ from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
 from pma_model_ros.nodes.qos import SENSOR_INPUT  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
 from pma_model_ros.tools import node_process  # noqa: E402
-from pma_model_ros.wire.cdr import fluid_pressure, joint_state  # noqa: E402
+from pma_model_ros.wire.cdr import fluid_pressure, joint_state, wrench_stamped  # noqa: E402
 
 SINGLE = REPO / 'config' / 'dmsp_10_250.yaml'
 AMBIENT = STANDARD_ATMOSPHERE  # [Pa]
@@ -179,6 +184,7 @@ class Pinger(Node):
         context: rclpy.Context,
         joints: bool = False,
         answers: int = ANSWERS,
+        measured: bool = False,
     ) -> None:
         super().__init__('pinger', context=context)
         self.sent: dict[int, float] = {}  # stamp [ns] -> perf_counter at publish [s]
@@ -232,6 +238,25 @@ class Pinger(Node):
             self._templates = (fluid_pressure(''), joint_state(['DMSP-10-250'], 'position'))
         else:
             self._templates = tuple(joint_state(self._names, 'position') for _ in range(2))
+        #: (publisher, template) of the measured forces (``--measured``), else None
+        self._measured = None
+        if measured and not joints:
+            self._measured = (
+                (
+                    self.create_publisher(
+                        WrenchStamped, f'{namespace}/measured_force', qos_profile_sensor_data
+                    ),
+                    wrench_stamped(''),
+                )
+                if muscles == 1
+                else (
+                    self.create_publisher(
+                        JointState, f'{namespace}/measured_forces', qos_profile_sensor_data
+                    ),
+                    joint_state(self._names, 'effort'),
+                )
+            )
+            self._measured[1].values[:] = 100.0  # [N]
 
     def _on_answer(self, msg) -> None:
         t = time.perf_counter()
@@ -263,6 +288,9 @@ class Pinger(Node):
             if i == self._timed:
                 self.sent[stamp] = time.perf_counter()
             pub.publish(data)
+        if self._measured is not None:
+            pub, template = self._measured
+            pub.publish(template(stamp))
         return stamp
 
 
@@ -310,11 +338,13 @@ def measure(
     code: Path | None = None,
     stalled: float = 0.0,
     answers: int = ANSWERS,
+    measured: bool = False,
 ) -> dict:
     """Start ``responder`` (from checkout ``code``, if given), ping it, stop it; round trips [ms],
     loss, its CPU use and the achieved cycle rate.  ``stalled`` [s]: the responder is stopped that
     long halfway through; then also how long after it runs again its answers are fresh (a round
-    trip within :data:`FRESH`) and how many stale answers it gave meanwhile.
+    trip within :data:`FRESH`) and how many stale answers it gave meanwhile.  ``measured``: the
+    pinger also publishes measured forces (``--measured``).
     """
     env = None if code is None else os.environ | {'PYTHONPATH': str(code)}
     # the pinger must not stall either: what the rows before left (the in-process callback cost
@@ -326,7 +356,7 @@ def measure(
         proc = node_process.start(responder, log, env, code)
         context = rclpy.Context()
         rclpy.init(context=context)
-        pinger = Pinger(namespace, muscles, context, joints, answers)
+        pinger = Pinger(namespace, muscles, context, joints, answers, measured)
         executor = EventsExecutor(context=context)
         executor.add_node(pinger)
         try:
@@ -400,13 +430,17 @@ def responders(
     profile: Path | None,
     joints: bool = False,
     pairing: str = 'every_input',
+    measured: bool = False,
 ) -> dict[str, list[str]]:
-    """The command lines of the model's node (model_node with ``pairing``, or joint_node with
-    ``muscles`` joints) and of its relay, by name.
+    """The command lines of the model's node (model_node with ``pairing``, and
+    ``residual.enabled`` if ``measured``; or joint_node with ``muscles`` joints) and of its relay,
+    by name.
     """
     params, name = {'executor': executor}, 'joint_node' if joints else 'model_node'
     if not joints:
         params['pairing'] = pairing
+        if measured:
+            params['residual.enabled'] = True
     if joints:  # N copies of the example elbow; their muscle files are in config/
         arm(path := folder / f'joints_{muscles}.yaml', muscles)
         model = node_process.command(
@@ -580,6 +614,11 @@ def print_rows(
         '2 N pressures + 1 joint_states per cycle, 1 answer (torque_estimate); N = joints'
         if joints
         else '2 answers per cycle; N = muscles'
+        + (
+            ', a measured force of each muscle per cycle (residual.enabled)'
+            if args.measured
+            else ''
+        )
     )
     print(
         f'\n{node}: round trip at {args.rate:g} Hz, {args.duration:g} s per row, {what} (times '
@@ -596,7 +635,9 @@ def print_rows(
             for repeat in range(args.repeat):
                 profile = args.profile if (joints, n, executor) == last and not repeat else None
                 result = {}
-                commands = responders(n, executor, folder, profile, joints, args.pairing)
+                commands = responders(
+                    n, executor, folder, profile, joints, args.pairing, args.measured
+                )
                 for name, cmd in commands.items():
                     code = args.code if name == node else None
                     once = name == node and args.pairing == 'approximate_time'
@@ -610,6 +651,7 @@ def print_rows(
                         code,
                         args.stall / 1e3,
                         1 if once else ANSWERS,
+                        args.measured,
                     )
                     base, ratio = result[node], ''
                     if name != node:
@@ -680,6 +722,11 @@ def main() -> int:
         default=0.0,
         help='stop each responder this many ms halfway (SIGSTOP/SIGCONT); print how soon its '
         f'answers are fresh again (a round trip within {FRESH * 1e3:g} ms)',
+    )
+    parser.add_argument(
+        '--measured',
+        action='store_true',
+        help='model_node with residual.enabled, and a measured force of every muscle per cycle',
     )
     parser.add_argument(
         '--code',
