@@ -786,3 +786,57 @@ def test_estimate_joint_maps_the_recorded_entry(tmp_path):
     proc = bag_estimate(bag, '--out', out, '--joint', 'DMSP-10-250', config=CONFIGS['DMSP-20-300'])
     assert proc.returncode == 0, proc.stderr
     assert 'wrote 199 force_estimate' in proc.stdout and '(0 inputs rejected)' in proc.stdout
+
+
+def residual_reference(bag):
+    """The residual model_node (``residual.enabled``) makes of a one-muscle recording, message by
+    message through its wire layer (its callbacks' calls), over the whole recording.
+    """
+    from pma_model_ros.bags.offline_inputs import DESERIALIZE
+    from pma_model_ros.bags.offline_node import WHOLE
+    from pma_model_ros.core.files.param_file import node_engine
+    from pma_model_ros.core.runtime.residual import Residuals, Thresholds
+    from pma_model_ros.wire.muscle_inputs import MuscleInputs
+
+    messages = raw_messages(bag)
+    engine = node_engine([SETTINGS], 'every_input', 0.0)
+    model = SETTINGS.config.model
+    residual = Residuals(
+        [SETTINGS.band],
+        [model.domain.pressure_max],
+        [model.model.name],
+        engine.pairing.max_age,
+        Thresholds(window=WHOLE),
+        len(messages),
+    )
+    inputs = MuscleInputs(engine, [JOINT], [SETTINGS.frame_id], DESERIALIZE, residual)
+    for topic, now, data in messages:
+        if topic.endswith('/force'):
+            inputs.measured_force(0, data, now)
+        elif (inputs.pressure if topic.endswith('/pressure') else inputs.muscle_state)(
+            0, data, now
+        ) is not None:
+            inputs.served(0)
+    return residual, messages[-1][1]
+
+
+@pytest.mark.parametrize('gain', [1.0, 0.6])
+def test_a_recorded_measured_force_is_judged_as_the_node_judges_it(tmp_path, gain):
+    from pma_model_ros.bags.estimate import residual_line
+
+    bag = record_simulation(
+        tmp_path / 'sim', 4.0, '/m1', rate=100.0, drift__gain=gain, sweep_period=4.0
+    )
+    summary = estimate_bag(bag, SETTINGS, tmp_path / 'out', progress=False)
+    reference, end = residual_reference(bag)
+    line = summary.residual[JOINT]
+    assert line == residual_line(reference, 0, end)
+    figures = reference.figures(0, end)
+    assert figures.samples == 400  # every force (its stamp's length completes an estimate)
+    assert line.endswith('samples: 400 paired, 0 rejected, 0 unpaired, 0 unjudged')
+    if gain == 1.0:  # the truth is the map the model was fitted to: within its held-out band
+        assert figures.rms < figures.band and '; OK;' in line
+    else:  # 40 % less force than served: the bias is about -40 % of the mean force / max force
+        assert figures.bias < -5 and 'model drift' in line
+    proc = bag_estimate(bag, '--out', str(tmp_path / 'cli'))
+    assert proc.returncode == 0 and f'{JOINT}: {line}' in proc.stdout, proc.stdout + proc.stderr

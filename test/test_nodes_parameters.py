@@ -70,15 +70,15 @@ def test_every_node_passes_its_keywords_to_rclpy(make, cls):
 def test_model_node_declares_its_muscle_and_the_selected_model_only(make):
     """One muscle: 15 parameters of the muscle (hardware_id among them), 2 of its model's block
     (params, extrapolates: the file sets no nominal_length or pressure_offset, which are then not
-    declared, as no parameter without a value is), 20 node-wide (``autostart``, ``executor`` and
-    7 ``reidentify.*`` among them), 2 of rclpy's: 39; and the QoS overrides of its 6 topics, 2
-    each (nodes/qos.py).  Four muscles: 15 each under ``<name>.`` and the block entries its file
-    gives.  Every one has a value.
+    declared, as no parameter without a value is), 25 node-wide (``autostart``, ``executor``, 7
+    ``reidentify.*`` and 5 ``residual.*`` among them), 2 of rclpy's: 44; and the QoS overrides of
+    its 6 topics, 2 each (nodes/qos.py: ``residual.enabled`` false adds no topic).  Four muscles:
+    15 each under ``<name>.`` and the block entries its file gives.  Every one has a value.
     """
     node = make(ModelNode, CONFIGS['DMSP-10-250'])
     names = listed(node)
     qos = [n for n in names if n.startswith('qos_overrides.')]
-    assert len(names) - len(qos) == 39 and len(qos) == 6 * 2
+    assert len(names) - len(qos) == 44 and len(qos) == 6 * 2
     assert all(node.get_parameter(n).value is not None for n in names)
     assert {n.split('.')[1] for n in names if n.startswith('models.')} == {'martens'}
     multi = make(ModelNode, MULTI)
@@ -119,6 +119,11 @@ def test_read_only_where_the_node_never_changes_a_parameter(make):
         'reidentify.cell_share',
         'reidentify.lengths',
         'reidentify.check_every',
+        'residual.enabled',  # read by configure, as the subscriptions it creates
+        'residual.window',
+        'residual.warn_ratio',
+        'residual.error_ratio',
+        'residual.hysteresis',
     }
 
 

@@ -27,6 +27,11 @@ So the output holds, beside every original message (copied as recorded):
 * ``/diagnostics``: the node's status of every muscle every second of bag time and on each level
   change (the engine's: not the identification values and expected error model_node adds).
 
+A recording that holds a measured force (``<ns>/measured_force``, for one muscle else
+``<ns>/force``; ``<ns>/<name>/measured_force``; combined ``<ns>/measured_forces``) is judged as
+model_node judges it with ``residual.enabled``, over the whole recording: the
+:attr:`~.offline_node.Summary.residual` figures (no topic is written for them).
+
 Topics of these names already in the recording are replaced (``/diagnostics`` is kept and merged).
 """
 
@@ -60,6 +65,7 @@ from .offline_node import (
 )
 from ..core.files.node_parameters import SPECS
 from ..core.files.param_file import NodeSettings
+from ..core.runtime.residual import Residuals
 
 CHUNK = 100_000  # messages read, decided and written per step
 
@@ -219,4 +225,29 @@ def estimate_bag(
     node.summary.reasons = {
         s.joint_name: node.recording.reasons(k) for k, s in enumerate(settings)
     }
+    if node.residual is not None:
+        node.summary.residual = {
+            s.joint_name: residual_line(node.residual, k, node.last_time)
+            for k, s in enumerate(settings)
+        }
     return node.summary
+
+
+def residual_line(residual: Residuals, k: int, now: int) -> str:
+    """Muscle ``k``'s residual over the whole recording ending at ``now`` [ns]: the figures, the
+    level model_node would give them and the samples' counts.
+    """
+    level, message, figures = residual.report(k, now)
+    values = residual.values(k, figures)
+    if 'residual' in values:  # not judged
+        return values['residual']
+    return (
+        f'measured - served: {values["residual [% of max force]"]}; {level.name}'
+        + (f' ({message})' if message else '')
+        + f'; samples: {values["residual samples"]}'
+        + (
+            f'; last refused: {values["residual last refused"]}'
+            if residual.last_problem[k]
+            else ''
+        )
+    )

@@ -5,6 +5,11 @@ arrays at once (:mod:`~pma_model_ros.wire.columns`), the engine's rules run over
 arrays (:class:`~pma_model_ros.core.runtime.recording.Recording`), and what the node would publish
 (estimates, pressure commands, /diagnostics) is written from templates beside the copies, in the
 order the node publishes it. The node's topics, as the nodes name them, are defined here.
+
+A recording that holds a measured force (:data:`MEASURED`, :data:`COMBINED_MEASURED`) is also
+judged as model_node judges it with ``residual.enabled``
+(:class:`~pma_model_ros.core.runtime.residual.Residuals`, each measured force at its log time, in
+message order with the estimates), over the whole recording: :attr:`OfflineNode.residual`.
 """
 
 from __future__ import annotations
@@ -26,13 +31,15 @@ from .bag_io import (
     topic,
     WRENCH_STAMPED,
 )
-from .offline_inputs import decode, pick
+from .offline_inputs import decode, DESERIALIZE, pick
 from ..core.files.node_parameters import SPECS, topic_prefixes
 from ..core.files.param_file import in_node, node_engine, NodeSettings
 from ..core.physics.flags import describe
 from ..core.runtime.recording import COMMAND_IN, Estimates, Recording
+from ..core.runtime.residual import Residuals, Thresholds
 from ..core.runtime.timeline import Report
-from ..wire.cdr import fluid_pressure, joint_state, Template, wrench_stamped
+from ..wire.cdr import fluid_pressure, joint_state, MALFORMED, Template, wrench_stamped
+from ..wire.columns import joint_columns, stamped_floats
 from ..wire.diagnostics import diagnostic_array
 
 #: The node's input topics of one muscle (relative names) and their types, in the order of the
@@ -45,6 +52,14 @@ COMBINED_INPUTS = ('muscle_pressures', 'muscle_states', 'force_commands')
 OUTPUTS = ('force_estimate', 'pressure_command')
 COMBINED_OUTPUTS = ('force_estimates', 'pressure_commands')
 DIAGNOSTICS = '/diagnostics'
+#: A muscle's measured force (WrenchStamped, relative names): model_node's input, or for one
+#: muscle the simulator's ``force`` (what ``fit --bag`` reads), the first recorded; combined: one
+#: JointState (effort by name).
+MEASURED = ('measured_force', 'force')
+COMBINED_MEASURED = 'measured_forces'
+MEASURED_IN = COMMAND_IN + 1  #: the input kind of a measured force (not the engine's)
+#: [s] the window of the offline residual: the whole recording
+WHOLE = 1e9
 NODE = 'model_node'  #: the node's name (its executable's default)
 CSV_COLUMNS = (
     'log_time_ns',
@@ -72,6 +87,9 @@ class Summary:
     #: each muscle's rejections by reason (joint name -> reason -> (how many, the first's text);
     #: :meth:`~pma_model_ros.core.runtime.recording.Recording.reasons`)
     reasons: dict[str, dict[str, tuple[int, str]]] = field(default_factory=dict)
+    #: with a recorded measured force, each muscle's residual over the whole recording: one line
+    #: (the figures, as model_node's ``residual [% of max force]``, the level and the counts)
+    residual: dict[str, str] = field(default_factory=dict)
 
 
 class _Outputs:
@@ -136,11 +154,13 @@ class OfflineNode:
                 for role, name in enumerate(INPUTS)
             }
         )
+        present = {c.topic for c in reader.connections}
+        measured = self._measured_topics(present, namespace, prefixes, combined, bool(names))
         types = {
             t: JOINT_STATE if combined else list(INPUTS.values())[role]
             for t, (role, _) in inputs.items()
-        }
-        present = {c.topic for c in reader.connections}
+        } | dict.fromkeys(measured, JOINT_STATE if combined else WRENCH_STAMPED)
+        inputs |= measured
         connections_of(reader, [t for t in inputs if t in present], types)
         self.roles = {c.id: inputs[c.topic] for c in reader.connections if c.topic in inputs}
         replaced = (
@@ -200,6 +220,36 @@ class OfflineNode:
             self._role[cid], self._muscle[cid] = role, k
         self._copied = np.zeros(max(self.copies, default=0) + 1, bool)
         self._copied[list(self.copies)] = True
+        #: the residual of the measured forces, if the recording holds any (module docstring)
+        self.residual = (
+            Residuals(
+                [s.band for s in settings],
+                [s.config.model.domain.pressure_max for s in settings],
+                [s.config.model.model.name for s in settings],
+                self.engine.pairing.max_age,
+                Thresholds(window=WHOLE),
+                max(1, sum(c.msgcount for c in reader.connections if c.topic in measured)),
+            )
+            if measured
+            else None
+        )
+        self.last_time = 0  #: [ns] the log time of the last message
+
+    @staticmethod
+    def _measured_topics(
+        present: set[str], namespace: str, prefixes: list[str], combined: bool, named: bool
+    ) -> dict[str, tuple[int, int]]:
+        """The recorded measured-force topics: {topic: (MEASURED_IN, muscle; -1: combined)}."""
+        if combined:
+            t = topic(namespace, COMBINED_MEASURED)
+            return {t: (MEASURED_IN, -1)} if t in present else {}
+        found = {}
+        for k, prefix in enumerate(prefixes):
+            for name in MEASURED[:1] if named else MEASURED:
+                if (t := topic(namespace, f'{prefix}{name}')) in present:
+                    found[t] = (MEASURED_IN, k)
+                    break
+        return found
 
     def process(self, ids: list[int], times: list[int], data: list[bytes]) -> None:
         """A stretch of the recording, in log-time order: its messages' connection ids, log
@@ -211,8 +261,11 @@ class OfflineNode:
         roles = np.where(known, self._role[np.where(known, ids, 0)], -1)
         muscles = np.where(known, self._muscle[np.where(known, ids, 0)], -1)
         inputs = decode(roles, muscles, times, data, first, self.joints, self.combined)
-        input_at = first + np.flatnonzero(roles >= 0)
+        input_at = first + np.flatnonzero((roles >= 0) & (roles != MEASURED_IN))
         stretch = self.recording.step(inputs, first, times, input_at)
+        if self.residual is not None:
+            self._residual(stretch, roles, muscles, times, data, first)
+        self.last_time = int(times[-1])
         out = _Outputs()
         copied = ids < len(self._copied)
         copied[copied] = self._copied[ids[copied]]
@@ -254,6 +307,66 @@ class OfflineNode:
                     )
         if self.rows is not None:
             self._csv(stretch, first, times)
+
+    def _residual(self, stretch, roles, muscles, times, data, first: int) -> None:
+        """Each muscle's estimates and measured forces of the stretch into :attr:`residual`, in
+        message order, as the node's callbacks take them.
+        """
+        rows = np.flatnonzero(roles == MEASURED_IN)
+        n = len(self.joints)
+        # per muscle: (rows, stamps [ns], forces [N], {index: why refused})
+        measured: list[tuple] = []
+        if self.combined:
+            got = joint_columns(pick(data, rows), self.joints, 'effort', DESERIALIZE['JointState'])
+            for k in range(n):
+                mine = got.named[:, k]
+                refused = {}
+                for i in np.flatnonzero(mine & ~got.present[:, k]).tolist():
+                    absent = np.flatnonzero(~got.present[i]).tolist()
+                    refused[i] = got.problems[i][absent.index(k)]
+                measured.append((rows[mine], got.stamps[mine], got.values[mine, k], refused, mine))
+        else:
+            for k in range(n):
+                mine = rows[muscles[rows] == k]
+                stamps, forces, malformed = stamped_floats(
+                    pick(data, mine), DESERIALIZE['WrenchStamped'], 'force'
+                )
+                refused = dict.fromkeys(np.flatnonzero(malformed).tolist(), MALFORMED)
+                measured.append((mine, stamps, forces, refused, None))
+        estimates = stretch.estimates
+        stamps = [e.stamp for e in estimates]
+        if self.combined:  # a message's stamp: the newest among the muscles it estimates
+            at = np.concatenate([e.at for e in estimates])
+            where, row = np.unique(at, return_inverse=True)
+            newest = np.full(len(where), np.iinfo(np.int64).min)
+            np.maximum.at(newest, row, np.concatenate(stamps))
+            ends = np.cumsum([len(e.at) for e in estimates]).tolist()
+            stamps = [newest[row[end - len(e.at) : end]] for e, end in zip(estimates, ends)]
+        residual = self.residual
+        for k, (e, stamp, (mrows, mstamps, forces, refused, mine)) in enumerate(
+            zip(estimates, stamps, measured)
+        ):
+            if mine is not None:  # refused indices are among the message's rows, not muscle k's
+                refused = {int(np.cumsum(mine)[i]) - 1: why for i, why in refused.items()}
+            events = np.concatenate([e.at, first + mrows])
+            order = np.argsort(events, kind='stable').tolist()
+            served = len(e.at)
+            for i in order:
+                if i < served:
+                    residual.served(
+                        k,
+                        stamp.item(i),
+                        e.force.item(i),
+                        e.gauge.item(i),
+                        e.length.item(i),
+                        e.flags.item(i),
+                    )
+                elif (j := i - served) in refused:
+                    residual.reject(k, refused[j])
+                else:
+                    residual.measured(
+                        k, mstamps.item(j), forces.item(j), times.item(mrows.item(j))
+                    )
 
     def _combined(self, stretch, out: _Outputs, first: int, times: np.ndarray) -> None:
         """One JointState per input message of every muscle estimated (commanded)."""

@@ -173,6 +173,8 @@ def cmd_bag_estimate(args: argparse.Namespace) -> None:
     )
     if rejected:
         print(f'rejected: {_rejections(summary)}{_mismatch_hint(summary, args.config)}')
+    for joint, line in summary.residual.items():
+        print(f'{joint}: {line}')
 
 
 def _rejections(summary) -> str:

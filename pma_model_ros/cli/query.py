@@ -110,9 +110,7 @@ def expected_error(
             f'expected error: unknown: {pressure:g} Pa is outside the identified pressures '
             f'0..{domain.pressure_max:g} Pa (the held-out errors hold within them)'
         )
-    percent, inside = band.at(length)
-    if flags & Flag.LENGTH_OUT_OF_RANGE:
-        percent = band.edge
+    percent, inside = band.at(length, held=bool(flags & Flag.LENGTH_OUT_OF_RANGE))
     of = f'{percent:.2f} % of {band.max_force:.4g} N'
     lengths = f'{min(band.lengths):.4g}..{max(band.lengths):.4g} m'
     if band.slack_at(length):

@@ -2,8 +2,9 @@
 service.
 
 Measured samples come in through :meth:`LiveReidentification.add_sample` (muscle index, gauge
-pressure [Pa], length [m], measured force [N]), called by the measured-force input for each
-sample it pairs with the pressure and length of an estimate; nothing is kept while the node is
+pressure [Pa], length [m], measured force [N]), called by the measured-force input
+(``residual.enabled``) for each sample it pairs with the pressure and length of an estimate and
+takes into the residual's window, whatever the drift level; nothing is kept while the node is
 inactive, ``reidentify.enabled`` is false or ``reidentify.freeze`` is true.  Once a muscle's
 samples cover its identified ranges well enough (:class:`~pma_model_ros.core.runtime.reidentify.
 CoverageRule`), they are identified again by

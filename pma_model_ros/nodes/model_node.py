@@ -16,7 +16,12 @@ JointState (position = absolute pressure [Pa]).  With ``forward_command_topic``,
 pressure command also goes out in one std_msgs/Float64MultiArray per command message that
 commanded one, in ``forward_command_order`` (by ``joint_name``), for ros2_control's
 forward_command_controller (:mod:`pma_model_ros.wire.forward_commands`: the others' last values;
-nothing until every muscle had a command).  Every decision is the
+nothing until every muscle had a command).  With ``residual.enabled``, a measured force per muscle
+(``measured_force``, WrenchStamped force.x [N]; combined: one ``measured_forces`` JointState,
+effort [N] by muscle name) is paired by stamp with the estimate of the same inputs and judged by
+:class:`~pma_model_ros.core.runtime.residual.Residuals` (model drift in /diagnostics); each sample
+it takes also goes to live re-identification (:mod:`.live_reidentification`).  Disabled, nothing of
+it exists: no subscription, and the estimates' callbacks are the plain ones.  Every decision is the
 :class:`~pma_model_ros.core.runtime.engine.Engine`'s.  Subscriptions are raw: the wire layer
 (:mod:`pma_model_ros.wire.muscle_inputs`) reads the bytes into its calls and writes the answers'
 bytes; every entity is created in :meth:`ModelNode.create_interfaces`, by the ``configure``
@@ -55,6 +60,7 @@ from ..core.files.node_parameters import SPECS, topic_prefixes
 from ..core.files.param_file import node_engine, node_pairing, NodeSettings
 from ..core.runtime.engine import Engine
 from ..core.runtime.pairing import nanoseconds, QueueDelay
+from ..core.runtime.residual import Residuals, Thresholds
 from ..wire.cdr import fluid_pressure, Template
 from ..wire.forward_commands import forward_order, ForwardCommands
 from ..wire.muscle_inputs import MuscleInputs
@@ -76,6 +82,9 @@ class ModelNode(ManagedNode):
         self.engine: Engine | None = None
         #: live re-identification (:mod:`.live_reidentification`), built by configure
         self.reidentification: LiveReidentification | None = None
+        #: the measured forces' monitor (``residual.enabled``; built by reset), else None
+        self.residual: Residuals | None = None
+        self._thresholds: Thresholds | None = None
         super().__init__('model_node', **kwargs)
 
     def declare_all(self) -> None:
@@ -101,6 +110,16 @@ class ModelNode(ManagedNode):
         #: [ns] an input that waited longer than this is not answered (_newest)
         self._max_queue_delay = nanoseconds(
             flat.get('max_queue_delay', SPECS['max_queue_delay'].default)
+        )
+        self._thresholds = (
+            Thresholds(
+                *(
+                    float(flat.get(f'residual.{name}', SPECS[f'residual.{name}'].default))
+                    for name in ('window', 'warn_ratio', 'error_ratio', 'hysteresis')
+                )
+            )
+            if flat.get('residual.enabled', False)
+            else None
         )
         self._forward_order = (
             forward_order(
@@ -141,6 +160,11 @@ class ModelNode(ManagedNode):
         self.engine = node_engine(
             self.settings, **self._pairing, max_answer_delay=self._max_answer_delay
         )
+        if self._thresholds is not None:
+            self.residual = Residuals(
+                *self._judged(self.settings), self.engine.pairing.max_age, self._thresholds
+            )
+            self._answer = self._answer_recorded  # (the plain _answer when disabled)
         self.use(self.settings)
         joints = [s.joint_name for s in self.settings]
         self._forward = (
@@ -153,7 +177,8 @@ class ModelNode(ManagedNode):
         if self.reidentification is not None:
             self.reidentification.close()
             self.reidentification = None
-        self.engine = self.inputs = self._forward = None
+        self.engine = self.inputs = self._forward = self.residual = None
+        self.__dict__.pop('_answer', None)
         self._estimate_pubs = self._command_pubs = []
 
     def create_interfaces(self) -> None:
@@ -186,6 +211,15 @@ class ModelNode(ManagedNode):
                 ),
             ):
                 self._timed(subscription(self, JointState, topic, callback, qos, raw=True), source)
+            if self._thresholds is not None:
+                subscription(
+                    self,
+                    JointState,
+                    'measured_forces',
+                    self._on_measured_forces,
+                    SENSOR_INPUT,
+                    raw=True,
+                )
         else:
             self._per_muscle_topics(forward)
         warn_unknown_overrides(self, parameter_overrides(self))
@@ -215,6 +249,11 @@ class ModelNode(ManagedNode):
             ):
                 sub = subscription(self, kind, p + topic, partial(callback, k), qos, raw=True)
                 self._timed(sub, source)
+            if self._thresholds is not None:
+                callback = partial(self._on_measured_force, k)
+                subscription(
+                    self, WrenchStamped, p + 'measured_force', callback, SENSOR_INPUT, raw=True
+                )
 
     def _timed(self, sub, source: str | None) -> None:
         """A sensor input's subscription (``source``: pressure or muscle_state) gets each
@@ -233,8 +272,22 @@ class ModelNode(ManagedNode):
             [s.joint_name for s in settings],
             [s.frame_id for s in settings],
             DESERIALIZE,
+            self.residual,
         )
+        if self.residual is not None:
+            self.residual.use(*self._judged(settings))
         self._commands = [fluid_pressure(s.frame_id) for s in settings]
+
+    @staticmethod
+    def _judged(settings: list[NodeSettings]) -> tuple[list, list[float], list[str]]:
+        """What the residual monitor judges each muscle by: its held-out band, identified gauge
+        pressures' top [Pa] and model.
+        """
+        return (
+            [s.band for s in settings],
+            [s.config.model.domain.pressure_max for s in settings],
+            [s.config.model.model.name for s in settings],
+        )
 
     def _validate(self, changes: list[Parameter]) -> SetParametersResult:
         """Accept a change only if the whole would-be parameter set builds every muscle."""
@@ -334,6 +387,26 @@ class ModelNode(ManagedNode):
         if self.engine.status_due(now):  # (inline: the hot path)
             self.publish_status(now)
 
+    def _answer_recorded(
+        self, k: int, estimate: bytes | None, now: int, info: dict | None, muscle: int | None
+    ) -> None:
+        """:meth:`_answer`, after keeping the estimate for the measured force of its stamp
+        (``residual.enabled``).
+        """
+        if estimate is not None:
+            self.inputs.served(muscle)
+        ModelNode._answer(self, k, estimate, now, info, muscle)
+
+    # --- with residual.enabled: the measured forces
+    def _on_measured_force(self, k: int, data: bytes) -> None:
+        if self.active and (sample := self.inputs.measured_force(k, data, self.now())):
+            self.reidentification.add_sample(k, *sample)
+
+    def _on_measured_forces(self, data: bytes) -> None:
+        if self.active:
+            for sample in self.inputs.measured_forces(data, self.now()):
+                self.reidentification.add_sample(*sample)
+
     def _on_command(self, k: int, data: bytes) -> float | None:
         """A ``force_command`` of muscle ``k``; the pressure commanded, if any."""
         if not self.active:
@@ -389,7 +462,22 @@ class ModelNode(ManagedNode):
         if self.reidentification is not None:
             values = self.reidentification.values
             entries = [(*e[:4], e[4] | values(k)) for k, e in enumerate(entries)]
+        if self.residual is not None:
+            entries = [self._with_residual(k, e, now) for k, e in enumerate(entries)]
         self.publish_entries(entries, now)
+
+    def _with_residual(self, k: int, entry: tuple, now: int) -> tuple:
+        """Muscle ``k``'s status ``entry`` with its residual: the keys, and the drift's level and
+        message where it is not OK (the worse level; the drift's message first if it is worse).
+        """
+        name, hardware_id, level, message, values = entry
+        drift, text, figures = self.residual.report(k, now)
+        values = values | self.residual.values(k, figures)
+        if drift > level:
+            return name, hardware_id, int(drift), f'{text}; {message}' if level else text, values
+        if drift:
+            return name, hardware_id, level, f'{message}; {text}', values
+        return name, hardware_id, level, message, values
 
 
 def main(args: list[str] | None = None) -> int:

@@ -3,8 +3,10 @@
 the node and ``bag estimate`` share.
 
 Per muscle ``k``: ``pressure`` (FluidPressure), ``muscle_state`` (JointState, the entry of the
-muscle's joint name) and ``force_command`` (WrenchStamped).  Combined: ``muscle_pressures`` and
-``muscle_states`` (JointStates of every muscle) and ``force_commands`` (JointState efforts).  A
+muscle's joint name) and ``force_command`` (WrenchStamped), and with a
+:attr:`MuscleInputs.residual` monitor ``measured_force`` (WrenchStamped, force.x).  Combined:
+``muscle_pressures`` and ``muscle_states`` (JointStates of every muscle), ``force_commands`` and
+``measured_forces`` (JointState efforts).  A
 JointState that lacks a muscle, or whose arrays do not match, rejects only the muscles it gives no
 value for.  ``deserialize[type]`` decodes what the fast readers cannot (types: ``FluidPressure``,
 ``JointState``, ``WrenchStamped``); a message it refuses is rejected as ``malformed message`` for
@@ -31,6 +33,7 @@ from .cdr import (
 )
 from .joint_state import JointIndex, JointStateReader
 from ..core.runtime.engine import Engine
+from ..core.runtime.residual import Residuals
 
 Deserializers = dict[str, Callable[[bytes], object]]
 _IN_ORDER = slice(None)  #: a JointState's values are the muscles', in their order
@@ -57,8 +60,11 @@ class MuscleInputs:
         joints: Sequence[str],
         frames: Sequence[str],
         deserialize: Deserializers,
+        residual: Residuals | None = None,
     ) -> None:
         self.engine, self.joints, self._deserialize = engine, list(joints), deserialize
+        #: the measured forces' monitor (None: no measured force is read)
+        self.residual = residual
         read = deserialize['JointState']
         self._states = [JointStateReader(read) for _ in joints]  # per muscle
         self._state_index = [JointIndex([j]) for j in joints]
@@ -68,6 +74,7 @@ class MuscleInputs:
                 ('muscle_pressures', 'position'),
                 ('muscle_states', 'position'),
                 ('force_commands', 'effort'),
+                ('measured_forces', 'effort'),
             )
         }
         #: per muscle: force_estimate (WrenchStamped, its frame_id)
@@ -127,6 +134,38 @@ class MuscleInputs:
             self.engine.reject(k, 'force_command', MALFORMED, now)
             return None
         return self.engine.command(k, force, now, stamp)
+
+    def served(self, muscle: int | None) -> None:
+        """Keep the estimate just answered, of muscle ``muscle`` (None: of a combined input, every
+        muscle it estimated), for the measured force of its stamp (:attr:`residual`).
+        """
+        engine = self.engine
+        if muscle is not None:
+            gauge, length, _ = engine.inputs(muscle)
+            self.residual.served(
+                muscle, engine.stamp, engine.forces.item(0), gauge, length, engine.flags.item(0)
+            )
+        else:
+            m = engine.muscles
+            self.residual.served_all(
+                engine.stamp,
+                None if engine.every else engine.estimated,
+                engine.forces,
+                m.pressure - m.ambient,
+                m.length,
+                engine.flags,
+            )
+
+    def measured_force(self, k: int, data: bytes, now: int) -> tuple[float, float, float] | None:
+        """A ``measured_force`` of muscle ``k`` into :attr:`residual`: (gauge pressure [Pa],
+        length [m], force [N]) of the sample if it entered the window.
+        """
+        try:
+            stamp, force = stamped_value(data, self._deserialize['WrenchStamped'], 'force')
+        except MalformedMessage:
+            self.residual.reject(k, MALFORMED)
+            return None
+        return self.residual.measured(k, stamp, force, now)
 
     # --- combined
     def pressures(self, data: bytes, now: int) -> bytes | None:
@@ -216,3 +255,28 @@ class MuscleInputs:
         out = joint_state([self.joints[k] for k in commanded], 'position')
         out.values[:] = pressures
         return out
+
+    def measured_forces(self, data: bytes, now: int) -> list[tuple[int, float, float, float]]:
+        """A ``measured_forces`` JointState (measured tensions [N] in ``effort``; the muscles it
+        does not name are not measured) into :attr:`residual`: (muscle, gauge pressure [Pa],
+        length [m], force [N]) of each sample that entered the window.
+        """
+        reader, index = self._combined['measured_forces']
+        try:
+            msg = reader(data)
+        except MalformedMessage:
+            for k in range(len(self.joints)):
+                self.residual.reject(k, MALFORMED)
+            return []
+        take, present, problems = index.of(msg)
+        samples = []
+        for k, joint in enumerate(self.joints):
+            if joint not in msg.names:
+                continue
+            if present is not None and not present[k]:
+                self.residual.reject(k, problems[0])
+            elif (
+                sample := self.residual.measured(k, msg.stamp, float(msg.effort[take[k]]), now)
+            ) is not None:
+                samples.append((k, *sample))
+        return samples

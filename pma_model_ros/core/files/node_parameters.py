@@ -354,6 +354,52 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         read_only=True,
     ),
     ParameterSpec(
+        'residual.enabled',
+        'bool',
+        False,
+        "subscribe each muscle's measured force (`measured_force`, combined: "
+        '`measured_forces`), pair it by stamp with the estimate of the same inputs and report '
+        'measured - served over `residual.window` against the held-out band in /diagnostics '
+        '(model drift); the samples feed `reidentify.*`; false: no subscription',
+        read_only=True,
+    ),
+    ParameterSpec(
+        'residual.window',
+        'double',
+        10.0,
+        'the rolling window of the residual figures and level',
+        's',
+        (0.1, 3600.0),
+        read_only=True,
+    ),
+    ParameterSpec(
+        'residual.warn_ratio',
+        'double',
+        1.0,
+        "WARN (model drift) while the window's RMS residual is above this times the band",
+        '',
+        (0.1, 100.0),
+        read_only=True,
+    ),
+    ParameterSpec(
+        'residual.error_ratio',
+        'double',
+        2.0,
+        "ERROR while the window's RMS residual is above this times the band (>= `warn_ratio`)",
+        '',
+        (0.1, 100.0),
+        read_only=True,
+    ),
+    ParameterSpec(
+        'residual.hysteresis',
+        'double',
+        0.2,
+        'a level is left only once the ratio is below its threshold times (1 - this)',
+        '',
+        (0.0, 0.9),
+        read_only=True,
+    ),
+    ParameterSpec(
         'reidentify.enabled',
         'bool',
         False,

@@ -322,12 +322,13 @@ class HeldOutBand:
         """
         return self._figures[2 if self.inside(length) else 3] == 0
 
-    def at(self, length: float) -> tuple[float, bool]:
+    def at(self, length: float, held: bool = False) -> tuple[float, bool]:
         """(expected worst error [%] at ``length`` [m], whether it lies within the held-out
-        lengths): :attr:`interior` within them, :attr:`edge` beyond them (an extrapolation).
+        lengths): :attr:`interior` within them, :attr:`edge` beyond them (an extrapolation) or
+        where the force is ``held`` at the nearest length served (``LENGTH_OUT_OF_RANGE``).
         """
         inside = self.inside(length)
-        return (self.interior if inside else self.edge), inside
+        return (self.interior if inside and not held else self.edge), inside
 
     def values_at(self, length: float) -> dict[str, str]:
         """The expected error at ``length`` [m] as diagnostic key-values (model_node's status of a

@@ -1,0 +1,159 @@
+"""core/runtime/residual.py: measured - served forces, their window figures and the drift level,
+against hand-calculated numbers.
+"""
+
+import math
+
+import pytest
+
+from pma_model_ros.core.identification.validation import HeldOutBand
+from pma_model_ros.core.physics.flags import Flag
+from pma_model_ros.core.runtime.health import Level
+from pma_model_ros.core.runtime.residual import (
+    MIN_SAMPLES,
+    next_level,
+    Residuals,
+    Thresholds,
+)
+
+S = 1_000_000_000  # [ns]
+MAX_FORCE = 1000.0  # [N]
+#: held-out err [%] at 0.25, 0.24, 0.23, 0.22 m: interior (0.24, 0.23) 5 %, edge (0.25, 0.22) 8 %
+BAND = HeldOutBand((0.25, 0.24, 0.23, 0.22), (6.0, 4.0, 5.0, 8.0), MAX_FORCE)
+AGE = 500_000_000  # [ns] max_input_age
+
+
+def monitor(**thresholds) -> Residuals:
+    return Residuals([BAND], [6e5], ['martens'], AGE, Thresholds(**thresholds))
+
+
+def feed(r, samples, start=0, period=S // 100, length=0.235, flags=0):
+    """(served [N], measured [N]) pairs at 100 Hz from ``start`` [ns]; the last stamp."""
+    t = start
+    for served, measured in samples:
+        r.served(0, t, served, 3e5, length, flags)
+        r.measured(0, t, measured, t)
+        t += period
+    return t - period
+
+
+def test_a_constant_bias_of_5_percent_is_bias_rms_and_worst_5_within_a_5_percent_band():
+    r = monitor()
+    now = feed(r, [(100.0, 150.0)] * 50)  # +50 N of 1000 N
+    f = r.figures(0, now)
+    assert (f.samples, f.interior) == (50, 50)
+    assert f.bias == pytest.approx(5) and f.rms == pytest.approx(5)
+    assert f.worst == pytest.approx(5) and f.band == pytest.approx(5)  # 0.235 m: interior
+    level, message, _ = r.report(0, now)
+    assert (level, message) == (Level.OK, '')  # RMS = band: within it
+
+
+def test_residuals_of_3_and_minus_4_percent():
+    r = monitor()
+    now = feed(r, [(200.0, 230.0), (200.0, 160.0)] * 10)
+    f = r.figures(0, now)
+    assert f.bias == pytest.approx(-0.5)
+    assert f.rms == pytest.approx(math.sqrt((9 + 16) / 2))
+    assert f.worst == pytest.approx(-4)
+
+
+def test_above_the_band_warns_with_the_refit_command_and_above_twice_it_errs():
+    r = monitor()
+    now = feed(r, [(100.0, 160.0)] * 20)  # 6 % against 5 %
+    level, message, _ = r.report(0, now)
+    assert level == Level.WARN
+    assert message.startswith('model drift: residual 6 % over the last 0.19 s against a band of')
+    assert message.endswith(
+        '5 %: refit: pma-model fit --bag <recording> --muscle <spec.yaml> '
+        '--model martens --out <parameters.yaml>'
+    )
+    r = monitor()
+    now = feed(r, [(100.0, 210.0)] * 20)  # 11 % > 2 x 5 %
+    assert r.report(0, now)[0] == Level.ERROR
+    assert r.values(0, r.figures(0, now))['residual level'] == 'ERROR'
+
+
+def test_the_level_does_not_flap_within_the_hysteresis():
+    # warn at ratio 1, leave below 0.8; error at 2, leave below 1.6
+    ratios = [1.1, 0.9, 1.05, 0.81, 0.99, 0.79, 0.95, 2.1, 1.7, 1.61, 1.5, 0.85, 0.5]
+    want = [
+        'WARN',
+        'WARN',
+        'WARN',
+        'WARN',
+        'WARN',
+        'OK',
+        'OK',
+        'ERROR',
+        'ERROR',
+        'ERROR',
+        'WARN',
+        'WARN',
+        'OK',
+    ]
+    level, got = Level.OK, []
+    for ratio in ratios:
+        level = next_level(level, ratio, 1.0, 2.0, 0.2)
+        got.append(level.name)
+    assert got == want
+
+
+def test_a_residual_oscillating_around_the_band_warns_once_and_stays():
+    r = monitor()
+    t, levels = 0, []
+    for step in range(40):  # window RMS alternates 5.5 % and 4.5 % against 5 %: ratio 1.1, 0.9
+        measured = 155.0 if step % 2 == 0 else 145.0
+        t = feed(r, [(100.0, measured)] * 100, start=t + S // 100)
+        levels.append(r.report(0, t)[0])
+    assert levels[0] == Level.WARN and set(levels) == {Level.WARN}
+
+
+def test_bad_measured_forces_are_refused_counted_and_never_enter_the_window():
+    r = monitor()
+    for k in range(MIN_SAMPLES - 1):
+        r.served(0, k, 100.0, 3e5, 0.235, 0)
+        assert r.measured(0, k, 150.0, k) == (3e5, 0.235, 150.0)
+    t = MIN_SAMPLES
+    r.served(0, t, 100.0, 3e5, 0.235, 0)
+    for bad in (math.nan, math.inf, -101.0, 2001.0):  # outside [-10 %, 200 %] of 1000 N
+        assert r.measured(0, t, bad, t) is None
+    assert r.measured(0, t, 150.0, t + AGE + 1) is None  # stale
+    assert r.measured(0, t + 1, 150.0, t + 1) is None  # no estimate of its stamp
+    assert r.counts[0] == {'paired': MIN_SAMPLES - 1, 'rejected': 5, 'unpaired': 1, 'unjudged': 0}
+    assert r.last_problem[0].startswith('stale measured force')
+    assert r.figures(0, t) is None  # 9 samples: too few to judge
+    assert r.measured(0, t, 150.0, t) is not None
+    assert r.figures(0, t).samples == MIN_SAMPLES
+
+
+def test_each_sample_is_judged_by_the_band_at_its_length_and_pressure():
+    r = monitor()
+    feed(r, [(100.0, 150.0)] * 10, length=0.26)  # beyond the measured lengths: edge 8 %
+    feed(r, [(100.0, 150.0)] * 10, start=S, flags=Flag.LENGTH_OUT_OF_RANGE)  # held: edge
+    now = feed(r, [(100.0, 150.0)] * 10, start=2 * S)  # interior 5 %
+    f = r.figures(0, now)
+    assert (f.samples, f.interior) == (30, 10) and f.band == pytest.approx((8 + 8 + 5) / 3)
+    r.served(0, now + 1, 100.0, 6.5e5, 0.235, 0)  # above the identified 600 kPa
+    assert r.measured(0, now + 1, 150.0, now + 1) is None
+    assert r.counts[0]['unjudged'] == 1
+
+
+def test_the_window_holds_the_last_window_seconds():
+    r = monitor(window=1.0)
+    feed(r, [(100.0, 300.0)] * 100)  # 20 % during the first second
+    now = feed(r, [(100.0, 150.0)] * 100, start=2 * S)  # 5 % during the third
+    assert r.figures(0, now).rms == pytest.approx(5)
+
+
+def test_the_later_estimate_of_one_stamp_is_the_one_paired():
+    r = monitor()
+    r.served(0, 7, 90.0, 2e5, 0.23, 0)  # the pressure of stamp 7 with an older length
+    r.served(0, 7, 100.0, 3e5, 0.235, 0)  # its length too
+    assert r.measured(0, 7, 150.0, 7) == (3e5, 0.235, 150.0)
+
+
+def test_a_muscle_without_held_out_errors_is_not_monitored():
+    r = Residuals([None], [6e5], ['martens'], AGE)
+    r.served(0, 0, 100.0, 3e5, 0.235, 0)
+    assert r.measured(0, 0, 150.0, 0) is None
+    assert r.values(0, None) == {'residual': 'unknown: the parameter file has no held_out errors'}
