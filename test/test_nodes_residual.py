@@ -118,6 +118,18 @@ def test_within_the_band_is_ok_and_bad_measured_forces_are_refused(private_node)
     assert values['residual last refused'].startswith('stale measured force')
 
 
+@pytest.mark.parametrize(
+    'bad, words',
+    [
+        ({'residual.error_ratio': 0.5}, r'residual.error_ratio \(0.5\) must be >= residual.warn'),
+        ({'residual.window': 0.0}, r"'residual.window' must be in \[0.1, 3600\] s"),
+    ],
+)
+def test_bad_thresholds_are_refused(private_node, bad, words):
+    with pytest.raises(Exception, match=words):
+        node_with(private_node, CONFIGS['DMSP-10-250'], **{'residual.enabled': True} | bad)
+
+
 def test_combined_measured_forces_by_name(private_node):
     node = node_with(private_node, EXAMPLE, **{'residual.enabled': True})
     stamp = shifted(frozen_clock(node), -0.05)
