@@ -22,12 +22,21 @@ SPEC = REPO / 'config/muscles/dmsp_10_250.yaml'
 DEADLINE = 120.0  #: [s] for the command to start, or to end once interrupted (a loaded machine)
 
 
+#: ``python -m pma_model_ros.cli`` as a terminal starts a command in the foreground: SIGINT at
+#: Python's handler, whatever this run inherited (a script's background job, ``colcon test &``
+#: say, starts with SIGINT and SIGQUIT ignored, and a Python started so keeps them ignored).
+FOREGROUND = (
+    'import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); '
+    "runpy.run_module('pma_model_ros.cli', run_name='__main__')"
+)
+
+
 def _start(argv: list[str], cwd: Path) -> subprocess.Popen:
-    """``python -m pma_model_ros.cli *argv`` in a session of its own (its workers in its process
-    group), unbuffered.
+    """``pma-model *argv`` in a session of its own (its workers in its process group), as in a
+    terminal's foreground (:data:`FOREGROUND`), unbuffered.
     """
     return subprocess.Popen(
-        [sys.executable, '-u', '-m', 'pma_model_ros.cli', *argv],
+        [sys.executable, '-u', '-c', FOREGROUND, *argv],
         cwd=cwd,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
