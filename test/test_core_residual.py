@@ -4,12 +4,14 @@ against hand-calculated numbers.
 
 import math
 
+import numpy as np
 import pytest
 
 from pma_model_ros.core.identification.validation import HeldOutBand
 from pma_model_ros.core.physics.flags import Flag
 from pma_model_ros.core.runtime.health import Level
 from pma_model_ros.core.runtime.residual import (
+    Figures,
     MIN_SAMPLES,
     next_level,
     Residuals,
@@ -157,3 +159,56 @@ def test_a_muscle_without_held_out_errors_is_not_monitored():
     r.served(0, 0, 100.0, 3e5, 0.235, 0)
     assert r.measured(0, 0, 150.0, 0) is None
     assert r.values(0, None) == {'residual': 'unknown: the parameter file has no held_out errors'}
+
+
+def test_a_described_window_parses_back_to_its_three_digits():
+    """What /diagnostics carries is read back (``pma-model plot drift``): the line, to its 3
+    significant digits.
+    """
+    text = (
+        'bias -1.23 %, RMS 3.46 %, worst -8.77 % over 1234 samples in 9.99 s; band 4.66 % '
+        '(1000 interior, 234 edge)'
+    )
+    assert Figures.parse(text) == Figures(1234, 9.99, -1.23, 3.46, -8.77, 4.66, 1000)
+    assert Figures(1234, 9.99, -1.23456, 3.4567, -8.7654, 4.6575, 1000).describe() == text
+    assert Figures.parse('too few samples in the window') is None
+
+
+def test_many_muscles_at_once_are_judged_as_one_at_a_time():
+    """One combined message of six muscles: a sample inside the band's lengths, one beyond them,
+    one held (LENGTH_OUT_OF_RANGE: the edge figure), one above the identified pressures
+    (unjudged), a NaN (refused) and one without an estimate of its stamp (unpaired); the
+    muscle-by-muscle path counts and keeps the same.
+    """
+    t = 5 * S
+    rows = [  # served [N], gauge [Pa], length [m], flags, measured [N], estimated at t
+        (100.0, 3e5, 0.235, 0, 150.0, True),
+        (100.0, 3e5, 0.255, 0, 90.0, True),
+        (100.0, 3e5, 0.26, Flag.LENGTH_OUT_OF_RANGE, 110.0, True),
+        (100.0, 7e5, 0.235, 0, 150.0, True),
+        (100.0, 3e5, 0.235, 0, math.nan, True),
+        (100.0, 3e5, 0.235, 0, 150.0, False),
+    ]
+    n = len(rows)
+    one, many = (Residuals([BAND] * n, [6e5] * n, ['martens'] * n, AGE) for _ in range(2))
+    for r in (one, many):
+        for k, (served, gauge, length, flags, _, now) in enumerate(rows):
+            r.served(k, t if now else t - S // 100, served, gauge, length, flags)
+    taken = [one.measured(k, t, row[4], t) for k, row in enumerate(rows)]
+    assert many.measured_all(np.arange(n), t, np.array([r[4] for r in rows]), t) == [
+        (k, *sample) for k, sample in enumerate(taken) if sample is not None
+    ]
+    assert [k for k, s in enumerate(taken) if s is not None] == [0, 1, 2]
+    assert one.counts == many.counts
+    assert many.counts[3:] == [
+        {'paired': 0, 'rejected': 0, 'unpaired': 0, 'unjudged': 1},
+        {'paired': 0, 'rejected': 1, 'unpaired': 0, 'unjudged': 0},
+        {'paired': 0, 'rejected': 0, 'unpaired': 1, 'unjudged': 0},
+    ]
+    # +5 % inside (5 % band), -1 % beyond the lengths and +1 % held (8 % edge band)
+    for r in (one, many):
+        assert [r._sample[k, 0].tolist() for k in range(3)] == [
+            pytest.approx([5.0, 5.0, 1.0]),
+            pytest.approx([-1.0, 8.0, 0.0]),
+            pytest.approx([1.0, 8.0, 0.0]),
+        ]

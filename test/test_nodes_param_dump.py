@@ -59,6 +59,7 @@ def dump(ros, node: str, path) -> dict:
             block = block.setdefault(key, {})
         block[leaf] = value
     path.write_text(yaml.dump({node: {'ros__parameters': dumped}}, default_flow_style=False))
+    print(f'{node}: {len(names)} parameters listed, {len(got.values)} values got, dumped')  # -rP
     return dumped
 
 
@@ -125,6 +126,7 @@ def test_one_muscle_dump_reloads_to_the_same_answers(ros, processes, namespace, 
     before, after, dumped = dumped_and_reloaded(
         ros, processes, namespace, tmp_path, CONFIGS['DMSP-10-250'], answers, 'model_node'
     )
+    print(f'answers of the first node: {before}\nanswers of the reloaded one: {after}')  # -rP
     assert after == pytest.approx(before, rel=0, abs=1e-12)
     assert dumped['muscles'] == [] and dumped['pressure_range'] == params['pressure_range']
 
@@ -155,6 +157,7 @@ def test_multi_muscle_combined_dump_reloads_to_the_same_answers(
     before, after, dumped = dumped_and_reloaded(
         ros, processes, namespace, tmp_path, MULTI, answers, 'model_node'
     )
+    print(f'answers of the first node: {before}\nanswers of the reloaded one: {after}')  # -rP
     assert after == pytest.approx(before, rel=0, abs=1e-12)
     assert dumped['input_mode'] == 'combined' and dumped['muscles'] == list(INPUTS)
 
@@ -199,6 +202,7 @@ def test_joint_node_dump_reloads_to_the_same_answers(ros, processes, namespace, 
     before, after, dumped = dumped_and_reloaded(
         ros, processes, namespace, tmp_path, JOINT, answers, 'joint_node'
     )
+    print(f'answers of the first node: {before}\nanswers of the reloaded one: {after}')  # -rP
     assert after == pytest.approx(before, rel=0, abs=1e-12)
     # the flexor's higher pressure turns the joint the positive way, the extensor's the other
     assert before[0] > 0 > before[1]

@@ -269,14 +269,12 @@ class MuscleInputs:
                 self.residual.reject(k, MALFORMED)
             return []
         take, present, problems = index.of(msg)
-        samples = []
-        for k, joint in enumerate(self.joints):
-            if joint not in msg.names:
-                continue
-            if present is not None and not present[k]:
+        if present is None:
+            ks = np.arange(len(self.joints))
+        else:
+            named = np.array([joint in msg.names for joint in self.joints])
+            for k in np.flatnonzero(named & ~present).tolist():
                 self.residual.reject(k, problems[0])
-            elif (
-                sample := self.residual.measured(k, msg.stamp, float(msg.effort[take[k]]), now)
-            ) is not None:
-                samples.append((k, *sample))
-        return samples
+            ks = np.flatnonzero(present)
+        forces = np.asarray(msg.effort, float)[take[ks]]
+        return self.residual.measured_all(ks, msg.stamp, forces, now)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+import re
 from typing import Sequence
 
 import numpy as np
@@ -93,6 +94,26 @@ class Figures:
             f'({self.interior} interior, {self.samples - self.interior} edge)'
         )
 
+    @classmethod
+    def parse(cls, text: str) -> Figures | None:
+        """The figures of a :meth:`describe` line (to its 3 digits), as /diagnostics carries
+        them; None for any other text (e.g. ``too few samples in the window``).
+        """
+        match = _DESCRIBED.fullmatch(text)
+        if match is None:
+            return None
+        bias, rms, worst, samples, span, band, interior, _ = match.groups()
+        numbers = (float(v) for v in (span, bias, rms, worst, band))
+        return cls(int(samples), *numbers, int(interior))
+
+
+_NUMBER = r'(\S+)'
+#: a :meth:`Figures.describe` line
+_DESCRIBED = re.compile(
+    rf'bias {_NUMBER} %, RMS {_NUMBER} %, worst {_NUMBER} % over (\d+) samples in {_NUMBER} s; '
+    rf'band {_NUMBER} % \((\d+) interior, (\d+) edge\)'
+)
+
 
 @dataclass(frozen=True)
 class Thresholds:
@@ -131,12 +152,13 @@ class Residuals:
         self._stamp = np.full((n, SERVED), -1, np.int64)
         self._served = np.zeros((n, SERVED, 3))  # force [N], gauge [Pa], length [m]
         self._flags = np.zeros((n, SERVED), np.uint16)
-        self._head = [0] * n
+        self._head = np.zeros(n, np.intp)
+        self._all = np.arange(n)
         # the samples: a ring per muscle of time [ns], residual [%], band [%], interior
         self._capacity = capacity
         self._time = np.full((n, capacity), np.iinfo(np.int64).min, np.int64)
         self._sample = np.zeros((n, capacity, 3))
-        self._next = [0] * n
+        self._next = np.zeros(n, np.intp)
         self.levels = [Level.OK] * n
         self.counts = [
             dict.fromkeys(('paired', 'rejected', 'unpaired', 'unjudged'), 0) for _ in bands
@@ -151,28 +173,49 @@ class Residuals:
         the window is kept.
         """
         self.bands = list(bands)
-        self.pressure_max = [float(p) for p in pressure_max]
+        self.pressure_max = np.array(pressure_max, float)
         self.models = list(models)
+        # each band's figures as arrays over the muscles, NaN where not monitored: shortest and
+        # longest held-out length [m], interior and edge figure [%] (HeldOutBand.at), max force [N]
+        figures = [
+            (min(b.lengths), max(b.lengths), b.interior, b.edge, b.max_force)
+            if b is not None
+            else (np.nan,) * 5
+            for b in self.bands
+        ]
+        self._shortest, self._longest, self._interior, self._edge, self._max_force = (
+            (np.array(column, float) for column in zip(*figures))
+            if figures
+            else (np.empty(0),) * 5
+        )
 
     # --- the estimates
     def served(self, k: int, stamp: int, force: float, gauge: float, length: float, flags: int):
         """Muscle ``k`` was served ``force`` [N] at ``gauge`` [Pa] and ``length`` [m] (its
         ``flags``) for the inputs of ``stamp`` [ns].
         """
-        head = self._head[k]
-        if self._stamp.item(k, head) != stamp:
-            head = self._head[k] = (head + 1) % SERVED
-            self._stamp[k, head] = stamp
-        self._served[k, head] = force, gauge, length
-        self._flags[k, head] = flags
+        self._keep(np.array([k]), stamp, force, gauge, length, flags)
 
     def served_all(self, stamp: int, which: np.ndarray | None, forces, gauges, lengths, flags):
         """:meth:`served` of the muscles ``which`` (a mask; None: all); arrays over every
         muscle.
         """
-        muscles = range(len(self)) if which is None else np.flatnonzero(which).tolist()
-        for k in muscles:
-            self.served(k, stamp, forces.item(k), gauges.item(k), lengths.item(k), flags.item(k))
+        ks = self._all if which is None else np.flatnonzero(which)
+        if ks.size:
+            self._keep(ks, stamp, forces[ks], gauges[ks], lengths[ks], flags[ks])
+
+    def _keep(self, ks: np.ndarray, stamp: int, forces, gauges, lengths, flags) -> None:
+        """Each muscle of ``ks`` served ``forces`` ... for ``stamp``: into its ring, a second
+        estimate of one stamp in the place of the first.
+        """
+        heads = self._head[ks]
+        heads = np.where(self._stamp[ks, heads] == stamp, heads, (heads + 1) % SERVED)
+        self._head[ks] = heads
+        self._stamp[ks, heads] = stamp
+        self._served[ks, heads, 0] = forces
+        self._served[ks, heads, 1] = gauges
+        self._served[ks, heads, 2] = lengths
+        self._flags[ks, heads] = flags
 
     # --- the measured forces
     def reject(self, k: int, problem: str) -> None:
@@ -189,38 +232,61 @@ class Residuals:
         (gauge [Pa], length [m] of its estimate, ``force``) if it entered the window, else None
         (refused, unpaired, unjudged or not monitored).
         """
-        band = self.bands[k]
-        if band is None:
-            return None
-        counts = self.counts[k]
-        problem = measured_problem(force, band.max_force)
-        if not problem and not fresh(stamp, now, self.max_age):
-            problem = f'stale measured force: stamp {(now - stamp) * 1e-9:.3g} s from now'
-        if problem:
-            self.reject(k, problem)
-            return None
-        at = np.flatnonzero(self._stamp[k] == stamp)
-        if not at.size:
-            counts['unpaired'] += 1
-            return None
-        i = at.item(0)
-        served, gauge, length = self._served[k, i].tolist()
-        flags = self._flags.item(k, i)
-        if flags & Flag.PRESSURE_OUT_OF_RANGE or gauge > self.pressure_max[k]:
-            counts['unjudged'] += 1
-            return None
-        held = bool(flags & Flag.LENGTH_OUT_OF_RANGE)
-        percent, inside = band.at(length, held)
-        self.add(k, stamp, 100.0 * (force - served) / band.max_force, percent, inside and not held)
-        counts['paired'] += 1
-        return gauge, length, force
+        taken = self.measured_all(np.array([k]), stamp, np.array([force], float), now)
+        return taken[0][1:] if taken else None
 
-    def add(self, k: int, time: int, residual: float, band: float, interior: bool) -> None:
-        """One judged sample of muscle ``k`` at ``time`` [ns]: ``residual`` and ``band`` [%]."""
-        i = self._next[k]
-        self._time[k, i] = time
-        self._sample[k, i] = residual, band, interior
-        self._next[k] = (i + 1) % self._capacity
+    def measured_all(
+        self, ks: np.ndarray, stamp: int, forces: np.ndarray, now: int
+    ) -> list[tuple[int, float, float, float]]:
+        """Measured ``forces`` [N] of the muscles ``ks``, all stamped ``stamp`` [ns], at ``now``
+        [ns]: (muscle, gauge [Pa], length [m], force [N]) of each that entered the window; the
+        others are counted refused, unpaired or unjudged (muscles not monitored: neither).
+        """
+        monitored = np.isfinite(self._max_force[ks])
+        ks, forces = ks[monitored], forces[monitored]
+        if not ks.size:
+            return []
+        low, high = (f * self._max_force[ks] for f in MEASURED_RANGE)
+        bad = ~((forces >= low) & (forces <= high))  # NaN too
+        for k, force in zip(ks[bad].tolist(), forces[bad].tolist()):
+            self.reject(k, measured_problem(force, self._max_force.item(k)))
+        ks, forces = ks[~bad], forces[~bad]
+        if ks.size and not fresh(stamp, now, self.max_age):
+            for k in ks.tolist():
+                self.reject(
+                    k, f'stale measured force: stamp {(now - stamp) * 1e-9:.3g} s from now'
+                )
+            return []
+        same = self._stamp[ks] == stamp
+        paired = same.any(axis=1)
+        for k in ks[~paired].tolist():
+            self.counts[k]['unpaired'] += 1
+        ks, forces, at = ks[paired], forces[paired], same[paired].argmax(axis=1)
+        served, gauge, length = self._served[ks, at].T
+        flags = self._flags[ks, at]
+        unjudged = (flags & Flag.PRESSURE_OUT_OF_RANGE).astype(bool) | (
+            gauge > self.pressure_max[ks]
+        )
+        for k in ks[unjudged].tolist():
+            self.counts[k]['unjudged'] += 1
+        judged = ~unjudged
+        ks, forces, served, gauge, length, flags = (
+            a[judged] for a in (ks, forces, served, gauge, length, flags)
+        )
+        held = (flags & Flag.LENGTH_OUT_OF_RANGE).astype(bool)
+        inside = (self._shortest[ks] <= length) & (length <= self._longest[ks])  # HeldOutBand.at
+        interior = inside & ~held
+        band = np.where(interior, self._interior[ks], self._edge[ks])
+        residual = 100.0 * (forces - served) / self._max_force[ks]
+        slots = self._next[ks]
+        self._time[ks, slots] = stamp
+        self._sample[ks, slots, 0] = residual
+        self._sample[ks, slots, 1] = band
+        self._sample[ks, slots, 2] = interior
+        self._next[ks] = (slots + 1) % self._capacity
+        for k in ks.tolist():
+            self.counts[k]['paired'] += 1
+        return list(zip(ks.tolist(), gauge.tolist(), length.tolist(), forces.tolist()))
 
     # --- the window
     def figures(self, k: int, now: int) -> Figures | None:
