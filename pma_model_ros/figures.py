@@ -7,6 +7,7 @@ largest measured force, the basis of Martens & Boblan eq. 23.  The physics comes
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -22,6 +23,7 @@ from .bags.bag_io import (
     BagError,
     connections_of,
     deserialize,
+    DIAGNOSTIC_ARRAY,
     messages,
     open_bag,
     topic,
@@ -33,6 +35,7 @@ from .core.identification.protocols import max_error_percent
 from .core.physics.flags import Flag
 from .core.physics.joint import envelope, Joint
 from .core.physics.muscle_model import MuscleModel
+from .core.runtime.residual import Figures
 
 FORMATS = ('png', 'svg')
 DPI = 120  #: PNG resolution; the 8 in wide figures are 960 px, the width of the docs' figures
@@ -364,6 +367,104 @@ def timeseries_figure(
         fontsize=10,
     )
     bottom.set(xlabel='time t [s]', ylabel='estimated −\nmeasured [N]', xlim=(time[0], time[-1]))
+    return fig
+
+
+@dataclass(frozen=True)
+class DriftSeries:
+    """One muscle's drift monitor over a recording of /diagnostics: arrays over its reports."""
+
+    name: str  #: the status name (``<namespace>/model_node: <joint>``)
+    time: np.ndarray  #: [s] since the first report
+    rms: np.ndarray  #: window RMS residual [% of max force] (NaN: too few samples)
+    bias: np.ndarray  #: window bias [%]
+    band: np.ndarray  #: the window's held-out band [%]
+    level: np.ndarray  #: ``residual level``: 0 OK, 1 WARN, 2 ERROR
+    reidentified: np.ndarray  #: ``reidentify served`` is ``re-identified`` (bool)
+
+
+def read_drift_series(bag: str | Path, joint: str | None = None) -> DriftSeries:
+    """The ``residual`` keys of model_node's statuses on ``/diagnostics`` in ``bag`` (a recording
+    of a model_node with ``residual.enabled``), by header stamp; ``joint``: the muscle's (the end
+    of its status name; default: the only status with residual keys). Raises BagError (one
+    line).
+    """
+    rows: dict[str, list[tuple]] = {}
+    with open_bag(bag) as reader:
+        connections = connections_of(reader, ['/diagnostics'], {'/diagnostics': DIAGNOSTIC_ARRAY})
+        for connection, _, data in messages(reader, connections):
+            msg = deserialize(data, connection)
+            stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            for status in msg.status:
+                values = {kv.key: kv.value for kv in status.values}
+                if 'residual level' not in values:  # not a monitored muscle of a model_node
+                    continue
+                f = Figures.parse(values['residual [% of max force]'])
+                rows.setdefault(status.name, []).append(
+                    (
+                        stamp,
+                        *((f.rms, f.bias, f.band) if f else (np.nan,) * 3),
+                        ('OK', 'WARN', 'ERROR').index(values['residual level']),
+                        values.get('reidentify served') == 're-identified',
+                    )
+                )
+    names = sorted(rows) if joint is None else [n for n in rows if n.endswith(f': {joint}')]
+    if len(names) != 1:
+        found = ', '.join(n.rsplit(': ', 1)[-1] for n in sorted(rows)) or 'none'
+        raise BagError(
+            f'{bag}: /diagnostics needs one muscle of a model_node with residual.enabled'
+            f'{f" named {joint}" if joint else ""} (muscles with residual keys: {found})'
+            + ('; choose one with --joint' if len(rows) > 1 and joint is None else '')
+        )
+    stamp, rms, bias, band, level, reidentified = (np.array(c) for c in zip(*rows[names[0]]))
+    return DriftSeries(
+        names[0], (stamp - stamp[0]) * 1e-9, rms, bias, band, level, reidentified.astype(bool)
+    )
+
+
+@matplotlib.rc_context(STYLE)
+def drift_figure(series: DriftSeries, title: str) -> Figure:
+    """The window's RMS and bias residual [% of max force] against its held-out band over time
+    [s], the WARN and ERROR reports shaded, and when a re-identified model was first served.
+    """
+    fig = _figure(3.6)
+    ax = fig.subplots()
+    t = series.time
+    step = np.diff(t).min(initial=1.0) if t.size > 1 else 1.0
+    for level, color, label in ((1, 'tab:orange', 'WARN'), (2, 'tab:red', 'ERROR')):
+        at = np.flatnonzero(series.level == level)
+        # each run of consecutive reports at the level: from half a report before to half after
+        for k, run in enumerate(
+            np.split(at, np.flatnonzero(np.diff(at) > 1) + 1) if at.size else ()
+        ):
+            ax.axvspan(
+                t[run[0]] - step / 2,
+                t[run[-1]] + step / 2,
+                color=color,
+                alpha=0.2,
+                lw=0,
+                label=None if k else f'{label} ({at.size} reports)',
+            )
+    ax.plot(t, series.band, color='0.2', lw=1.4, ls='--', label='held-out band')
+    ax.plot(t, series.rms, color='tab:blue', lw=1.4, label='window RMS residual')
+    ax.plot(t, series.bias, color='tab:green', lw=1.0, label='window bias')
+    ax.axhline(0.0, color='0.3', lw=0.8)
+    if series.reidentified.any():
+        served = t[np.argmax(series.reidentified)]
+        ax.axvline(
+            served,
+            color='tab:purple',
+            lw=1.2,
+            ls=':',
+            label=f're-identified served ({served:.0f} s)',
+        )
+    ax.set(
+        xlabel='time t [s]',
+        ylabel='residual [% of max force]',
+        title=f'{title}: {series.name}, {t.size} reports',
+        xlim=(t[0], t[-1] + step * 0.5),
+    )
+    ax.legend(loc='best', fontsize=8)
     return fig
 
 

@@ -21,7 +21,7 @@ except ImportError:  # pip-only (a -pip rosdep key): colcon test on a ROS instal
 
 from conftest import CONFIGS
 from pma_model_ros import figures
-from pma_model_ros.bags.bag_io import BagError
+from pma_model_ros.bags.bag_io import BagError, BagWriter, DIAGNOSTIC_ARRAY, TYPESTORE
 from pma_model_ros.bags.estimate import estimate_bag
 from pma_model_ros.bags.synthetic import record_simulation
 from pma_model_ros.cli.main import main
@@ -357,3 +357,77 @@ def test_plot_asks_for_the_map_of_a_muscle_without_a_shipped_one(tmp_path, capsy
         'pma-model: error: --data is the measured map of force-map and error-map (with --config); '
         'plot joint draws none\n'
     )
+
+
+def diagnostics_bag(path, reports):
+    """A bag of /diagnostics: one model_node status per ``reports`` entry (stamp [s], residual
+    line, level, reidentify served), and a status of another node beside it.
+    """
+    types = TYPESTORE.types
+    Array, Status = (
+        types['diagnostic_msgs/msg/DiagnosticArray'],
+        types['diagnostic_msgs/msg/DiagnosticStatus'],
+    )
+    KeyValue, Header = types['diagnostic_msgs/msg/KeyValue'], types['std_msgs/msg/Header']
+    Time = types['builtin_interfaces/msg/Time']
+    with BagWriter(path) as writer:
+        topic = writer.topic('/diagnostics', DIAGNOSTIC_ARRAY)
+        for stamp, line, level, served in reports:
+            values = {
+                'residual [% of max force]': line,
+                'residual level': level,
+                'reidentify served': served,
+            }
+            statuses = [
+                Status(
+                    level=1 if level == 'WARN' else 0,
+                    name=name,
+                    message='',
+                    hardware_id='',
+                    values=[KeyValue(key=k, value=v) for k, v in (kv if keys else {}).items()],
+                )
+                for name, kv, keys in (
+                    ('model_node: DMSP-10-250', values, True),
+                    ('other_node: x', values, False),
+                )
+            ]
+            msg = Array(
+                header=Header(stamp=Time(sec=stamp, nanosec=0), frame_id=''), status=statuses
+            )
+            writer.write(topic, stamp * 10**9, msg)
+    return path
+
+
+def line(rms, band):
+    """A window's /diagnostics line of a constant residual ``rms`` [%]."""
+    return (
+        f'bias {rms} %, RMS {rms} %, worst {rms} % over 900 samples in 10 s; band {band} % '
+        '(900 interior, 0 edge)'
+    )
+
+
+def test_drift_series_and_plot_from_a_diagnostics_bag(tmp_path, capsys):
+    bag = diagnostics_bag(
+        tmp_path / 'run.mcap',
+        [
+            (100, 'too few samples in the window', 'OK', 'file'),
+            (101, line(2.5, 4.66), 'OK', 'file'),
+            (102, line(5.12, 4.66), 'WARN', 'file'),
+            (104, line(1.5, 3.2), 'OK', 're-identified'),
+        ],
+    )
+    series = figures.read_drift_series(bag)
+    assert series.name == 'model_node: DMSP-10-250'
+    np.testing.assert_array_equal(series.time, [0, 1, 2, 4])
+    np.testing.assert_array_equal(series.rms, [np.nan, 2.5, 5.12, 1.5])
+    np.testing.assert_array_equal(series.band, [np.nan, 4.66, 4.66, 3.2])
+    np.testing.assert_array_equal(series.level, [0, 0, 1, 0])
+    np.testing.assert_array_equal(series.reidentified, [False, False, False, True])
+    assert main(['plot', 'drift', '--diagnostics', str(bag), '--out-dir', str(tmp_path)]) == 0
+    assert capsys.readouterr().out.split()[1::2] == [
+        str(tmp_path / 'drift_run.png'),
+        str(tmp_path / 'drift_run.svg'),
+    ]
+    assert_written([tmp_path / 'drift_run.png', tmp_path / 'drift_run.svg'], 'drift_run')
+    with pytest.raises(BagError, match='named elbow .*muscles with residual keys: DMSP-10-250'):
+        figures.read_drift_series(bag, 'elbow')

@@ -24,6 +24,7 @@ PLOTS = {
     'models': None,
     'timeseries': '--bag',
     'joint': '--config',
+    'drift': '--diagnostics',
 }
 #: The figures that draw measured points or errors against them: the map of ``--data``, else the
 #: shipped map of a shipped muscle (:func:`measured_map`).
@@ -82,7 +83,7 @@ def cmd_plot(args: argparse.Namespace) -> None:
             f'plot needs matplotlib and rosbags (pip install matplotlib rosbags): {err}'
         ) from None
     wanted = list(PLOTS) if args.figure == 'all' else [args.figure]
-    given = {'--config': args.config, '--bag': args.bag}
+    given = {'--config': args.config, '--bag': args.bag, '--diagnostics': args.diagnostics}
     for name in [n for n in wanted if PLOTS[n] and not given[PLOTS[n]]]:
         if args.figure != 'all':
             raise CliError(f'plot {name} needs {PLOTS[name]}')
@@ -126,6 +127,12 @@ def cmd_plot(args: argparse.Namespace) -> None:
         jobs[f'timeseries_{name}'] = functools.partial(
             figures.timeseries_figure, *series, f'{name}: estimated vs measured force'
         )
+    if 'drift' in wanted:
+        name = Path(args.diagnostics).stem
+        drift = figures.read_drift_series(args.diagnostics, args.joint)
+        jobs[f'drift_{name}'] = functools.partial(
+            figures.drift_figure, drift, f'{name}: drift monitor'
+        )
     if 'models' in wanted:
         jobs['models'] = lambda: figures.models_figure(
             table3(identify_shipped(MAPPED_MUSCLES))['table3']
@@ -145,7 +152,9 @@ def cmd_plot(args: argparse.Namespace) -> None:
 def add_plot_command(sub: argparse._SubParsersAction) -> None:
     """Add ``plot`` to the ``pma-model`` subparsers."""
     p = sub.add_parser(
-        'plot', help='figures: force map, error map, model comparison, bag time series, joint'
+        'plot',
+        help='figures: force map, error map, model comparison, bag time series, joint, drift '
+        'monitor',
     )
     p.add_argument('figure', choices=(*PLOTS, 'all'))
     p.add_argument(
@@ -167,6 +176,15 @@ def add_plot_command(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         '--namespace', default=None, help="of the muscle's topics in --bag (default: the only one)"
+    )
+    p.add_argument(
+        '--diagnostics',
+        help='bag with /diagnostics of a model_node with residual.enabled, for drift',
+    )
+    p.add_argument(
+        '--joint',
+        default=None,
+        help='the muscle of --diagnostics (its joint_name; default: the only one)',
     )
     p.add_argument(
         '--out-dir', type=Path, default=Path('.'), help='directory to write into (default: .)'
