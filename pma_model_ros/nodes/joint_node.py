@@ -52,7 +52,7 @@ from ..core.files.joint_file import (
     joints,
     muscle_folder,
 )
-from ..core.files.node_parameters import (
+from ..core.files.joint_node_parameters import (
     JOINT_MUSCLE_PARAMETERS,
     JOINT_NODE_PARAMETERS,
     JOINT_PARAMETERS,

@@ -1,6 +1,5 @@
 """Joint specs from ``ros__parameters`` (a YAML file or joint_node's ROS parameters; its parameter
-table is :data:`~pma_model_ros.core.files.node_parameters.JOINT_NODE_PARAMETERS` and the two after
-it).
+tables are :mod:`~pma_model_ros.core.files.joint_node_parameters`').
 
 Layout (SI units; ``config/example_joint.yaml``)::
 
@@ -33,7 +32,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from .node_parameters import JOINT_PARAMETERS, names_of
+from .joint_node_parameters import JOINT_PARAMETERS
+from .node_parameters import names_of
 from .param_file import file_kind, hysteresis_follow, muscle_model, read_parameters
 from .param_file import identification as muscle_identification
 from .user_files import load_yaml_mapping, read_user_file

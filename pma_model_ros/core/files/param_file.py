@@ -45,12 +45,14 @@ import math
 from pathlib import Path
 from typing import Sequence
 
-from .node_parameters import (
-    frame_of,
-    IDENTIFICATION,
+from .joint_node_parameters import (
     JOINT_MUSCLE_PARAMETERS,
     JOINT_NODE_PARAMETERS,
     JOINT_PARAMETERS,
+)
+from .node_parameters import (
+    frame_of,
+    IDENTIFICATION,
     MODEL_BLOCK,
     names_of,
     PARAMETERS,
