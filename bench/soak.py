@@ -80,12 +80,17 @@ class Stream:
         return self.last - self.first + 1 - len(self.stamps) if self.first else 0
 
 
+def _is_model_node(status) -> bool:
+    """Whether ``status`` is model_node's (named ``<ns>/model_node: <joint>``)."""
+    return status.name.rsplit('/', 1)[-1].startswith('model_node: ')
+
+
 def model_status(diagnostics: list) -> object:
-    """The newest model_node status (named ``model_node: <joint>``; None before any); this run's
-    domain holds only its own nodes.
+    """The newest model_node status (named ``<ns>/model_node: <joint>``; None before any); this
+    run's domain holds only its own nodes.
     """
     return next(
-        (s for d in reversed(diagnostics) for s in d.status if s.name.startswith('model_node: ')),
+        (s for d in reversed(diagnostics) for s in d.status if _is_model_node(s)),
         None,
     )
 
@@ -171,7 +176,7 @@ def main() -> None:
             s.message.split(':')[0]
             for d in diagnostics[first_ok:soaked]
             for s in d.status
-            if s.name.startswith('model_node: ') and s.level == b'\x02'
+            if _is_model_node(s) and s.level == b'\x02'
         )
         for log in logs.values():
             log.close()
