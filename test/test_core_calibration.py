@@ -224,6 +224,21 @@ def test_l0_given_shorter_than_a_measured_row_is_raised_to_it(muscle, given):
         assert raised.spec == paper.spec and raised.theta == pytest.approx(paper.theta, rel=1e-12)
 
 
+def test_a_slack_row_of_cell_means_reaches_one_cell_above_its_length():
+    """Table A1's longest row, 0.296 m, is slack.  With L0 given 0.2963 m, a measured row proves
+    nothing (0.296 < 0.2963 m: L0 kept); the same row as cell means (``length_cell`` 0.5 mm, as
+    ``fit --bag`` and live re-identification make them) holds samples up to 0.2965 m, so L0 may be
+    shorter than the slack samples and is searched above the row, as for a given L0 at the row.
+    """
+    spec, fmap = shipped_spec('DMSP-20-300'), shipped_force_map('DMSP-20-300')
+    given = replace(spec, nominal_length=0.2963)
+    measured = fit_best(MARTENS, given, fmap, calibration=Calibration(True, False))
+    assert not measured.calibration.length and measured.spec.nominal_length == 0.2963
+    cells = replace(fmap, length_cell=0.5e-3)
+    fit = fit_best(MARTENS, given, cells, calibration=Calibration(True, False))
+    assert fit.calibration.length and fit.spec.nominal_length > 0.296
+
+
 @pytest.mark.parametrize('muscle', ['DMSP-20-300', 'DMSP-10-250'])
 def test_l0_given_too_long_is_kept_and_said_so(muscle):
     """L0 given 8 mm too long: nothing in the map proves it wrong (every row may be contracted), so

@@ -21,7 +21,8 @@ then the samples from before the muscle's first motion, branch unknown, are left
 
 The kept samples are averaged in cells of ``PRESSURE_CELL`` x ``LENGTH_CELL`` x branch (equal
 weight per region of the map however long the recording stayed there; far fewer points for the
-fit), measured forces below 0 N (noise on a slack muscle) are set to 0 N, and the result is a
+fit; each length cell a row of the map), measured forces below 0 N (noise on a slack muscle) are
+set to 0 N (:func:`~pma_model_ros.core.identification.force_map.cell_means`), and the result is a
 :class:`~pma_model_ros.core.identification.force_map.ForceMap`: identification is then exactly that
 of a force-map CSV (:func:`~pma_model_ros.core.identification.protocols.fit_best`).
 """
@@ -46,7 +47,7 @@ from .bag_io import (
 )
 from .estimate import muscle_namespace
 from ..core.files.node_parameters import SPECS
-from ..core.identification.force_map import ForceMap
+from ..core.identification.force_map import cell_means, ForceMap, LENGTH_CELL, PRESSURE_CELL
 from ..core.identification.progress import Meter
 from ..core.physics.geometry import STANDARD_ATMOSPHERE
 from ..core.physics.hysteresis import branches
@@ -57,8 +58,6 @@ MIN_SAMPLES = 3  #: fewest samples in a window for a slope
 #: lengths, each held 7.5 s of every 10 s, while the pressure sweeps the map's range in 14 s
 #: (46 kPa/s); about 70 s.
 SIMULATOR_SETTINGS = '-p trajectory:=steps -p steps:=5 -p period:=10.0 -p sweep_period:=28.0'
-PRESSURE_CELL = 5e3  #: [Pa] pressure side of an averaging cell
-LENGTH_CELL = 0.5e-3  #: [m] length side of an averaging cell
 
 
 @dataclass(frozen=True)
@@ -217,24 +216,6 @@ def _align(
     )
 
 
-def cell_means(samples: Samples, mask: np.ndarray) -> ForceMap:
-    """The masked samples averaged per PRESSURE_CELL x LENGTH_CELL x branch cell; negative forces
-    set to 0 N.
-
-    The map carries each cell's direction where every masked sample's branch is known.
-    """
-    p, L, F, d = (
-        samples.pressure[mask],
-        samples.length[mask],
-        np.maximum(samples.force[mask], 0.0),
-        samples.direction[mask],
-    )
-    cells = np.column_stack([np.floor(p / PRESSURE_CELL), np.floor(L / LENGTH_CELL), d])
-    _, cell, count = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    p, L, F, d = (np.bincount(cell.ravel(), weights=v) / count for v in (p, L, F, d))
-    return ForceMap(p, L, F, d if np.all(d != 0) else None)
-
-
 @dataclass(frozen=True)
 class Calibration:
     force_map: ForceMap  #: cell means of the quasi-static samples
@@ -259,7 +240,12 @@ def force_map_from_bag(
     if two_branches:
         mask &= samples.direction != 0
     try:
-        force_map = cell_means(samples, mask)
+        force_map = cell_means(
+            samples.pressure[mask],
+            samples.length[mask],
+            samples.force[mask],
+            samples.direction[mask],
+        )
         force_map.subset(force_map.force > 0)  # the fit's points: force at two lengths or more
     except ValueError:
         raise BagError(_too_few(str(bag), samples, mask, criterion)) from None

@@ -22,6 +22,8 @@ from ..hints import length_hint, pressure_hint
 from ..physics.geometry import STANDARD_ATMOSPHERE
 
 COLUMNS = ('pressure_pa', 'length_m', 'force_n')
+PRESSURE_CELL = 5e3  #: [Pa] pressure side of a :func:`cell_means` cell
+LENGTH_CELL = 0.5e-3  #: [m] length side of a :func:`cell_means` cell
 #: The optional fourth column: the hysteresis branch of each point, +1 or -1.
 DIRECTION = 'direction'
 
@@ -37,6 +39,9 @@ class ForceMap:
     direction: np.ndarray | None = None
     #: the line of the file each point was read from, 1-based (None: not read from a file)
     line: np.ndarray | None = None
+    #: [m] 0: lengths measured as they are; > 0: each length is the mean of a row of samples
+    #: within a cell this wide (:func:`cell_means`), the row's samples up to one cell above it
+    length_cell: float = 0.0
 
     def __post_init__(self) -> None:
         if self.direction is not None:
@@ -101,7 +106,36 @@ class ForceMap:
             self.force[mask],
             None if self.direction is None else self.direction[mask],
             None if self.line is None else self.line[mask],
+            self.length_cell,
         )
+
+
+def cell_means(
+    pressure: np.ndarray,
+    length: np.ndarray,
+    force: np.ndarray,
+    direction: np.ndarray | None = None,
+) -> ForceMap:
+    """Samples (gauge pressure [Pa], length [m], force [N]; branch +1/-1, 0 unknown) as a map:
+    averaged per :data:`PRESSURE_CELL` x :data:`LENGTH_CELL` (x branch) cell, negative forces
+    (noise on a slack muscle) set to 0 N.  Each length cell is one row, as a measured map's: its
+    points share the mean length of the row's samples.  The map carries each point's direction
+    where every sample's branch is known.
+    """
+    p, L = np.asarray(pressure, float), np.asarray(length, float)
+    F = np.maximum(np.asarray(force, float), 0.0)
+    d = np.zeros(p.size) if direction is None else np.asarray(direction, float)
+    _, row, in_row = np.unique(np.floor(L / LENGTH_CELL), return_inverse=True, return_counts=True)
+    row = row.ravel()
+    cells = np.column_stack([np.floor(p / PRESSURE_CELL), row, d])
+    _, cell, count = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    cell = cell.ravel()
+    p, F, d = (np.bincount(cell, weights=v) / count for v in (p, F, d))
+    row_length = np.bincount(row, weights=L) / in_row
+    L = np.empty(count.size)
+    L[cell] = row_length[row]  # one value per row, not a mean per cell
+    known = direction is not None and bool(np.all(d != 0))
+    return ForceMap(p, L, F, d if known else None, length_cell=LENGTH_CELL)
 
 
 def read_force_map_csv(path: str | Path) -> ForceMap:

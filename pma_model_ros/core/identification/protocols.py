@@ -351,8 +351,9 @@ def fit_best_all(
     found = offset if offset is not None and offset[2] else None
     # A length slack at low pressure is not stretched: L0 is at least that long, and longer unless
     # a threshold (the offset) makes that length L0 itself: then the better fit of the two wins.
+    # A row of cell means holds samples up to one cell above its length.
     moved = False
-    if slack is not None and spec.nominal_length <= slack:
+    if slack is not None and spec.nominal_length <= slack + fmap.length_cell:
         longer, spread, moved = _rest_length(model, spec, fmap, domain, slack)
         sigma['nominal_length'] = spread
         if moved:

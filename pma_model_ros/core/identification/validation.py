@@ -359,5 +359,12 @@ class HeldOutBand:
 def fit_or_none(
     identify: Callable[[ForceMap], dict[str, Predictor]], train: ForceMap
 ) -> dict[str, Predictor] | None:
-    """``identify(train)``, or None for a map of fewer than two lengths (nothing to fit)."""
-    return identify(train) if train.lengths.size >= 2 else None
+    """``identify(train)``, or None for a map of fewer than two lengths, or a branch of fewer than
+    two lengths on a map with directions (nothing to fit).
+    """
+    maps = (
+        [train]
+        if train.direction is None
+        else [train.subset(train.direction == d) for d in np.unique(train.direction)]
+    )
+    return identify(train) if all(m.lengths.size >= 2 for m in maps) else None
