@@ -17,9 +17,10 @@ figure).
   the rolling RMS (this script's, and the node's) first exceeds the band, the first WARN, and the
   delay between them (target <= 10 s).
 * ``reidentify``: model_node (``reidentify.enabled``) starts from ``config/dmsp_20_300.yaml`` cut
-  to 0.274 m (``pma-model scale``); the simulator plays the independent DMSP-20-274 fill map.  Up
-  to 120 s of sweeps (from the first paired sample): when the coverage was first enough, the fit
-  started and the new parameters were served; then ``save_parameters``, ``pma-model evaluate`` of
+  to 0.274 m (``pma-model scale``); the simulator plays the independent DMSP-20-274 fill map.
+  120 s of sweeps (from the first paired sample): when collecting started (the residual's WARN),
+  the coverage was first enough, the first fit started and was served, and each fit's outcome;
+  then ``save_parameters``, ``pma-model evaluate`` of
   the saved file on that map, beside a direct ``pma-model fit --model martens`` of it (target: the
   saved file's err <= 1.5 x the fit's in-sample err).  The independent maps are read from
   ``../shared/data/independent-muscles/`` (never copied into the package); without them this
@@ -438,16 +439,21 @@ def reidentify(out_dir: Path, quick: bool) -> None:
     run.launch(model, sim)
     run.spin_until(lambda: first(run.rows, lambda r: r['window_samples']), 60, 'paired sample')
     paired = first(run.rows, lambda r: r['window_samples'])
-    while run.elapsed() < paired['t_s'] + limit and not first(
-        run.rows, lambda r: r['reidentify_served'] == 're-identified'
-    ):
+    while run.elapsed() < paired['t_s'] + limit:
         run.spin_for(1.0)
     response = run.call_save()
     codes = run.close()
     rows = run.rows
+    collecting = first(rows, lambda r: r['reidentify_state'] == 'collecting')
     enough = first(rows, lambda r: r['reidentify_coverage'].endswith(': enough'))
     fitting = first(rows, lambda r: r['reidentify_state'] == 'fitting')
     served = first(rows, lambda r: r['reidentify_served'] == 're-identified')
+    outcomes = [  # each fit's outcome, in the report that first says it
+        (f'fit ended by {t_of(row)}', row['reidentify_last'])
+        for before, row in zip([None, *rows], rows)
+        if row['reidentify_last'] not in ('', 'none')
+        and (before is None or row['reidentify_last'] != before['reidentify_last'])
+    ]
     show(
         f'reidentify: model_node from {CONFIG_20.name} cut to 0.274 m; the simulator plays '
         f'{MAP_274.name} (max force {fmap.max_force:g} N), force noise '
@@ -455,9 +461,11 @@ def reidentify(out_dir: Path, quick: bool) -> None:
         f'{os.getloadavg()[0]:.2f}',
         [
             ('first paired sample', t_of(paired)),
+            ('collecting (the residual at WARN)', t_of(collecting)),
             ('coverage first enough', t_of(enough)),
-            ('fit started', t_of(fitting)),
-            ('re-identified parameters served', t_of(served)),
+            ('first fit started', t_of(fitting)),
+            ('re-identified parameters first served', t_of(served)),
+            *outcomes,
             ('last coverage', rows[-1]['reidentify_coverage']),
             ('last reidentify last', rows[-1]['reidentify_last']),
             ('residual level at the end', rows[-1]['residual_level']),

@@ -9,6 +9,7 @@ import pytest
 
 from pma_model_ros.core.files.param_file import muscle_model, read_parameters
 from pma_model_ros.core.files.shipped_data import shipped_force_map
+from pma_model_ros.core.identification.force_map import cell_means
 from pma_model_ros.core.runtime import reidentify as R
 from pma_model_ros.core.simulation.truth import GroundTruth
 
@@ -41,7 +42,7 @@ def sweep(fmap, parameters, gain, lengths=None, seed=1):
 
 
 def collector(parameters, samples):
-    c = R.SampleCollector(parameters['pressure_range'], parameters['length_range'])
+    c = R.SampleCollector(*R.envelope(muscle_model(parameters)))
     for row in samples:
         c.add(*row)
     return c
@@ -59,9 +60,26 @@ def map_err(parameters, fmap, gain):
     return 100 * np.max(np.abs(predicted - gain * fmap.force)) / (gain * fmap.max_force)
 
 
-def test_cells_are_fit_bags():
-    calibrate = pytest.importorskip('pma_model_ros.bags.calibrate')
-    assert (R.PRESSURE_CELL, R.LENGTH_CELL) == (calibrate.PRESSURE_CELL, calibrate.LENGTH_CELL)
+def test_samples_become_rows_of_cell_means():
+    """Samples swept over lengths: each 0.5 mm length cell is one row at the mean length of its
+    samples, each 5 kPa cell of it one point; a negative force is 0 N.
+    """
+    samples = np.array(
+        [
+            (100e3, 0.2501, 50.0),
+            (102e3, 0.2503, 54.0),  # same cell: (101 kPa, 52 N)
+            (300e3, 0.2504, 200.0),  # same row, another pressure cell
+            (300e3, 0.2512, -3.0),  # the next row
+        ]
+    )
+    fmap = cell_means(*samples.T)
+    assert fmap.length_cell == 0.5e-3
+    order = np.lexsort((fmap.pressure, fmap.length))
+    row = (0.2501 + 0.2503 + 0.2504) / 3
+    np.testing.assert_allclose(fmap.length[order], [row, row, 0.2512], rtol=1e-15)
+    np.testing.assert_allclose(fmap.pressure[order], [101e3, 300e3, 300e3])
+    np.testing.assert_allclose(fmap.force[order], [52.0, 200.0, 0.0])
+    assert np.unique(fmap.length).size == 2  # rows, as a measured map's
 
 
 def test_scaled_muscle_is_identified_again(shipped, fmap, scaled):
@@ -110,18 +128,59 @@ def test_single_length_sweep_is_not_enough(shipped, fmap):
 
 def test_full_sweep_is_enough(shipped, fmap):
     coverage = collector(shipped, sweep(fmap, shipped, GAIN)).coverage()
-    assert coverage.enough and coverage.pressure_span == 1.0 and coverage.length_span == 1.0
+    # 0 to 675 kPa of the file's 675 kPa; Table A1's 0.222 to 0.296 m of its L0 0.3 m
+    assert coverage.enough and coverage.pressure_span == 1.0
+    assert coverage.length_span == pytest.approx((0.296 - 0.222) / 0.3)
+
+
+def test_another_specimens_own_range_is_enough(shipped, fmap):
+    """Coverage is judged on the box the samples span, not on the file's ranges: the three longest
+    rows of Table A1 at 100 to 600 kPa (a muscle run over part of the file's ranges) are enough.
+    """
+    samples = sweep(fmap, shipped, GAIN, lengths=[0.267, 0.282, 0.296])
+    samples = samples[(samples[:, 0] >= 100e3) & (samples[:, 0] <= 600e3)]
+    coverage = collector(shipped, samples).coverage()
+    assert coverage.enough, coverage.describe()
+    kept = np.linspace(0, 675e3, 40)  # the sweep's pressures, those of 100 to 600 kPa kept
+    kept = kept[(kept >= 100e3) & (kept <= 600e3)]
+    assert coverage.pressures == (kept[0], kept[-1])
+    assert coverage.pressure_span == pytest.approx((kept[-1] - kept[0]) / 675e3)
+    assert coverage.length_span == pytest.approx(0.029 / 0.3)
+
+
+@pytest.mark.parametrize(
+    ('lengths', 'pressures', 'short'),
+    [
+        ([0.282, 0.289, 0.296], (0, 675e3), 'length'),  # 14 mm: 4.7 % of L0 0.3 m, below 5 %
+        ([0.222, 0.25, 0.296], (100e3, 400e3), 'pressure'),  # 300 of 675 kPa: 44 %, below half
+    ],
+)
+def test_a_box_too_small_is_not_enough(shipped, fmap, lengths, pressures, short):
+    samples = sweep(fmap, shipped, GAIN, lengths=lengths)
+    samples = samples[(samples[:, 0] >= pressures[0]) & (samples[:, 0] <= pressures[1])]
+    coverage = collector(shipped, samples).coverage()
+    assert not coverage.enough
+    assert coverage.lengths >= 3  # three lengths: only the span is short
+    span = coverage.length_span if short == 'length' else coverage.pressure_span
+    assert span < (0.05 if short == 'length' else 0.5)
 
 
 def test_bad_samples_are_not_kept(shipped):
-    c = R.SampleCollector(shipped['pressure_range'], shipped['length_range'])
+    model = muscle_model(shipped)
+    (p0, p1), (l0, l1) = R.envelope(model)
+    # 0 Pa to the file's 675 kPa (above the rated 600 kPa); the braid's full contraction
+    # L0 / cos(Theta0) / sqrt(3) to L0 0.3 m
+    assert (p0, p1, l1) == (0.0, 675e3, 0.3)
+    assert l0 == pytest.approx(0.3 / np.cos(0.49916416607) / np.sqrt(3))
+    c = R.SampleCollector((p0, p1), (l0, l1))
     assert not c.add(float('nan'), 0.25, 100.0)
     assert not c.add(3e5, float('inf'), 100.0)
-    assert not c.add(-1e3, 0.25, 100.0)  # below the identified pressures
-    assert not c.add(3e5, 0.30, 100.0)  # beyond the longest identified length, 0.296 m
+    assert not c.add(-1e3, 0.25, 100.0)  # below 0 Pa gauge
+    assert not c.add(3e5, 0.301, 100.0)  # beyond the rest length
     assert not c.add(3e5, 0.25, -50.0)  # a load cell pushing
     assert c.add(3e5, 0.25, 100.0)
-    assert (len(c), c.rejected) == (1, 5)
+    assert c.add(3e5, 0.299, 100.0)  # beyond the identified 0.296 m, short of L0: kept
+    assert (len(c), c.rejected) == (2, 5)
 
 
 def test_saved_file_serves_the_served_forces(shipped, fmap, scaled, tmp_path):

@@ -80,7 +80,9 @@ def test_a_residual_above_the_band_warns_with_the_refit_command(private_node):
     assert [s.topic_name for s in node.subscriptions if 'measured' in s.topic_name] == [
         '/measured_force'
     ]
-    node.reidentification.poll()  # enabled, active: collecting
+    hook = node.reidentification
+    hook.poll()  # enabled, active, the residual OK: watching
+    assert hook.state[0] == 'watching'
     stamp = shifted(frozen_clock(node), -0.09)  # 0.09 s before now
     feed(node, stamp, 0.06 * MAX_FORCE)  # 6 % against 4.66 %: ratio 1.29
     s = status(node)
@@ -96,7 +98,11 @@ def test_a_residual_above_the_band_warns_with_the_refit_command(private_node):
     )
     assert values['residual level'] == 'WARN'
     assert values['residual samples'] == '20 paired, 0 rejected, 0 unpaired, 0 unjudged'
-    assert len(node.reidentification.collectors[0]) == 20  # every sample taken, as it came
+    assert len(hook.collectors[0]) == 0  # kept only once the residual says the model drifts
+    hook.poll()  # WARN: collecting
+    assert hook.values(0)['reidentify state'] == 'collecting'
+    feed(node, shifted(stamp, 0.02), 0.06 * MAX_FORCE)
+    assert len(hook.collectors[0]) == 20  # every sample taken, as it came
 
 
 def test_within_the_band_is_ok_and_bad_measured_forces_are_refused(private_node):

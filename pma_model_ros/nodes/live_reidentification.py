@@ -4,12 +4,18 @@ service.
 Measured samples come in through :meth:`LiveReidentification.add_sample` (muscle index, gauge
 pressure [Pa], length [m], measured force [N]), called by the measured-force input
 (``residual.enabled``) for each sample it pairs with the pressure and length of an estimate and
-takes into the residual's window, whatever the drift level; nothing is kept while the node is
-inactive, ``reidentify.enabled`` is false or ``reidentify.freeze`` is true.  Once a muscle's
-samples cover its identified ranges well enough (:class:`~pma_model_ros.core.runtime.reidentify.
-CoverageRule`), they are identified again by
+takes into the residual's window.  They are kept while the residual says the model no longer fits:
+a muscle ``watching`` starts **collecting** when its residual level is WARN or ERROR, and collects
+until its collector is full (``SampleCollector.capacity``); then its samples are dropped and it
+watches again.  Nothing is kept while the node is inactive, ``reidentify.enabled`` is false or
+``reidentify.freeze`` is true.
+
+Once a muscle's samples cover the pressures and lengths it is run over well enough
+(:class:`~pma_model_ros.core.runtime.reidentify.CoverageRule`), they are identified again by
 :func:`~pma_model_ros.core.runtime.reidentify.reidentify` in a worker process (one, one fit at a
-time: the callbacks never wait for it and the GIL is not shared); the result is applied by a
+time: the callbacks never wait for it and the GIL is not shared), and again each time the samples
+have grown :data:`GROWTH` times since the last fit (all of them, the check samples never fitted:
+the split is by arrival), and once more when the collector is full.  The result is applied by a
 1 Hz timer in the executor's thread, like a parameter change (one engine configure), only if it
 beat the served parameters on the check samples.  ``reidentify.freeze`` true (or
 ``reidentify.enabled`` false) serves the file's parameters again.
@@ -24,7 +30,6 @@ from __future__ import annotations
 
 from concurrent.futures import BrokenExecutor, Future, ProcessPoolExecutor
 from dataclasses import replace
-import math
 import multiprocessing
 import os
 import time
@@ -34,7 +39,14 @@ from std_srvs.srv import Trigger
 
 from .parameters import nest
 from ..core.files.param_file import muscle_parameters, NODE_DEFAULTS, node_settings
-from ..core.runtime.reidentify import CoverageRule, reidentify, SampleCollector, Served
+from ..core.runtime.health import Level
+from ..core.runtime.reidentify import (
+    CoverageRule,
+    envelope,
+    reidentify,
+    SampleCollector,
+    Served,
+)
 
 #: the keys of a muscle's parameters a saved file holds: those ``fit`` writes
 FILE_KEYS = (
@@ -50,6 +62,10 @@ FILE_KEYS = (
 )
 
 
+#: a muscle is identified again once its samples have grown this many times since its last fit
+GROWTH = 2
+
+
 def save_paths(save_file: str, joints: list[str], names: list[str]) -> list[str]:
     """Where ``save_parameters`` writes each muscle's file (module docstring)."""
     if not save_file:
@@ -58,15 +74,6 @@ def save_paths(save_file: str, joints: list[str], names: list[str]) -> list[str]
         return [save_file]
     stem, ext = os.path.splitext(save_file)
     return [f'{stem}.{n}{ext or ".yaml"}' for n in names]
-
-
-def ranges(model) -> tuple[tuple[float, float], tuple[float, float]]:
-    """The identified gauge pressures [Pa] and lengths [m] of a MuscleModel (a file without
-    ``pressure_range``: up to the spec's rated pressure).
-    """
-    domain = model.domain
-    top = domain.pressure_max if math.isfinite(domain.pressure_max) else model.spec.max_pressure
-    return (0.0, top), (domain.length_min, domain.length_max)
 
 
 class LiveReidentification:
@@ -93,8 +100,10 @@ class LiveReidentification:
             for block in ([muscle_parameters(nested, n) for n in names] if names else [nested])
         ]
         self.served = [Served(b, s) for b, s in zip(blocks, sources)]
-        self.collectors = [SampleCollector(*ranges(s.file.model), rule) for s in self.served]
-        self.state = ['collecting' if flat['reidentify.enabled'] else 'off'] * len(blocks)
+        self.collectors = [SampleCollector(*envelope(s.file.model), rule) for s in self.served]
+        self.state = ['watching' if flat['reidentify.enabled'] else 'off'] * len(blocks)
+        #: samples of each muscle's last fit since it started collecting (0: none)
+        self.fitted = [0] * len(blocks)
         self.last = [''] * len(blocks)
         #: the model each muscle's engine config was given by :meth:`_apply`
         self._applied: list = [None] * len(blocks)
@@ -120,9 +129,11 @@ class LiveReidentification:
         enabled, frozen = self._flag('enabled'), self._flag('freeze')
         self.collecting = self.node.active and enabled and not frozen
         if not enabled or frozen:
+            self._future, self._fitting = None, -1  # a fit under way is not applied
             for k, served in enumerate(self.served):
                 if served.current is not served.file:
                     self._apply(k, served.revert())
+                self._watch(k)  # the samples dropped
                 self.state[k] = 'frozen' if enabled else 'off'
             return
         if not self.node.active:
@@ -133,22 +144,38 @@ class LiveReidentification:
             ):  # a parameter change rebuilt the muscle from the ROS parameters: the file's model
                 served.revert()
                 self.last[k] = 'a parameter change served the parameters again'
-        if self._future is not None:
-            if self._future.done():
-                self._finish()
-            return
+        if self._future is not None and self._future.done():
+            self._finish()
         for k, collector in enumerate(self.collectors):
             if self.state[k] in ('frozen', 'off'):
+                self.state[k] = 'watching'
+            if self.state[k] == 'watching' and self._drifting(k):
                 self.state[k] = 'collecting'
-            if self.state[k] == 'collecting' and collector.coverage().enough:
+            if self.state[k] != 'collecting':
+                continue
+            n = len(collector)
+            due = n > self.fitted[k] and n >= min(GROWTH * self.fitted[k], collector.capacity)
+            enough = due and collector.coverage().enough
+            if enough and self._future is None:
                 self._start(k)
-                return
+            elif n >= collector.capacity and not enough and self._fitting != k:
+                self._watch(k)  # full, nothing more to fit
+
+    def _drifting(self, k: int) -> bool:
+        """Whether muscle ``k``'s residual level is WARN or ERROR."""
+        residual = self.node.residual
+        return residual is not None and residual.levels[k] >= Level.WARN
+
+    def _watch(self, k: int) -> None:
+        """Drop muscle ``k``'s samples; it collects again when its residual drifts."""
+        self.collectors[k].clear()
+        self.fitted[k], self.state[k] = 0, 'watching'
 
     def _start(self, k: int) -> None:
         if self._pool is None:  # a fresh interpreter: no copy of the node's threads or DDS state
             self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context('spawn'))
         samples = self.collectors[k].samples()
-        self._fitting, self.state[k] = k, 'fitting'
+        self._fitting = k  # it collects on meanwhile
         self._future = self._pool.submit(
             reidentify, self.served[k].current.parameters, samples, self.check_every
         )
@@ -157,14 +184,13 @@ class LiveReidentification:
     def _finish(self) -> None:
         k, future = self._fitting, self._future
         self._future, self._fitting = None, -1
+        self.fitted[k] = future.samples
         try:
             outcome = future.result()
-        except Exception as err:  # a fit that failed (or its worker ended): collect again
+        except Exception as err:  # a fit that failed (or its worker ended): collect on
             if isinstance(err, BrokenExecutor):
                 self._pool = None  # the next fit starts a new worker
-            self.state[k], self.last[k] = 'refused', f'refused: {type(err).__name__}: {err}'
-            self.collectors[k].clear()
-            self.state[k] = 'collecting'
+            self.last[k] = f'refused: {type(err).__name__}: {err}'
             return
         self.last[k] = outcome.describe()
         if outcome.accepted:
@@ -172,8 +198,6 @@ class LiveReidentification:
             source = self.sources[k]
             self._apply(k, served.swap(outcome, future.samples, source, time.time()))
             self.node.get_logger().info(f'{self.node.settings[k].joint_name}: {self.last[k]}')
-        self.collectors[k].clear()
-        self.state[k] = 'collecting'
 
     def _apply(self, k: int, snapshot) -> None:
         """Serve ``snapshot`` for muscle ``k``: one engine configure, as a parameter change."""
@@ -199,7 +223,7 @@ class LiveReidentification:
         if self.state[k] == 'off':
             return {}
         return {
-            'reidentify state': self.state[k],
+            'reidentify state': 'fitting' if self._fitting == k else self.state[k],
             'reidentify coverage': self.collectors[k].coverage().describe(),
             'reidentify last': self.last[k] or 'none',
             'reidentify served': 'file' if served.current is served.file else 're-identified',

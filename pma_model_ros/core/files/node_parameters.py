@@ -424,7 +424,7 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         'reidentify.per_cell',
         'integer',
         3,
-        'samples for a cell of the 8 x 5 pressure x length grid over the identified ranges to '
+        "samples for a cell of the 8 x 5 pressure x length grid over the samples' box to "
         'count as covered (>= 1)',
         read_only=True,
     ),
@@ -432,8 +432,9 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         'reidentify.cell_share',
         'double',
         0.6,
-        'share of the grid cells covered for enough coverage (also: covered cells at '
-        '`reidentify.lengths` lengths, the samples spanning 80 % of each range)',
+        "share of the cells of the samples' pressure x length box covered for enough coverage "
+        '(also: covered cells at `reidentify.lengths` lengths, the box spanning half the top '
+        'pressure and 5 % of the rest length)',
         '',
         (0.05, 1.0),
         read_only=True,

@@ -1,19 +1,23 @@
 """Live re-identification of one muscle from measured forces (no ROS).
 
 Samples (gauge pressure [Pa], length [m], measured force [N]) are collected by
-:class:`SampleCollector` on a grid of ``pressure_bins`` x ``length_bins`` cells over the muscle's
-identified ranges (``pressure_range``, ``length_range`` of its parameter file); samples outside
-those ranges, non-finite or with a negative force below ``-force_floor`` are not kept (counted in
-``rejected``).
+:class:`SampleCollector` inside the muscle's physical envelope (:func:`envelope`: 0 Pa to the
+higher of its rated and identified pressures, the braid's full contraction to its rest length,
+whatever lengths and pressures its file was identified on: another specimen is run over others);
+samples outside it, non-finite or with a negative force below ``-force_floor`` are not kept
+(counted in ``rejected``).
 
-**Enough coverage** (:class:`CoverageRule`, :meth:`SampleCollector.coverage`): at least
-``per_cell`` samples in at least ``cell_share`` of the cells, in at least ``lengths`` distinct
-length bins, and the kept pressures and lengths each spanning at least ``span`` of their range.
-``Coverage.share`` (cells filled / cells) is the figure /diagnostics shows.
+**Enough coverage** (:class:`CoverageRule`, :meth:`SampleCollector.coverage`), judged on the box
+the kept samples span, the one a new fit is identified and served on: cut into ``pressure_bins`` x
+``length_bins`` cells, at least ``per_cell`` samples in at least ``cell_share`` of the cells, in at
+least ``lengths`` distinct length bins; and the box spans at least ``pressure_span`` of the
+envelope's top pressure and ``length_span`` of the rest length (5 %: a fifth of the 25 %
+contraction Festo rates a DMSP for).  ``Coverage.share`` (cells filled / cells) is the figure
+/diagnostics shows.
 
 **Identification** (:func:`reidentify`) is that of ``pma-model fit --bag``: the fit samples are
-averaged in cells of :data:`PRESSURE_CELL` x :data:`LENGTH_CELL` (the cells of
-``bags.calibrate.cell_means``, negative forces set to 0 N), checked by ``check_fit_map`` and
+averaged in the cells of :func:`~..identification.force_map.cell_means` (each length cell a row,
+negative forces set to 0 N), checked by ``check_fit_map`` and
 identified by ``identify_all`` with ``fit``'s defaults (the model served, ``least_squares``,
 length and pressure calibration on); the file is built by ``build_parameters`` and ``model_entry``
 as ``fit`` builds it.
@@ -30,6 +34,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import datetime
+import math
 import threading
 
 import numpy as np
@@ -37,17 +42,14 @@ import numpy as np
 from ..files.param_file import GIVEN_LENGTH, muscle_model, spec_mapping
 from ..files.param_writer import build_parameters, model_entry, write_parameters
 from ..identification.calibration import Calibration
-from ..identification.force_map import ForceMap
+from ..identification.force_map import cell_means
 from ..identification.protocols import check_fit_map, max_error_percent
 from ..identification.selection import identify_all
+from ..physics import geometry as geo
 from ..physics.geometry import MuscleSpec
 from ..physics.models import get_model
+from ..physics.muscle_model import MuscleModel
 
-#: [Pa], [m]: the averaging cells of ``fit --bag`` (``bags.calibrate.PRESSURE_CELL``,
-#: ``LENGTH_CELL``; that module needs rosbags, so the values are repeated here and a test checks
-#: they are equal)
-PRESSURE_CELL = 5e3
-LENGTH_CELL = 0.5e-3
 FILE_LEGEND = (
     'err: eq. 23 on the whole map [%]; cv_err: worst nested leave-one-length-out err [%] (the '
     'fit, calibration\nand choices included, re-run without each length); held_out: that err '
@@ -64,29 +66,45 @@ class CoverageRule:
     per_cell: int = 3  #: samples for a cell to count as filled
     cell_share: float = 0.6  #: share of the cells filled
     lengths: int = 3  #: distinct length bins with a filled cell
-    span: float = 0.8  #: share of each range the kept samples span
+    pressure_span: float = 0.5  #: share of the envelope's top pressure the samples span
+    length_span: float = 0.05  #: share of the rest length the samples span
 
 
 @dataclass(frozen=True)
 class Coverage:
-    share: float  #: cells with ``per_cell`` samples / cells
+    share: float  #: cells with ``per_cell`` samples / cells of the samples' box
     lengths: int  #: length bins with a filled cell
-    pressure_span: float  #: (max - min kept pressure) / pressure range
-    length_span: float  #: (max - min kept length) / length range
+    pressures: tuple[float, float]  #: [Pa] lowest and highest kept pressure
+    lengths_m: tuple[float, float]  #: [m] shortest and longest kept length
+    pressure_span: float  #: (highest - lowest kept pressure) / envelope's top pressure
+    length_span: float  #: (longest - shortest kept length) / rest length
     samples: int
     enough: bool
 
     def describe(self) -> str:
         """One line for /diagnostics."""
+        (p0, p1), (l0, l1) = self.pressures, self.lengths_m
         return (
-            f'{100 * self.share:.0f} % of cells, {self.lengths} lengths, pressure span '
-            f'{100 * self.pressure_span:.0f} %, length span {100 * self.length_span:.0f} %, '
+            f'{100 * self.share:.0f} % of cells over {p0 / 1e3:.0f}-{p1 / 1e3:.0f} kPa x '
+            f'{l0:.4g}-{l1:.4g} m, {self.lengths} lengths, pressure span '
+            f'{100 * self.pressure_span:.0f} %, length span {100 * self.length_span:.1f} % of L0, '
             f'{self.samples} samples: {"enough" if self.enough else "not enough"}'
         )
 
 
+def envelope(model: MuscleModel) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Where samples of the muscle of ``model`` are kept: gauge pressures [Pa] from 0 to the
+    higher of the rated and the identified one, lengths [m] from the braid's full contraction to
+    the rest length (or the longest identified length, if longer).
+    """
+    spec, domain = model.spec, model.domain
+    known = domain.pressure_max if math.isfinite(domain.pressure_max) else 0.0
+    top = max(spec.max_pressure, known)
+    return (0.0, top), (geo.shortest_length(spec), max(spec.nominal_length, domain.length_max))
+
+
 class SampleCollector:
-    """The measured samples of one muscle, binned on its identified pressure x length grid."""
+    """The measured samples of one muscle inside its envelope (:func:`envelope`)."""
 
     def __init__(
         self,
@@ -140,37 +158,34 @@ class SampleCollector:
         """The coverage of the kept samples and whether it is enough (module docstring)."""
         s, r = self.samples(), self.rule
         if not len(s):
-            return Coverage(0.0, 0, 0.0, 0.0, 0, False)
-        (p0, p1), (l0, l1) = self.p_range, self.l_range
-        i = np.minimum(
-            ((s[:, 0] - p0) / (p1 - p0) * r.pressure_bins).astype(int), r.pressure_bins - 1
-        )
-        k = np.minimum(((s[:, 1] - l0) / (l1 - l0) * r.length_bins).astype(int), r.length_bins - 1)
-        counts = np.zeros((r.pressure_bins, r.length_bins), int)
-        np.add.at(counts, (i, k), 1)
+            return Coverage(0.0, 0, (0.0, 0.0), (0.0, 0.0), 0.0, 0.0, 0, False)
+        low, high = s[:, :2].min(axis=0), s[:, :2].max(axis=0)
+        bins = np.array([r.pressure_bins, r.length_bins])
+        width = np.where(high > low, high - low, 1.0)
+        cell = np.minimum(((s[:, :2] - low) / width * bins).astype(int), bins - 1)
+        counts = np.zeros(bins, int)
+        np.add.at(counts, (cell[:, 0], cell[:, 1]), 1)
         filled = counts >= r.per_cell
         share = float(filled.mean())
         lengths = int(filled.any(axis=0).sum())
-        p_span = float(np.ptp(s[:, 0]) / (p1 - p0))
-        l_span = float(np.ptp(s[:, 1]) / (l1 - l0))
+        p_span = float((high[0] - low[0]) / self.p_range[1])
+        l_span = float((high[1] - low[1]) / self.l_range[1])
         enough = (
             share >= r.cell_share
             and lengths >= r.lengths
-            and p_span >= r.span
-            and l_span >= r.span
+            and p_span >= r.pressure_span
+            and l_span >= r.length_span
         )
-        return Coverage(share, lengths, p_span, l_span, len(s), enough)
-
-
-def force_map(samples: np.ndarray) -> ForceMap:
-    """The samples averaged per :data:`PRESSURE_CELL` x :data:`LENGTH_CELL` cell, negative forces
-    set to 0 N: ``fit --bag``'s map (``bags.calibrate.cell_means``, one branch).
-    """
-    p, L, F = samples[:, 0], samples[:, 1], np.maximum(samples[:, 2], 0.0)
-    cells = np.column_stack([np.floor(p / PRESSURE_CELL), np.floor(L / LENGTH_CELL)])
-    _, cell, count = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    p, L, F = (np.bincount(cell.ravel(), weights=v) / count for v in (p, L, F))
-    return ForceMap(p, L, F)
+        return Coverage(
+            share,
+            lengths,
+            (float(low[0]), float(high[0])),
+            (float(low[1]), float(high[1])),
+            p_span,
+            l_span,
+            len(s),
+            enough,
+        )
 
 
 def split(samples: np.ndarray, check_every: int) -> tuple[np.ndarray, np.ndarray]:
@@ -228,7 +243,7 @@ def reidentify(current: dict, samples: np.ndarray, check_every: int = 4) -> Outc
         | {'nominal_length': muscle.get(GIVEN_LENGTH, muscle['nominal_length'])}
     )
     model = get_model(current['model'])
-    fmap = force_map(fit)
+    fmap = cell_means(fit[:, 0], fit[:, 1], fit[:, 2])
     try:
         check_fit_map(fmap, spec, folds=3)
         found = identify_all(
