@@ -207,8 +207,32 @@ def test_many_muscles_at_once_are_judged_as_one_at_a_time():
     ]
     # +5 % inside (5 % band), -1 % beyond the lengths and +1 % held (8 % edge band)
     for r in (one, many):
-        assert [r._sample[k, 0].tolist() for k in range(3)] == [
+        kept = [(r._residuals[k, 0], r._bands[k, 0], r._inside[k, 0]) for k in range(3)]
+        assert kept == [
             pytest.approx([5.0, 5.0, 1.0]),
             pytest.approx([-1.0, 8.0, 0.0]),
             pytest.approx([1.0, 8.0, 0.0]),
         ]
+    # a stale stamp (1 s old against 0.5 s) and a force beyond twice the max force: refused alike
+    assert one.measured(0, t, 150.0, t + S) is None
+    assert many.measured_all(np.array([0]), t, np.array([150.0]), t + S) == []
+    assert one.measured(1, t, 2500.0, t) is None
+    assert many.measured_all(np.array([1]), t, np.array([2500.0]), t) == []
+    assert one.counts == many.counts and one.last_problem == many.last_problem
+    assert one.last_problem[0] == 'stale measured force: stamp 1 s from now'
+
+
+def test_a_sample_arriving_late_is_in_the_window_of_the_ones_it_came_with():
+    """The window starts at the first sample, in arrival order, stamped inside it: one stamped
+    0.2 s before the window that arrives 0.4 s old (under the 0.5 s max input age) among samples
+    inside it is counted with them; one that arrived before them is not.
+    """
+    r = monitor(window=1.0)
+    for stamp, arrival, offset in ((0, 0, 200.0), (16, 16, 50.0), (13, 17, 50.0)):  # [0.1 s]
+        r.served(0, stamp * S // 10, 100.0, 3e5, 0.235, 0)
+        r.measured(0, stamp * S // 10, 100.0 + offset, arrival * S // 10)
+    feed(r, [(100.0, 150.0)] * (MIN_SAMPLES - 2), start=2 * S)
+    f = r.figures(0, 2 * S + S // 2)  # the window: from 1.5 s on
+    # every sample but the first (+20 %, stamped 0 s): +5 % each, the oldest stamped 1.3 s
+    assert f.samples == MIN_SAMPLES and f.rms == pytest.approx(5)
+    assert f.span == pytest.approx(2.5 - 1.3)

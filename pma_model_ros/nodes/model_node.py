@@ -400,12 +400,15 @@ class ModelNode(ManagedNode):
     # --- with residual.enabled: the measured forces
     def _on_measured_force(self, k: int, data: bytes) -> None:
         if self.active and (sample := self.inputs.measured_force(k, data, self.now())):
-            self.reidentification.add_sample(k, *sample)
+            if self.reidentification.collecting:
+                self.reidentification.add_sample(k, *sample)
 
     def _on_measured_forces(self, data: bytes) -> None:
         if self.active:
-            for sample in self.inputs.measured_forces(data, self.now()):
-                self.reidentification.add_sample(*sample)
+            taken = self.inputs.measured_forces(data, self.now())
+            if self.reidentification.collecting:  # (one test per message while it is not)
+                for sample in taken:
+                    self.reidentification.add_sample(*sample)
 
     def _on_command(self, k: int, data: bytes) -> float | None:
         """A ``force_command`` of muscle ``k``; the pressure commanded, if any."""

@@ -20,7 +20,9 @@ sample is ``unjudged`` and kept out of the window.  Residuals are in % of the ba
 monitored.
 
 **Window and level** (:meth:`Residuals.report`): over the samples of the last ``window`` [s]
-(at most ``capacity`` per muscle, :data:`CAPACITY` in the node), bias (mean of measured -
+(at most ``capacity`` per muscle, :data:`CAPACITY` in the node; in arrival order from the first
+one stamped inside the window, so a sample stamped earlier that arrives after it, at most
+``max_input_age`` old, is in too), bias (mean of measured -
 served), RMS and worst (largest magnitude, signed) [%], and the band (the mean of the samples'
 figures).  The level follows the RMS / band ratio with hysteresis: WARN above ``warn_ratio``,
 ERROR above ``error_ratio``; a level is left only once the ratio is below its threshold times
@@ -49,6 +51,11 @@ CAPACITY = 1 << 15
 MIN_SAMPLES = 10
 #: the measured forces taken, in fractions of the muscle's max force
 MEASURED_RANGE = (-0.1, 2.0)
+#: the counts of :attr:`Residuals.counts`, in the order /diagnostics lists them
+COUNTS = ('paired', 'rejected', 'unpaired', 'unjudged')
+_PAIRED, _REJECTED, _UNPAIRED, _UNJUDGED = range(len(COUNTS))
+_PRESSURE_OUT = int(Flag.PRESSURE_OUT_OF_RANGE)
+_LENGTH_OUT = int(Flag.LENGTH_OUT_OF_RANGE)
 #: the command that identifies a muscle again from a recording of its measured force
 REFIT = 'pma-model fit --bag <recording> --muscle <spec.yaml> --model {} --out <parameters.yaml>'
 
@@ -154,19 +161,28 @@ class Residuals:
         self._flags = np.zeros((n, SERVED), np.uint16)
         self._head = np.zeros(n, np.intp)
         self._all = np.arange(n)
-        # the samples: a ring per muscle of time [ns], residual [%], band [%], interior
+        # the samples: a ring per muscle, in arrival order, of stamp [ns], the newest stamp so
+        # far [ns] (never decreasing: where the window starts is found by bisection), residual
+        # [%], band [%], whether judged by the interior figure; samples written per muscle
         self._capacity = capacity
-        self._time = np.full((n, capacity), np.iinfo(np.int64).min, np.int64)
-        self._sample = np.zeros((n, capacity, 3))
-        self._next = np.zeros(n, np.intp)
+        self._time = np.zeros((n, capacity), np.int64)
+        self._reach = np.zeros((n, capacity), np.int64)
+        self._residuals = np.zeros((n, capacity))
+        self._bands = np.zeros((n, capacity))
+        self._inside = np.zeros((n, capacity), bool)
+        self._written = np.zeros(n, np.int64)
+        self._newest = np.full(n, np.iinfo(np.int64).min, np.int64)
         self.levels = [Level.OK] * n
-        self.counts = [
-            dict.fromkeys(('paired', 'rejected', 'unpaired', 'unjudged'), 0) for _ in bands
-        ]
+        self._counts = np.zeros((n, len(COUNTS)), np.int64)
         self.last_problem = [''] * n
 
     def __len__(self) -> int:
         return len(self.bands)
+
+    @property
+    def counts(self) -> list[dict[str, int]]:
+        """Each muscle's measured forces by outcome (:data:`COUNTS`)."""
+        return [dict(zip(COUNTS, row)) for row in self._counts.tolist()]
 
     def use(self, bands: Sequence, pressure_max: Sequence[float], models: Sequence[str]) -> None:
         """Judge by these muscles' bands from now on (a parameter change, a re-identification);
@@ -194,7 +210,13 @@ class Residuals:
         """Muscle ``k`` was served ``force`` [N] at ``gauge`` [Pa] and ``length`` [m] (its
         ``flags``) for the inputs of ``stamp`` [ns].
         """
-        self._keep(np.array([k]), stamp, force, gauge, length, flags)
+        # :meth:`_keep` of one muscle in scalars (the single-muscle inputs' path, per message)
+        head = self._head.item(k)
+        if self._stamp.item(k, head) != stamp:
+            head = self._head[k] = (head + 1) % SERVED
+        self._stamp[k, head] = stamp
+        self._served[k, head] = (force, gauge, length)
+        self._flags[k, head] = flags
 
     def served_all(self, stamp: int, which: np.ndarray | None, forces, gauges, lengths, flags):
         """:meth:`served` of the muscles ``which`` (a mask; None: all); arrays over every
@@ -222,7 +244,7 @@ class Residuals:
         """Count a measured force of muscle ``k`` refused for ``problem`` (e.g. a malformed
         message).
         """
-        self.counts[k]['rejected'] += 1
+        self._counts[k, _REJECTED] += 1
         self.last_problem[k] = problem
 
     def measured(
@@ -232,8 +254,41 @@ class Residuals:
         (gauge [Pa], length [m] of its estimate, ``force``) if it entered the window, else None
         (refused, unpaired, unjudged or not monitored).
         """
-        taken = self.measured_all(np.array([k]), stamp, np.array([force], float), now)
-        return taken[0][1:] if taken else None
+        # :meth:`measured_all` of one muscle in scalars (the single-muscle inputs' path, per
+        # message; test_many_muscles_at_once_are_judged_as_one_at_a_time holds them equal)
+        max_force = self._max_force.item(k)
+        if not math.isfinite(max_force):
+            return None
+        low, high = MEASURED_RANGE
+        if not low * max_force <= force <= high * max_force:  # NaN too
+            self.reject(k, measured_problem(force, max_force))
+            return None
+        if not fresh(stamp, now, self.max_age):
+            self.reject(k, f'stale measured force: stamp {(now - stamp) * 1e-9:.3g} s from now')
+            return None
+        at = np.flatnonzero(self._stamp[k] == stamp)
+        if not at.size:
+            self._counts[k, _UNPAIRED] += 1
+            return None
+        at = at.item(0)
+        served, gauge, length = self._served[k, at].tolist()
+        flags = self._flags.item(k, at)
+        if flags & _PRESSURE_OUT or gauge > self.pressure_max.item(k):
+            self._counts[k, _UNJUDGED] += 1
+            return None
+        interior = (
+            self._shortest.item(k) <= length <= self._longest.item(k) and not flags & _LENGTH_OUT
+        )
+        slot = self._written.item(k) % self._capacity
+        newest = self._newest[k] = max(self._newest.item(k), stamp)
+        self._time[k, slot] = stamp
+        self._reach[k, slot] = newest
+        self._residuals[k, slot] = 100.0 * (force - served) / max_force
+        self._bands[k, slot] = self._interior.item(k) if interior else self._edge.item(k)
+        self._inside[k, slot] = interior
+        self._written[k] += 1
+        self._counts[k, _PAIRED] += 1
+        return gauge, length, force
 
     def measured_all(
         self, ks: np.ndarray, stamp: int, forces: np.ndarray, now: int
@@ -259,55 +314,67 @@ class Residuals:
             return []
         same = self._stamp[ks] == stamp
         paired = same.any(axis=1)
-        for k in ks[~paired].tolist():
-            self.counts[k]['unpaired'] += 1
+        self._counts[ks[~paired], _UNPAIRED] += 1
         ks, forces, at = ks[paired], forces[paired], same[paired].argmax(axis=1)
         served, gauge, length = self._served[ks, at].T
         flags = self._flags[ks, at]
-        unjudged = (flags & Flag.PRESSURE_OUT_OF_RANGE).astype(bool) | (
-            gauge > self.pressure_max[ks]
-        )
-        for k in ks[unjudged].tolist():
-            self.counts[k]['unjudged'] += 1
+        unjudged = (flags & _PRESSURE_OUT).astype(bool) | (gauge > self.pressure_max[ks])
+        self._counts[ks[unjudged], _UNJUDGED] += 1
         judged = ~unjudged
         ks, forces, served, gauge, length, flags = (
             a[judged] for a in (ks, forces, served, gauge, length, flags)
         )
-        held = (flags & Flag.LENGTH_OUT_OF_RANGE).astype(bool)
+        held = (flags & _LENGTH_OUT).astype(bool)
         inside = (self._shortest[ks] <= length) & (length <= self._longest[ks])  # HeldOutBand.at
         interior = inside & ~held
         band = np.where(interior, self._interior[ks], self._edge[ks])
         residual = 100.0 * (forces - served) / self._max_force[ks]
-        slots = self._next[ks]
+        slots = self._written[ks] % self._capacity
+        newest = self._newest[ks] = np.maximum(self._newest[ks], stamp)
         self._time[ks, slots] = stamp
-        self._sample[ks, slots, 0] = residual
-        self._sample[ks, slots, 1] = band
-        self._sample[ks, slots, 2] = interior
-        self._next[ks] = (slots + 1) % self._capacity
-        for k in ks.tolist():
-            self.counts[k]['paired'] += 1
+        self._reach[ks, slots] = newest
+        self._residuals[ks, slots] = residual
+        self._bands[ks, slots] = band
+        self._inside[ks, slots] = interior
+        self._written[ks] += 1
+        self._counts[ks, _PAIRED] += 1
         return list(zip(ks.tolist(), gauge.tolist(), length.tolist(), forces.tolist()))
 
     # --- the window
     def figures(self, k: int, now: int) -> Figures | None:
         """Muscle ``k``'s :class:`Figures` over the window ending at ``now`` [ns] (None: fewer
-        than :data:`MIN_SAMPLES`).
+        than :data:`MIN_SAMPLES`): the samples from the first one, in arrival order, stamped
+        within the window (module docstring), found by bisection; a few array reductions over
+        them, however many muscles and samples the monitor holds.
         """
-        times = self._time[k]
-        inside = times >= now - self._window
-        n = int(np.count_nonzero(inside))
+        cap, written = self._capacity, int(self._written[k])
+        reach, cutoff = self._reach[k], now - self._window
+        low, high = max(written - cap, 0), written
+        while low < high:  # the first sample (by arrival) whose newest stamp so far is inside
+            middle = (low + high) // 2
+            if reach[middle % cap] >= cutoff:
+                high = middle
+            else:
+                low = middle + 1
+        n = written - low
         if n < MIN_SAMPLES:
             return None
-        residual, band, interior = self._sample[k, inside].T
+        first, end = low % cap, written % cap
+        parts = [slice(first, end)] if first < end else [slice(first, cap), slice(0, end)]
+
+        def window(a: np.ndarray) -> np.ndarray:
+            return a[parts[0]] if len(parts) == 1 else np.concatenate([a[p] for p in parts])
+
+        residual = window(self._residuals[k])
         worst = residual[np.argmax(np.abs(residual))]
         return Figures(
             n,
-            (now - int(times[inside].min())) * 1e-9,
+            (now - int(window(self._time[k]).min())) * 1e-9,
             float(residual.mean()),
-            float(np.sqrt(np.mean(residual**2))),
+            float(np.sqrt(np.dot(residual, residual) / n)),
             float(worst),
-            float(band.mean()),
-            int(np.count_nonzero(interior)),
+            float(window(self._bands[k]).mean()),
+            int(np.count_nonzero(window(self._inside[k]))),
         )
 
     def report(self, k: int, now: int) -> tuple[Level, str, Figures | None]:
