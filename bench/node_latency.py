@@ -30,10 +30,11 @@ not the absolute times; ``--repeat K`` runs the node and its relay in turn K tim
 median of each ratio over the K pairs (a pair's rows run within seconds of each other, under much
 the same load).  ``--stall MS`` stops each responder (SIGSTOP) for MS ms halfway through a row and
 prints how long after SIGCONT its first fresh answer came (a round trip within ``FRESH``) and how
-many stale answers it gave before.  ``--measured``: model_node with ``residual.enabled`` and the
-pinger also publishing, after each cycle's inputs and not timed, a measured force of every muscle
-at the cycle's stamp (``measured_force`` WrenchStamped; N > 1: one ``measured_forces``
-JointState), what the drift monitor costs against a run without it (the relay does not read it).
+many stale answers it gave before.  ``--measured``: the pinger also publishes, after each cycle's
+inputs and not timed, a measured force of every muscle at the cycle's stamp (``measured_force``
+WrenchStamped; N > 1: one ``measured_forces`` JointState), and each repeat runs model_node, then
+model_node with ``residual.enabled`` (row ``+measured``: the drift monitor's cost, its ratio to the
+row before), then the relay (which, like model_node without the option, does not read them).
 Not a pass/fail test.
 """
 
@@ -48,6 +49,7 @@ import os
 from pathlib import Path
 import pstats
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
@@ -71,8 +73,12 @@ from rclpy.serialization import deserialize_message  # noqa: E402
 from sensor_msgs.msg import FluidPressure, JointState  # noqa: E402
 
 from pma_model_ros.core.files.param_file import read_parameters  # noqa: E402
+from pma_model_ros.core.files.shipped_data import shipped_force_map  # noqa: E402
 from pma_model_ros.core.physics.geometry import STANDARD_ATMOSPHERE  # noqa: E402
+from pma_model_ros.core.runtime.reidentify import reidentify  # noqa: E402
+from pma_model_ros.core.simulation.truth import GroundTruth  # noqa: E402
 from pma_model_ros.nodes.joint_node import JointNode  # noqa: E402
+from pma_model_ros.nodes.live_reidentification import idle_priority  # noqa: E402
 from pma_model_ros.nodes.model_node import ModelNode  # noqa: E402
 from pma_model_ros.nodes.qos import SENSOR_INPUT  # noqa: E402
 from pma_model_ros.nodes.startup import run  # noqa: E402
@@ -82,6 +88,11 @@ from pma_model_ros.wire.cdr import fluid_pressure, joint_state, wrench_stamped  
 SINGLE = REPO / 'config' / 'dmsp_10_250.yaml'
 AMBIENT = STANDARD_ATMOSPHERE  # [Pa]
 WARMUP = 1.0  # [s] after the first answer, not measured
+#: ``--measured``: the row of model_node with ``residual.enabled``, run between model_node's and
+#: the relay's
+MEASURED = '+measured'
+#: ``--fitting``: the same, while a process runs re-identification fits (:func:`fit_loop`)
+FITTING = '+fitting'
 DRAIN = 0.5  # [s] after the last cycle, for late answers
 ANSWERS = 2  # per cycle: one per input message (muscles; joints: one per joint_states)
 ANGLE = 0.2  # [rad] of every joint
@@ -431,16 +442,16 @@ def responders(
     joints: bool = False,
     pairing: str = 'every_input',
     measured: bool = False,
+    fitting: bool = False,
 ) -> dict[str, list[str]]:
-    """The command lines of the model's node (model_node with ``pairing``, and
-    ``residual.enabled`` if ``measured``; or joint_node with ``muscles`` joints) and of its relay,
-    by name.
+    """The command lines of the model's node (model_node with ``pairing``; or joint_node with
+    ``muscles`` joints), with ``measured`` also model_node with ``residual.enabled``
+    (:data:`MEASURED`; with ``fitting`` again, :data:`FITTING`), and of its relay, by name, in the
+    order they run.
     """
     params, name = {'executor': executor}, 'joint_node' if joints else 'model_node'
     if not joints:
         params['pairing'] = pairing
-        if measured:
-            params['residual.enabled'] = True
     if joints:  # N copies of the example elbow; their muscle files are in config/
         arm(path := folder / f'joints_{muscles}.yaml', muscles)
         model = node_process.command(
@@ -452,6 +463,11 @@ def responders(
         model = node_process.command(name, '/bench', multi_muscle_file(muscles, folder), params)
     if profile is not None:  # this script as the node, profiled once it is built
         model[1:3] = [__file__, f'--profiled-{name}={profile}']
+    nodes = {name: model}
+    if measured and not joints:
+        nodes[MEASURED] = [*model, '-p', 'residual.enabled:=true']
+        if fitting:
+            nodes[FITTING] = nodes[MEASURED]
     relay = [
         sys.executable,
         __file__,
@@ -464,7 +480,28 @@ def responders(
         '-p',
         f'{"joints" if joints else "muscles"}:={muscles}',
     ]
-    return {name: model, 'relay': relay}
+    return nodes | {'relay': relay}
+
+
+def fit_loop() -> int:
+    """Re-identification fits, one after the other until terminated, as model_node's worker
+    runs them (:func:`~pma_model_ros.core.runtime.reidentify.reidentify`, every thread in the
+    SCHED_IDLE class): the DMSP-10-250 file on 3 noisy samples at 40 pressures at each length
+    of Table A2 scaled by 0.85.
+    """
+    idle_priority()
+    parameters = read_parameters(SINGLE)
+    fmap, rng = shipped_force_map('DMSP-10-250'), np.random.default_rng(1)
+    truth = GroundTruth(fmap)
+    rows = [
+        (p, L, 0.85 * float(truth.force(p, L)) + rng.normal(0, 0.01 * fmap.max_force))
+        for L in np.unique(fmap.length)
+        for p in np.linspace(0, parameters['pressure_range'][1], 40)
+        for _ in range(3)
+    ]
+    samples = np.array(rows)
+    while True:
+        reidentify(parameters, samples)
 
 
 def profiled_node(name: str, out: Path, args: list[str]) -> int:
@@ -622,7 +659,12 @@ def print_rows(
     )
     print(
         f'\n{node}: round trip at {args.rate:g} Hz, {args.duration:g} s per row, {what} (times '
-        f'in ms; ratio = {node} / relay, the row before)'
+        f"in ms; ratio = {node} / relay on the relay's row"
+        + (
+            f', {MEASURED} and {FITTING} / {node} on theirs)'
+            if args.measured and not joints
+            else ')'
+        )
     )
     print(
         f'{"N":>3} {"executor":<8} {"responder":<11} {"cycles":>7} {"Hz":>6} {"lost":>5} '
@@ -631,16 +673,21 @@ def print_rows(
     )
     for n in counts:
         for executor in args.executor:
-            ratios = []
+            ratios: dict[str, list] = {}
             for repeat in range(args.repeat):
                 profile = args.profile if (joints, n, executor) == last and not repeat else None
                 result = {}
                 commands = responders(
-                    n, executor, folder, profile, joints, args.pairing, args.measured
+                    n, executor, folder, profile, joints, args.pairing, args.measured, args.fitting
                 )
                 for name, cmd in commands.items():
-                    code = args.code if name == node else None
+                    code = args.code if name != 'relay' else None
                     once = name == node and args.pairing == 'approximate_time'
+                    fits = (
+                        subprocess.Popen([sys.executable, __file__, '--fit-loop'])
+                        if (name == FITTING)
+                        else None
+                    )
                     result[name] = r = measure(
                         cmd,
                         n,
@@ -653,10 +700,15 @@ def print_rows(
                         1 if once else ANSWERS,
                         args.measured,
                     )
-                    base, ratio = result[node], ''
-                    if name != node:
-                        ratios.append([base[k] / r[k] for k in ('p50', 'p99', 'cpu')])
-                        ratio = ' '.join(f'{x:>9.2f}' for x in ratios[-1])
+                    if fits is not None:
+                        fits.terminate()
+                        fits.wait()
+                    ratio = ''
+                    if name != node:  # the node / its relay; the option / the node without it
+                        top, bottom = (result[node], r) if name == 'relay' else (r, result[node])
+                        pair = [top[k] / bottom[k] for k in ('p50', 'p99', 'cpu')]
+                        ratios.setdefault(name, []).append(pair)
+                        ratio = ' '.join(f'{x:>9.2f}' for x in pair)
                     stalled = (
                         f'  after the stall: fresh in {r["recovery"]:.1f} ms, {r["stale"]} stale '
                         'answers before'
@@ -669,9 +721,12 @@ def print_rows(
                         f'{r["cpu"]:>6.1f} {ratio}{stalled}',
                         flush=True,
                     )
-            if args.repeat > 1:
-                medians = ' '.join(f'{x:>9.2f}' for x in np.median(ratios, axis=0))
-                print(f'{n:>3} {executor:<8} {"median of " + str(args.repeat):<59} {medians}')
+            for name, pairs in ratios.items() if args.repeat > 1 else ():
+                medians = ' '.join(f'{x:>9.2f}' for x in np.median(pairs, axis=0))
+                what = f'median of {args.repeat}: ' + (
+                    f'{node} / relay' if name == 'relay' else f'{name} / {node}'
+                )
+                print(f'{n:>3} {executor:<8} {what:<59} {medians}')
 
 
 def main() -> int:
@@ -729,10 +784,18 @@ def main() -> int:
         help='model_node with residual.enabled, and a measured force of every muscle per cycle',
     )
     parser.add_argument(
+        '--fitting',
+        action='store_true',
+        help='with --measured, a row more: the same node while a process runs re-identification '
+        "fits as model_node's worker does (SCHED_IDLE)",
+    )
+    parser.add_argument(
         '--code',
         type=Path,
         help="run the model's node from this checkout (before/after); skips the callback costs",
     )
+    if sys.argv[1:] == ['--fit-loop']:
+        return fit_loop()
     if '--relay' in sys.argv:
         return run('relay', Relay, [a for a in sys.argv if a != '--relay'])
     if sys.argv[1:2] and sys.argv[1].startswith('--profiled-'):

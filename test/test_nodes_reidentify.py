@@ -4,6 +4,7 @@ its hook, the fit in its worker process, the swap, freeze and the save_parameter
 
 from concurrent.futures import Future
 import math
+import os
 
 import numpy as np
 import pytest
@@ -65,6 +66,11 @@ def test_weaker_muscle_is_served_saved_and_frozen_back(private_node, tmp_path):
     hook.add_sample(0, *samples[0])  # collecting on meanwhile
     assert len(hook.collectors[0]) == len(samples) + 1
     hook._future.result(timeout=120)  # the worker's fit (a spawned interpreter)
+    # every thread of the worker (its BLAS pools too) in the SCHED_IDLE class: it takes only CPU
+    # time the node leaves
+    (worker,) = hook._pool._processes
+    threads = [int(t) for t in os.listdir(f'/proc/{worker}/task')]
+    assert {os.sched_getscheduler(t) for t in threads} == {os.SCHED_IDLE}
     hook.poll()  # applied in the executor's thread; one sample more is no reason to fit again
     values = hook.values(0)
     assert values['reidentify last'].startswith('served: check err')

@@ -13,7 +13,8 @@ watches again.  Nothing is kept while the node is inactive, ``reidentify.enabled
 Once a muscle's samples cover the pressures and lengths it is run over well enough
 (:class:`~pma_model_ros.core.runtime.reidentify.CoverageRule`), they are identified again by
 :func:`~pma_model_ros.core.runtime.reidentify.reidentify` in a worker process (one, one fit at a
-time: the callbacks never wait for it and the GIL is not shared), and again each time the samples
+time, in the SCHED_IDLE class, :func:`idle_priority`: the callbacks never wait for it, the GIL is
+not shared and the fit takes only CPU time the node leaves), and again each time the samples
 have grown :data:`GROWTH` times since the last fit (all of them, the check samples never fitted:
 the split is by arrival), and once more when the collector is full.  The result is applied by a
 1 Hz timer in the executor's thread, like a parameter change (one engine configure), only if it
@@ -64,6 +65,23 @@ FILE_KEYS = (
 
 #: a muscle is identified again once its samples have grown this many times since its last fit
 GROWTH = 2
+
+
+def idle_priority() -> None:
+    """Put every thread of this process in the SCHED_IDLE class: it runs only on a core nothing
+    else wants, and any other thread that wakes takes the core at once (the scheduling class is
+    per thread: the BLAS pools numpy and scipy start at import are moved too; threads started
+    later inherit it).  Where that is refused, the niceness is raised to 19 instead.
+    """
+    try:
+        threads = [int(tid) for tid in os.listdir('/proc/self/task')]
+    except OSError:  # no procfs: this thread only
+        threads = [0]
+    for tid in threads:
+        try:
+            os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
+        except (OSError, AttributeError):
+            os.setpriority(os.PRIO_PROCESS, tid, 19)
 
 
 def save_paths(save_file: str, joints: list[str], names: list[str]) -> list[str]:
@@ -173,7 +191,11 @@ class LiveReidentification:
 
     def _start(self, k: int) -> None:
         if self._pool is None:  # a fresh interpreter: no copy of the node's threads or DDS state
-            self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context('spawn'))
+            self._pool = ProcessPoolExecutor(
+                1,
+                mp_context=multiprocessing.get_context('spawn'),
+                initializer=idle_priority,  # the estimates first: the fit takes what is left
+            )
         samples = self.collectors[k].samples()
         self._fitting = k  # it collects on meanwhile
         self._future = self._pool.submit(
