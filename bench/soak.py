@@ -11,9 +11,11 @@ model_node's counters (its last /diagnostics, after the simulator's stop) what i
 includes the first messages, sent before DDS discovery matched the simulator to model_node.  In the
 soak window (from model_node's first OK to 0.1 s before the simulator's stop): model_node publishes
 one estimate per valid fresh input, stamped with the newest input's tick, so the window's ticks
-must come back as twice as many estimates stamped in the window (+-1 at its edges); each missing
-one is a lost (or stale, or rejected) input.  This holds when this script itself missed no tick and
-no estimate: its own sequence gaps are printed too. Resident memory of model_node (VmRSS) is
+must come back as twice as many estimates stamped in the window (+-1 at its edges), less the
+inputs the node skipped on purpose (``skipped behind``: a newer input waited behind them,
+``max_queue_delay``; its counter's growth over the window); each other missing one is a lost (or
+stale, or rejected) input.  This holds when this script itself missed no tick and no estimate: its
+own sequence gaps are printed too. Resident memory of model_node (VmRSS) is
 sampled every second; growth is counted after ``--warm-up``. Every /diagnostics ERROR of model_node
 in the soak window is listed.
 """
@@ -161,6 +163,7 @@ def main() -> None:
                     + ''.join(log.seek(0) or log.read() for log in logs.values())
                 )
         first_ok = len(diagnostics)
+        at_start = {kv.key: kv.value for kv in s.values}
         window = [diagnostics[-1].header.stamp.sec * 10**9 + diagnostics[-1].header.stamp.nanosec]
         start, cpu0 = time.monotonic(), cpu_seconds(model.pid)
         rss: list[tuple[float, int]] = []
@@ -191,6 +194,8 @@ def main() -> None:
     ticks = np.union1d(seen['pressure'].stamps, seen['muscle_state'].stamps)
     ticks = ticks[(ticks >= window[0]) & (ticks <= window[1])]
     estimates = np.asarray(seen['force_estimate'].stamps)
+    # inputs the node chose not to answer (a newer one waited behind them): counted, not lost
+    skipped = int(final.get('skipped behind', 0)) - int(at_start.get('skipped behind', 0))
     in_window = int(((estimates >= window[0]) & (estimates <= window[1])).sum())
     rows = [
         ('soak time [s]', f'{duration:g} at {args.rate:g} Hz'),
@@ -215,7 +220,14 @@ def main() -> None:
             'simulator ticks in the soak window (rate)',
             f'{len(ticks)} ({len(ticks) / ((window[1] - window[0]) * 1e-9):.0f} Hz)',
         ),
-        ('LOST in the window: 2 x ticks - estimates', f'{2 * len(ticks) - in_window}'),
+        (
+            'model_node skipped behind in the window (max_queue_delay)',
+            f'{skipped}',
+        ),
+        (
+            'LOST in the window: 2 x ticks - estimates - skipped behind',
+            f'{2 * len(ticks) - in_window - skipped}',
+        ),
         (
             'model_node rejected / stale skipped',
             f'{sum(int(v) for k, v in final.items() if k.startswith("rejected "))} / '
