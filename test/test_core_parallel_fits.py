@@ -5,6 +5,7 @@ one process, whatever the number of workers.
 import multiprocessing
 import os
 from pathlib import Path
+import signal
 import sys
 
 import numpy as np
@@ -145,3 +146,20 @@ def test_fits_of_a_worker_that_ends_run_here(monkeypatch, capsys):
     assert _same(_figures(found), _figures(serial))
     lines = [line for line in capsys.readouterr().err.splitlines() if 'worker' in line]
     assert len(lines) == 1 and 'a worker process ended (exit code 3' in lines[0], lines
+
+
+def test_ctrl_c_while_workers_start_is_raised_once_they_have():
+    """SIGINT while the workers are forked is held (raised inside a fork's hooks it would be
+    printed and lost) and raised as KeyboardInterrupt right after.
+    """
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        reached = False
+        with pytest.raises(KeyboardInterrupt):
+            with selection._held_interrupt():
+                signal.raise_signal(signal.SIGINT)
+                reached = True  # not interrupted inside
+        assert reached
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)

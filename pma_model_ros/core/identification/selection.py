@@ -17,6 +17,7 @@ import math
 import os
 import signal
 import sys
+import threading
 import time
 from typing import Iterator
 
@@ -239,7 +240,7 @@ def _fit_everything(
         pool = ProcessPoolExecutor(workers, context, _ignore_interrupts)
         started_workers: list = []
         try:
-            with warnings.catch_warnings(), _environment(_WORKER_ENVIRONMENT):
+            with warnings.catch_warnings(), _environment(_WORKER_ENVIRONMENT), _held_interrupt():
                 # Python >= 3.12 warns of a fork beside OpenBLAS's threads (_start_method)
                 warnings.filterwarnings(
                     'ignore', 'This process .* is multi-threaded', DeprecationWarning
@@ -303,6 +304,25 @@ def _ignore_interrupts() -> None:
     handle; the parent then terminates the workers.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextmanager
+def _held_interrupt() -> Iterator[None]:
+    """Ctrl-C (SIGINT) while the workers are forked is held, then raised as it would have been:
+    raised inside a fork's hooks (logging's lock release), it is printed and lost.  Only in the
+    main thread, where Python runs signal handlers.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, _frame: held.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if held:
+            signal.raise_signal(signal.SIGINT)
 
 
 @contextmanager
