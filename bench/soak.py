@@ -5,17 +5,18 @@ Usage: ``bench/run soak`` or ``scripts/netns-run .venv/bin/python bench/soak.py 
 [--quick]`` (DDS must stay on loopback: run it inside scripts/netns-run).  Not a test: it prints a
 table.
 
-Losses are counted two ways.  Totals, by DDS publication sequence numbers (rmw MessageInfo): the
+Losses are counted two ways. Totals, by DDS publication sequence numbers (rmw MessageInfo): the
 last ``pressure`` and ``muscle_state`` sequence numbers are what the simulator published,
 model_node's counters (its last /diagnostics, after the simulator's stop) what it received; this
-includes the first messages, sent before DDS discovery matched the simulator to model_node.  In the
+includes the first messages, sent before DDS discovery matched the simulator to model_node. In the
 soak window (from model_node's first OK to 0.1 s before the simulator's stop): model_node publishes
 one estimate per valid fresh input, stamped with the newest input's tick, so the window's ticks
-must come back as twice as many estimates stamped in the window (+-1 at its edges), less the
-inputs the node skipped on purpose (``skipped behind``: a newer input waited behind them,
-``max_queue_delay``; its counter's growth over the window); each other missing one is a lost (or
-stale, or rejected) input.  This holds when this script itself missed no tick and no estimate: its
-own sequence gaps are printed too. Resident memory of model_node (VmRSS) is
+must come back as twice as many estimates stamped in the window (+-1 at its edges), less the inputs
+the node skipped on purpose (``skipped behind``: a newer input waited behind them,
+``max_queue_delay``; its counter's growth from the report that opens the window to the last one, so
+a few skips just outside the window count too: the row may read a few below 0); each other missing
+one is a lost (or stale, or rejected) input. This holds when this script itself missed no tick and
+no estimate: its own sequence gaps are printed too. Resident memory of model_node (VmRSS) is
 sampled every second; growth is counted after ``--warm-up``. Every /diagnostics ERROR of model_node
 in the soak window is listed.
 """
