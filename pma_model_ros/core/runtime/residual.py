@@ -279,15 +279,8 @@ class Residuals:
         interior = (
             self._shortest.item(k) <= length <= self._longest.item(k) and not flags & _LENGTH_OUT
         )
-        slot = self._written.item(k) % self._capacity
-        newest = self._newest[k] = max(self._newest.item(k), stamp)
-        self._time[k, slot] = stamp
-        self._reach[k, slot] = newest
-        self._residuals[k, slot] = 100.0 * (force - served) / max_force
-        self._bands[k, slot] = self._interior.item(k) if interior else self._edge.item(k)
-        self._inside[k, slot] = interior
-        self._written[k] += 1
-        self._counts[k, _PAIRED] += 1
+        band = self._interior.item(k) if interior else self._edge.item(k)
+        self._store(k, stamp, 100.0 * (force - served) / max_force, band, interior)
         return gauge, length, force
 
     def measured_all(
@@ -328,17 +321,22 @@ class Residuals:
         inside = (self._shortest[ks] <= length) & (length <= self._longest[ks])  # HeldOutBand.at
         interior = inside & ~held
         band = np.where(interior, self._interior[ks], self._edge[ks])
-        residual = 100.0 * (forces - served) / self._max_force[ks]
+        self._store(ks, stamp, 100.0 * (forces - served) / self._max_force[ks], band, interior)
+        return list(zip(ks.tolist(), gauge.tolist(), length.tolist(), forces.tolist()))
+
+    def _store(self, ks, stamp: int, residuals, bands, interior) -> None:
+        """Paired samples of the muscles ``ks`` (an index or an array of them) stamped ``stamp``
+        [ns]: residual and band [%], judged by the interior figure; into their rings.
+        """
         slots = self._written[ks] % self._capacity
-        newest = self._newest[ks] = np.maximum(self._newest[ks], stamp)
+        self._newest[ks] = np.maximum(self._newest[ks], stamp)
         self._time[ks, slots] = stamp
-        self._reach[ks, slots] = newest
-        self._residuals[ks, slots] = residual
-        self._bands[ks, slots] = band
+        self._reach[ks, slots] = self._newest[ks]
+        self._residuals[ks, slots] = residuals
+        self._bands[ks, slots] = bands
         self._inside[ks, slots] = interior
         self._written[ks] += 1
         self._counts[ks, _PAIRED] += 1
-        return list(zip(ks.tolist(), gauge.tolist(), length.tolist(), forces.tolist()))
 
     # --- the window
     def figures(self, k: int, now: int) -> Figures | None:
