@@ -2,6 +2,7 @@
 not fitted, the atomic swap and the written file.
 """
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,7 @@ def sweep(fmap, parameters, gain, lengths=None, seed=1):
 
 
 def collector(parameters, samples):
-    c = R.SampleCollector(*R.envelope(muscle_model(parameters)))
+    c = R.SampleCollector.of(muscle_model(parameters))
     for row in samples:
         c.add(*row)
     return c
@@ -169,14 +170,14 @@ def test_bad_samples_are_not_kept(shipped):
     model = muscle_model(shipped)
     (p0, p1), (l0, l1) = R.envelope(model)
     # 0 Pa to the file's 675 kPa (above the rated 600 kPa); the braid's full contraction
-    # L0 / cos(Theta0) / sqrt(3) to L0 0.3 m
-    assert (p0, p1, l1) == (0.0, 675e3, 0.3)
+    # L0 / cos(Theta0) / sqrt(3) to L0 0.3 m plus the 5 % the calibration may move it
+    assert (p0, p1) == (0.0, 675e3) and l1 == pytest.approx(0.3 * 1.05)
     assert l0 == pytest.approx(0.3 / np.cos(0.49916416607) / np.sqrt(3))
     c = R.SampleCollector((p0, p1), (l0, l1))
     assert not c.add(float('nan'), 0.25, 100.0)
     assert not c.add(3e5, float('inf'), 100.0)
     assert not c.add(-1e3, 0.25, 100.0)  # below 0 Pa gauge
-    assert not c.add(3e5, 0.301, 100.0)  # beyond the rest length
+    assert not c.add(3e5, 0.316, 100.0)  # beyond the rest length and the calibration's 5 %
     assert not c.add(3e5, 0.25, -50.0)  # a load cell pushing
     assert c.add(3e5, 0.25, 100.0)
     assert c.add(3e5, 0.299, 100.0)  # beyond the identified 0.296 m, short of L0: kept
@@ -200,3 +201,21 @@ def test_saved_file_serves_the_served_forces(shipped, fmap, scaled, tmp_path):
         muscle_model(loaded).force(p, L).force, snapshot.model.force(p, L).force, rtol=1e-9
     )
     assert served.revert() is served.file
+
+
+def test_a_rest_length_given_1_cm_short_keeps_the_specimens_longest_rows(shipped, fmap):
+    """The DMSP-20-300 file with L0 given 0.29 m (1 cm short of its 0.3 m) and identified up to
+    0.282 m: Table A1's 0.296 m row is inside the envelope (up to 0.29 x 1.05 = 0.3045 m), so a
+    sweep of every row is kept whole, and its length span is judged in shares of the given L0.
+    """
+    short = copy.deepcopy(shipped)
+    short['muscle']['nominal_length'] = 0.29
+    short['length_range'] = [0.222, 0.282]
+    c = R.SampleCollector.of(muscle_model(short))
+    samples = sweep(fmap, shipped, GAIN)
+    samples = samples[samples[:, 2] >= 0]  # (a slack muscle's noise below -5 N is not kept)
+    for row in samples:
+        assert c.add(*row)
+    coverage = c.coverage()
+    assert coverage.lengths_m == (0.222, 0.296)
+    assert coverage.length_span == pytest.approx((0.296 - 0.222) / 0.29)

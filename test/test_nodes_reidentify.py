@@ -194,7 +194,9 @@ def test_a_drift_is_refitted_as_its_samples_double_until_the_collector_is_full(p
     samples = samples[samples[:, 2] >= 0]
     n = len(samples)
     c = hook.collectors[0]
-    hook.collectors[0] = SampleCollector(c.p_range, c.l_range, c.rule, capacity=3 * n)
+    hook.collectors[0] = SampleCollector(
+        c.p_range, c.l_range, c.rule, capacity=3 * n, rest_length=c.rest_length
+    )
     hook._pool = pool = InstantRefusals()
     node.residual.levels[0] = Level.WARN
     hook.poll()

@@ -43,7 +43,6 @@ from ..core.files.param_file import muscle_parameters, NODE_DEFAULTS, node_setti
 from ..core.runtime.health import Level
 from ..core.runtime.reidentify import (
     CoverageRule,
-    envelope,
     reidentify,
     SampleCollector,
     Served,
@@ -118,7 +117,7 @@ class LiveReidentification:
             for block in ([muscle_parameters(nested, n) for n in names] if names else [nested])
         ]
         self.served = [Served(b, s) for b, s in zip(blocks, sources)]
-        self.collectors = [SampleCollector(*envelope(s.file.model), rule) for s in self.served]
+        self.collectors = [SampleCollector.of(s.file.model, rule) for s in self.served]
         self.state = ['watching' if flat['reidentify.enabled'] else 'off'] * len(blocks)
         #: samples of each muscle's last fit since it started collecting (0: none)
         self.fitted = [0] * len(blocks)

@@ -2,10 +2,10 @@
 
 Samples (gauge pressure [Pa], length [m], measured force [N]) are collected by
 :class:`SampleCollector` inside the muscle's physical envelope (:func:`envelope`: 0 Pa to the
-higher of its rated and identified pressures, the braid's full contraction to its rest length,
-whatever lengths and pressures its file was identified on: another specimen is run over others);
-samples outside it, non-finite or with a negative force below ``-force_floor`` are not kept
-(counted in ``rejected``).
+higher of its rated and identified pressures, the braid's full contraction to its rest length
+plus the calibration's 5 %, whatever lengths and pressures its file was identified on: another
+specimen is run over others); samples outside it, non-finite or with a negative force below
+``-force_floor`` are not kept (counted in ``rejected``).
 
 **Enough coverage** (:class:`CoverageRule`, :meth:`SampleCollector.coverage`), judged on the box
 the kept samples span, the one a new fit is identified and served on: cut into ``pressure_bins`` x
@@ -41,7 +41,7 @@ import numpy as np
 
 from ..files.param_file import GIVEN_LENGTH, muscle_model, spec_mapping
 from ..files.param_writer import build_parameters, model_entry, write_parameters
-from ..identification.calibration import Calibration
+from ..identification.calibration import Calibration, LENGTH_BOUND
 from ..identification.force_map import cell_means
 from ..identification.protocols import check_fit_map, max_error_percent
 from ..identification.selection import identify_all
@@ -95,16 +95,21 @@ class Coverage:
 def envelope(model: MuscleModel) -> tuple[tuple[float, float], tuple[float, float]]:
     """Where samples of the muscle of ``model`` are kept: gauge pressures [Pa] from 0 to the
     higher of the rated and the identified one, lengths [m] from the braid's full contraction to
-    the rest length (or the longest identified length, if longer).
+    the rest length plus :data:`~..identification.calibration.LENGTH_BOUND` of it (how far the
+    calibration moves a given L0 that the samples prove too short: a rest length measured 1 cm
+    short is within it) or the longest identified length, if longer.
     """
     spec, domain = model.spec, model.domain
     known = domain.pressure_max if math.isfinite(domain.pressure_max) else 0.0
     top = max(spec.max_pressure, known)
-    return (0.0, top), (geo.shortest_length(spec), max(spec.nominal_length, domain.length_max))
+    longest = max(spec.nominal_length * (1 + LENGTH_BOUND), domain.length_max)
+    return (0.0, top), (geo.shortest_length(spec), longest)
 
 
 class SampleCollector:
-    """The measured samples of one muscle inside its envelope (:func:`envelope`)."""
+    """The measured samples of one muscle inside its envelope (:func:`envelope`, :meth:`of`);
+    the length span is judged in shares of ``rest_length`` [m] (default: the longest length kept).
+    """
 
     def __init__(
         self,
@@ -113,9 +118,11 @@ class SampleCollector:
         rule: CoverageRule = CoverageRule(),
         capacity: int = 50_000,
         force_floor: float = 5.0,
+        rest_length: float | None = None,
     ) -> None:
         self.p_range = (float(pressure_range[0]), float(pressure_range[1]))
         self.l_range = (float(length_range[0]), float(length_range[1]))
+        self.rest_length = float(rest_length or self.l_range[1])
         if not (self.p_range[1] > self.p_range[0] and self.l_range[1] > self.l_range[0]):
             raise ValueError(f'empty range: pressure {pressure_range}, length {length_range}')
         self.rule, self.capacity, self.force_floor = rule, capacity, force_floor
@@ -123,6 +130,11 @@ class SampleCollector:
         self._n = 0
         self.rejected = 0
         self._lock = threading.Lock()
+
+    @classmethod
+    def of(cls, model: MuscleModel, rule: CoverageRule = CoverageRule()) -> SampleCollector:
+        """The collector of the muscle of ``model``: its envelope, spans in shares of its L0."""
+        return cls(*envelope(model), rule, rest_length=model.spec.nominal_length)
 
     def __len__(self) -> int:
         return self._n
@@ -169,7 +181,7 @@ class SampleCollector:
         share = float(filled.mean())
         lengths = int(filled.any(axis=0).sum())
         p_span = float((high[0] - low[0]) / self.p_range[1])
-        l_span = float((high[1] - low[1]) / self.l_range[1])
+        l_span = float((high[1] - low[1]) / self.rest_length)
         enough = (
             share >= r.cell_share
             and lengths >= r.lengths
