@@ -200,7 +200,8 @@ def test_many_muscles_at_once_are_judged_as_one_at_a_time():
     for stamp, which in ((t - S // 100, ~now.astype(bool)), (t, now.astype(bool))):
         many.served_all(stamp, which, served, gauge, length, flags)
     taken = [one.measured(k, t, row[4], t) for k, row in enumerate(rows)]
-    assert many.measured_all(np.arange(n), t, np.array([r[4] for r in rows]), t) == [
+    taken_all = many.measured_all(np.arange(n), t, np.array([r[4] for r in rows]), t)
+    assert list(zip(*(a.tolist() for a in taken_all))) == [
         (k, *sample) for k, sample in enumerate(taken) if sample is not None
     ]
     assert [k for k, s in enumerate(taken) if s is not None] == [0, 1, 2]
@@ -220,11 +221,87 @@ def test_many_muscles_at_once_are_judged_as_one_at_a_time():
         ]
     # a stale stamp (1 s old against 0.5 s) and a force beyond twice the max force: refused alike
     assert one.measured(0, t, 150.0, t + S) is None
-    assert many.measured_all(np.array([0]), t, np.array([150.0]), t + S) == []
+    assert not many.measured_all(np.array([0]), t, np.array([150.0]), t + S)[0].size
     assert one.measured(1, t, 2500.0, t) is None
-    assert many.measured_all(np.array([1]), t, np.array([2500.0]), t) == []
+    assert not many.measured_all(np.array([1]), t, np.array([2500.0]), t)[0].size
     assert one.counts == many.counts and one.last_problem == many.last_problem
     assert one.last_problem[0] == 'stale measured force: stamp 1 s from now'
+
+
+def test_a_combined_message_of_every_muscle_is_judged_as_one_at_a_time(monkeypatch):
+    """The combined input's usual message (every muscle monitored, each force taken and paired
+    with the newest stamp's estimate) takes :meth:`Residuals._measured_every`; its samples are
+    the muscle-by-muscle path's: +5 % inside the held-out lengths (5 % band), -1 % beyond them and
+    +1 % held (8 % edge band), of 1000 N.
+    """
+    t = 5 * S
+    rows = [  # served [N], gauge [Pa], length [m], flags, measured [N]
+        (100.0, 3e5, 0.235, 0, 150.0),
+        (100.0, 3e5, 0.255, 0, 90.0),
+        (100.0, 3e5, 0.26, int(Flag.LENGTH_OUT_OF_RANGE), 110.0),
+    ]
+    n = len(rows)
+    one, many = (Residuals([BAND] * n, [6e5] * n, ['martens'] * n, AGE) for _ in range(2))
+    served, gauge, length, flags, measured = (np.array(c) for c in zip(*rows))
+    flags = flags.astype(np.uint16)
+    every = []
+    judged_every = many._measured_every
+    monkeypatch.setattr(
+        many, '_measured_every', lambda *a: every.append(judged_every(*a)) or every[-1]
+    )
+    for stamp in (t, t + S // 1000):
+        for k, row in enumerate(rows):
+            one.served(k, stamp, *row[:4])
+        many.served_all(stamp, None, served, gauge, length, flags)
+        taken = [one.measured(k, stamp, row[4], stamp) for k, row in enumerate(rows)]
+        taken_all = many.measured_all(np.arange(n), stamp, measured, stamp)
+        assert list(zip(*(a.tolist() for a in taken_all))) == [
+            (k, *sample) for k, sample in enumerate(taken)
+        ]
+    assert len(every) == 2 and all(e is not None for e in every)  # the fast path, both times
+    assert (
+        one.counts
+        == many.counts
+        == [{'paired': 2, 'rejected': 0, 'unpaired': 0, 'unjudged': 0}] * n
+    )
+    for r in (one, many):
+        for slot in (0, 1):
+            kept = [
+                (r._residuals[k, slot], r._bands[k, slot], r._inside[k, slot]) for k in range(n)
+            ]
+            assert kept == [
+                pytest.approx([5.0, 5.0, 1.0]),
+                pytest.approx([-1.0, 8.0, 0.0]),
+                pytest.approx([1.0, 8.0, 0.0]),
+            ]
+
+
+def test_a_measured_force_pairs_with_the_newest_estimate_of_its_stamp():
+    """Estimates stamped s, s + 1 ms, s again (the inputs' stamps went back) and s + 2 ms: a
+    measured force stamped s, arriving after all four, is judged against the second estimate of
+    s (served 200 N: +5 % of 1000 N at 250 N), on both paths; one of a stamp no longer estimated
+    (s - 1 ms) is unpaired.
+    """
+    t, ms = 5 * S, S // 1000
+    one, many = (Residuals([BAND] * 2, [6e5] * 2, ['martens'] * 2, AGE) for _ in range(2))
+    for stamp, force in ((t, 100.0), (t + ms, 300.0), (t, 200.0), (t + 2 * ms, 400.0)):
+        for k in range(2):
+            one.served(k, stamp, force, 3e5, 0.235, 0)
+        many.served_all(
+            stamp, None, *(np.full(2, v) for v in (force, 3e5, 0.235)), np.zeros(2, np.uint16)
+        )
+    now = t + 3 * ms
+    assert one.measured(0, t, 250.0, now) == (3e5, 0.235, 250.0)
+    taken = many.measured_all(np.arange(2), t, np.full(2, 250.0), now)
+    assert taken[0].tolist() == [0, 1] and taken[3].tolist() == [250.0, 250.0]
+    assert one._residuals[0, 0] == pytest.approx(5.0)
+    assert many._residuals[:, 0] == pytest.approx([5.0, 5.0])
+    assert one.measured(0, t - ms, 250.0, now) is None
+    assert not many.measured_all(np.arange(2), t - ms, np.full(2, 250.0), now)[0].size
+    assert (
+        one.counts[0]['unpaired'] == 1
+        and many.counts == [{'paired': 1, 'rejected': 0, 'unpaired': 1, 'unjudged': 0}] * 2
+    )
 
 
 def test_a_sample_arriving_late_is_in_the_window_of_the_ones_it_came_with():

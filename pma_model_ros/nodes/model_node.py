@@ -407,7 +407,7 @@ class ModelNode(ManagedNode):
         if self.active:
             taken = self.inputs.measured_forces(data, self.now())
             if self.reidentification.collecting:  # (one test per message while it is not)
-                for sample in taken:
+                for sample in zip(*(a.tolist() for a in taken)):
                     self.reidentification.add_sample(*sample)
 
     def _on_command(self, k: int, data: bytes) -> float | None:

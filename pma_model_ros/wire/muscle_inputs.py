@@ -33,7 +33,7 @@ from .cdr import (
 )
 from .joint_state import JointIndex, JointStateReader
 from ..core.runtime.engine import Engine
-from ..core.runtime.residual import Residuals
+from ..core.runtime.residual import Residuals, Taken
 
 Deserializers = dict[str, Callable[[bytes], object]]
 _IN_ORDER = slice(None)  #: a JointState's values are the muscles', in their order
@@ -256,10 +256,10 @@ class MuscleInputs:
         out.values[:] = pressures
         return out
 
-    def measured_forces(self, data: bytes, now: int) -> list[tuple[int, float, float, float]]:
+    def measured_forces(self, data: bytes, now: int) -> Taken:
         """A ``measured_forces`` JointState (measured tensions [N] in ``effort``; the muscles it
-        does not name are not measured) into :attr:`residual`: (muscle, gauge pressure [Pa],
-        length [m], force [N]) of each sample that entered the window.
+        does not name are not measured) into :attr:`residual`: the muscles, gauge pressures [Pa],
+        lengths [m] and forces [N] of the samples that entered the window.
         """
         reader, index = self._combined['measured_forces']
         try:

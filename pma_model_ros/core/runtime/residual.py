@@ -1,9 +1,9 @@
 """The residual of the served force against a measured one, and the drift monitor over it (no
 ROS): model_node's ``residual.*`` and ``bag estimate``'s figures.
 
-**Pairing.** A measured force [N] of a muscle is paired with the estimate of the same stamp [ns]
-(:meth:`Residuals.served` keeps each muscle's last :data:`SERVED` estimates: stamp, force, gauge
-pressure, length, flags; a second estimate at one stamp replaces the first, the one made of
+**Pairing.** A measured force [N] of a muscle is paired with its newest estimate of the same stamp
+[ns] (:meth:`Residuals.served` keeps each muscle's last :data:`SERVED` estimates: stamp, force,
+gauge pressure, length, flags; a second estimate at one stamp replaces the first, the one made of
 both inputs of that stamp).  A measured force with no estimate of its stamp is ``unpaired``.
 
 **Checks** (:func:`measured_problem`): a measured force is refused (``rejected``, with the reason
@@ -54,8 +54,13 @@ MEASURED_RANGE = (-0.1, 2.0)
 #: the counts of :attr:`Residuals.counts`, in the order /diagnostics lists them
 COUNTS = ('paired', 'rejected', 'unpaired', 'unjudged')
 _PAIRED, _REJECTED, _UNPAIRED, _UNJUDGED = range(len(COUNTS))
+_SLOTS = np.arange(SERVED)
 _PRESSURE_OUT = int(Flag.PRESSURE_OUT_OF_RANGE)
 _LENGTH_OUT = int(Flag.LENGTH_OUT_OF_RANGE)
+#: what :meth:`Residuals.measured_all` returns: the muscles whose samples entered the window, and
+#: each one's gauge pressure [Pa], length [m] and measured force [N]
+Taken = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+_NOTHING: Taken = (np.empty(0, np.intp), np.empty(0), np.empty(0), np.empty(0))
 #: the command that identifies a muscle again from a recording of its measured force
 REFIT = 'pma-model fit --bag <recording> --muscle <spec.yaml> --model {} --out <parameters.yaml>'
 
@@ -160,6 +165,7 @@ class Residuals:
         self._served = np.zeros((n, SERVED, 3))  # force [N], gauge [Pa], length [m]
         self._flags = np.zeros((n, SERVED), np.uint16)
         self._head = np.zeros(n, np.intp)
+        self._column_stamp: int | None = None  # served_all's newest stamp (None: not fed by it)
         self._all = np.arange(n)
         # the samples: a ring per muscle, in arrival order, of stamp [ns], the newest stamp so
         # far [ns] (never decreasing: where the window starts is found by bisection), residual
@@ -204,6 +210,9 @@ class Residuals:
             if figures
             else (np.empty(0),) * 5
         )
+        #: [N] the measured forces taken (:data:`MEASURED_RANGE`), NaN where not monitored
+        self._low, self._high = (f * self._max_force for f in MEASURED_RANGE)
+        self._every_monitored = bool(np.isfinite(self._max_force).all())
 
     # --- the estimates
     def served(self, k: int, stamp: int, force: float, gauge: float, length: float, flags: int):
@@ -219,25 +228,22 @@ class Residuals:
         self._flags[k, head] = flags
 
     def served_all(self, stamp: int, which: np.ndarray | None, forces, gauges, lengths, flags):
-        """:meth:`served` of the muscles ``which`` (a mask; None: all); arrays over every
-        muscle.
+        """:meth:`served` of the muscles ``which`` (a mask; None: all), arrays over every muscle:
+        a combined input's, whose muscles share each message's stamp, so every ring keeps a stamp
+        in one slot, at one head (a muscle not estimated at a stamp keeps an older one there).  A
+        monitor is fed by :meth:`served` or by this, never both.
         """
-        ks = self._all if which is None else np.flatnonzero(which)
-        if ks.size:
-            self._keep(ks, stamp, forces[ks], gauges[ks], lengths[ks], flags[ks])
-
-    def _keep(self, ks: np.ndarray, stamp: int, forces, gauges, lengths, flags) -> None:
-        """Each muscle of ``ks`` served ``forces`` ... for ``stamp``: into its ring, a second
-        estimate of one stamp in the place of the first.
-        """
-        heads = self._head[ks]
-        heads = np.where(self._stamp[ks, heads] == stamp, heads, (heads + 1) % SERVED)
-        self._head[ks] = heads
-        self._stamp[ks, heads] = stamp
-        self._served[ks, heads, 0] = forces
-        self._served[ks, heads, 1] = gauges
-        self._served[ks, heads, 2] = lengths
-        self._flags[ks, heads] = flags
+        head = self._head.item(0)
+        if stamp != self._column_stamp:  # (the same stamp again: its slot, the first replaced)
+            head = (head + 1) % SERVED
+            self._head[:] = head
+            self._column_stamp = stamp
+        rows = slice(None) if which is None else np.flatnonzero(which)
+        self._stamp[rows, head] = stamp
+        self._served[rows, head, 0] = forces[rows]
+        self._served[rows, head, 1] = gauges[rows]
+        self._served[rows, head, 2] = lengths[rows]
+        self._flags[rows, head] = flags[rows]
 
     # --- the measured forces
     def reject(self, k: int, problem: str) -> None:
@@ -259,18 +265,19 @@ class Residuals:
         max_force = self._max_force.item(k)
         if not math.isfinite(max_force):
             return None
-        low, high = MEASURED_RANGE
-        if not low * max_force <= force <= high * max_force:  # NaN too
+        if not self._low.item(k) <= force <= self._high.item(k):  # NaN too
             self.reject(k, measured_problem(force, max_force))
             return None
         if not fresh(stamp, now, self.max_age):
             self.reject(k, f'stale measured force: stamp {(now - stamp) * 1e-9:.3g} s from now')
             return None
-        at = np.flatnonzero(self._stamp[k] == stamp)
-        if not at.size:
-            self._counts[k, _UNPAIRED] += 1
-            return None
-        at = at.item(0)
+        at = self._head.item(k)
+        if self._stamp.item(k, at) != stamp:  # not the newest estimate's: the newest of its stamp
+            same = np.flatnonzero(self._stamp[k] == stamp)
+            if not same.size:
+                self._counts[k, _UNPAIRED] += 1
+                return None
+            at = same[np.argmin((at - same) % SERVED)].item()
         served, gauge, length = self._served[k, at].tolist()
         flags = self._flags.item(k, at)
         if flags & _PRESSURE_OUT or gauge > self.pressure_max.item(k):
@@ -283,19 +290,21 @@ class Residuals:
         self._store(k, stamp, 100.0 * (force - served) / max_force, band, interior)
         return gauge, length, force
 
-    def measured_all(
-        self, ks: np.ndarray, stamp: int, forces: np.ndarray, now: int
-    ) -> list[tuple[int, float, float, float]]:
-        """Measured ``forces`` [N] of the muscles ``ks``, all stamped ``stamp`` [ns], at ``now``
-        [ns]: (muscle, gauge [Pa], length [m], force [N]) of each that entered the window; the
-        others are counted refused, unpaired or unjudged (muscles not monitored: neither).
+    def measured_all(self, ks: np.ndarray, stamp: int, forces: np.ndarray, now: int) -> Taken:
+        """Measured ``forces`` [N] of the muscles ``ks`` (ascending), all stamped ``stamp`` [ns],
+        at ``now`` [ns]: the muscles, gauge pressures [Pa], lengths [m] and forces [N] of those
+        that entered the window (:data:`Taken`); the others are counted refused, unpaired or
+        unjudged (muscles not monitored: neither).
         """
+        if ks.size == len(self) and self._every_monitored and self._column_stamp is not None:
+            taken = self._measured_every(stamp, forces, now)
+            if taken is not None:
+                return taken
         monitored = np.isfinite(self._max_force[ks])
         ks, forces = ks[monitored], forces[monitored]
         if not ks.size:
-            return []
-        low, high = (f * self._max_force[ks] for f in MEASURED_RANGE)
-        bad = ~((forces >= low) & (forces <= high))  # NaN too
+            return _NOTHING
+        bad = ~((forces >= self._low[ks]) & (forces <= self._high[ks]))  # NaN too
         for k, force in zip(ks[bad].tolist(), forces[bad].tolist()):
             self.reject(k, measured_problem(force, self._max_force.item(k)))
         ks, forces = ks[~bad], forces[~bad]
@@ -304,11 +313,13 @@ class Residuals:
                 self.reject(
                     k, f'stale measured force: stamp {(now - stamp) * 1e-9:.3g} s from now'
                 )
-            return []
+            return _NOTHING
         same = self._stamp[ks] == stamp
         paired = same.any(axis=1)
         self._counts[ks[~paired], _UNPAIRED] += 1
-        ks, forces, at = ks[paired], forces[paired], same[paired].argmax(axis=1)
+        ks, forces, same = ks[paired], forces[paired], same[paired]
+        # each one's newest estimate of the stamp: the fewest slots behind its ring's head
+        at = np.where(same, (self._head[ks, None] - _SLOTS) % SERVED, SERVED).argmin(axis=1)
         served, gauge, length = self._served[ks, at].T
         flags = self._flags[ks, at]
         unjudged = (flags & _PRESSURE_OUT).astype(bool) | (gauge > self.pressure_max[ks])
@@ -317,26 +328,61 @@ class Residuals:
         ks, forces, served, gauge, length, flags = (
             a[judged] for a in (ks, forces, served, gauge, length, flags)
         )
-        held = (flags & _LENGTH_OUT).astype(bool)
-        inside = (self._shortest[ks] <= length) & (length <= self._longest[ks])  # HeldOutBand.at
-        interior = inside & ~held
+        return self._judge(ks, stamp, forces, served, gauge, length, flags)
+
+    def _measured_every(self, stamp: int, forces: np.ndarray, now: int) -> Taken | None:
+        """:meth:`measured_all` of a combined message measuring every muscle, all monitored,
+        when each force is taken, fresh, paired with the estimate of the newest stamp
+        (:meth:`served_all`) and judged (a combined input's every message in a run); None, with
+        nothing counted, otherwise.
+        """
+        head = self._head.item(0)
+        if not (
+            fresh(stamp, now, self.max_age)
+            and ((forces >= self._low) & (forces <= self._high)).all()  # NaN: False
+            and (self._stamp[:, head] == stamp).all()
+        ):
+            return None
+        flags = self._flags[:, head]
+        served, gauge, length = self._served[:, head].T
+        if (flags & _PRESSURE_OUT).any() or (gauge > self.pressure_max).any():
+            return None
+        return self._judge(self._all, stamp, forces, served, gauge, length, flags)
+
+    def _judge(self, ks, stamp: int, forces, served, gauge, length, flags) -> Taken:
+        """Paired samples of the muscles ``ks`` judged (measured ``forces`` and ``served`` [N]
+        at ``gauge`` [Pa] and ``length`` [m], ``flags``): each against its band at its length,
+        the interior figure inside the held-out lengths and not held, else the edge figure
+        (:meth:`~pma_model_ros.core.identification.validation.HeldOutBand.at`); stored.
+        """
+        inside = (self._shortest[ks] <= length) & (length <= self._longest[ks])
+        interior = inside & ((flags & _LENGTH_OUT) == 0)
         band = np.where(interior, self._interior[ks], self._edge[ks])
         self._store(ks, stamp, 100.0 * (forces - served) / self._max_force[ks], band, interior)
-        return list(zip(ks.tolist(), gauge.tolist(), length.tolist(), forces.tolist()))
+        return ks, gauge, length, forces
 
     def _store(self, ks, stamp: int, residuals, bands, interior) -> None:
-        """Paired samples of the muscles ``ks`` (an index or an array of them) stamped ``stamp``
-        [ns]: residual and band [%], judged by the interior figure; into their rings.
+        """Paired samples of the muscles ``ks`` (an index or an array of them; ``self._all``:
+        every muscle, by whole-array updates) stamped ``stamp`` [ns]: residual and band [%],
+        judged by the interior figure; into their rings.
         """
-        slots = self._written[ks] % self._capacity
-        self._newest[ks] = np.maximum(self._newest[ks], stamp)
+        if ks is self._all:
+            slots, newest = self._written % self._capacity, self._newest
+            np.maximum(newest, stamp, out=newest)
+        else:
+            slots = self._written[ks] % self._capacity
+            newest = self._newest[ks] = np.maximum(self._newest[ks], stamp)
         self._time[ks, slots] = stamp
-        self._reach[ks, slots] = self._newest[ks]
+        self._reach[ks, slots] = newest
         self._residuals[ks, slots] = residuals
         self._bands[ks, slots] = bands
         self._inside[ks, slots] = interior
-        self._written[ks] += 1
-        self._counts[ks, _PAIRED] += 1
+        if ks is self._all:
+            self._written += 1
+            self._counts[:, _PAIRED] += 1
+        else:
+            self._written[ks] += 1
+            self._counts[ks, _PAIRED] += 1
 
     # --- the window
     def figures(self, k: int, now: int) -> Figures | None:
