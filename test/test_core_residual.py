@@ -230,11 +230,12 @@ def test_many_muscles_at_once_are_judged_as_one_at_a_time():
 
 def test_a_combined_message_of_every_muscle_is_judged_as_one_at_a_time(monkeypatch):
     """The combined input's usual message (every muscle monitored, each force taken and paired
-    with the newest stamp's estimate) takes :meth:`Residuals._measured_every`; its samples are
-    the muscle-by-muscle path's: +5 % inside the held-out lengths (5 % band), -1 % beyond them and
+    with the estimate of the newest stamp, or of the one before when it arrives after the next
+    inputs' estimate) takes :meth:`Residuals._measured_every`; its samples are the
+    muscle-by-muscle path's: +5 % inside the held-out lengths (5 % band), -1 % beyond them and
     +1 % held (8 % edge band), of 1000 N.
     """
-    t = 5 * S
+    ms = S // 1000
     rows = [  # served [N], gauge [Pa], length [m], flags, measured [N]
         (100.0, 3e5, 0.235, 0, 150.0),
         (100.0, 3e5, 0.255, 0, 90.0),
@@ -249,23 +250,30 @@ def test_a_combined_message_of_every_muscle_is_judged_as_one_at_a_time(monkeypat
     monkeypatch.setattr(
         many, '_measured_every', lambda *a: every.append(judged_every(*a)) or every[-1]
     )
-    for stamp in (t, t + S // 1000):
-        for k, row in enumerate(rows):
-            one.served(k, stamp, *row[:4])
-        many.served_all(stamp, None, served, gauge, length, flags)
-        taken = [one.measured(k, stamp, row[4], stamp) for k, row in enumerate(rows)]
-        taken_all = many.measured_all(np.arange(n), stamp, measured, stamp)
+    t = 5 * S
+    for estimated, stamp in (
+        ((t,), t),
+        ((t + ms,), t + ms),
+        ((t + 2 * ms, t + 3 * ms), t + 2 * ms),
+    ):
+        for s in estimated:
+            for k, row in enumerate(rows):
+                one.served(k, s, *row[:4])
+            many.served_all(s, None, served, gauge, length, flags)
+        now = estimated[-1]
+        taken = [one.measured(k, stamp, row[4], now) for k, row in enumerate(rows)]
+        taken_all = many.measured_all(np.arange(n), stamp, measured, now)
         assert list(zip(*(a.tolist() for a in taken_all))) == [
             (k, *sample) for k, sample in enumerate(taken)
         ]
-    assert len(every) == 2 and all(e is not None for e in every)  # the fast path, both times
+    assert len(every) == 3 and all(e is not None for e in every)  # the fast path, every time
     assert (
         one.counts
         == many.counts
-        == [{'paired': 2, 'rejected': 0, 'unpaired': 0, 'unjudged': 0}] * n
+        == [{'paired': 3, 'rejected': 0, 'unpaired': 0, 'unjudged': 0}] * n
     )
     for r in (one, many):
-        for slot in (0, 1):
+        for slot in range(3):
             kept = [
                 (r._residuals[k, slot], r._bands[k, slot], r._inside[k, slot]) for k in range(n)
             ]

@@ -238,6 +238,8 @@ class Residuals:
             head = (head + 1) % SERVED
             self._head[:] = head
             self._column_stamp = stamp
+            if which is not None:
+                self._stamp[:, head] = -1  # no estimate of this stamp (yet) for the others
         rows = slice(None) if which is None else np.flatnonzero(which)
         self._stamp[rows, head] = stamp
         self._served[rows, head, 0] = forces[rows]
@@ -332,11 +334,14 @@ class Residuals:
 
     def _measured_every(self, stamp: int, forces: np.ndarray, now: int) -> Taken | None:
         """:meth:`measured_all` of a combined message measuring every muscle, all monitored,
-        when each force is taken, fresh, paired with the estimate of the newest stamp
-        (:meth:`served_all`) and judged (a combined input's every message in a run); None, with
-        nothing counted, otherwise.
+        when each force is taken, fresh, paired with the estimate of the newest stamp or of the
+        one before (:meth:`served_all`; a measured force arriving after the next inputs' estimate)
+        and judged (a combined input's every message in a run); None, with nothing counted,
+        otherwise.
         """
         head = self._head.item(0)
+        if self._stamp.item(0, head) != stamp:
+            head = (head - 1) % SERVED
         if not (
             fresh(stamp, now, self.max_age)
             and ((forces >= self._low) & (forces <= self._high)).all()  # NaN: False
