@@ -449,13 +449,13 @@ class Residuals:
         """Muscle ``k``'s /diagnostics keys of the residual."""
         if self.bands[k] is None:
             return {'residual': 'unknown: the parameter file has no held_out errors'}
-        counts = self.counts[k]
+        counts = self._counts[k].tolist()
         values = {
             'residual [% of max force]': (
                 figures.describe() if figures is not None else 'too few samples in the window'
             ),
             'residual level': self.levels[k].name,
-            'residual samples': ', '.join(f'{n} {name}' for name, n in counts.items()),
+            'residual samples': ', '.join(f'{n} {name}' for name, n in zip(COUNTS, counts)),
         }
         if self.last_problem[k]:
             values['residual last refused'] = self.last_problem[k]
