@@ -483,13 +483,16 @@ def responders(
     return nodes | {'relay': relay}
 
 
-def fit_loop() -> int:
+def fit_loop(busy: bool = False) -> int:
     """Re-identification fits, one after the other until terminated, as model_node's worker
     runs them (:func:`~pma_model_ros.core.runtime.reidentify.reidentify`, every thread in the
     SCHED_IDLE class): the DMSP-10-250 file on 3 noisy samples at 40 pressures at each length
-    of Table A2 scaled by 0.85.
+    of Table A2 scaled by 0.85.  ``busy`` (``--busy``): a loop that only spins, in the same
+    class, instead: what any busy neighbour costs, the fit's own work (memory, caches) aside.
     """
     idle_priority()
+    while busy:
+        pass
     parameters = read_parameters(SINGLE)
     fmap, rng = shipped_force_map('DMSP-10-250'), np.random.default_rng(1)
     truth = GroundTruth(fmap)
@@ -521,7 +524,9 @@ def profiled_node(name: str, out: Path, args: list[str]) -> int:
     return code
 
 
-def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, float]:
+def callback_cost(
+    muscles: int, folder: Path, cycles: int = 2000, measured: bool = False
+) -> dict[str, float]:
     """CPU time of model_node's callbacks per cycle (``cycle``: both inputs as bytes, called
     directly: no executor, no wait) and of the engine's share of it (``engine``: its two calls per
     cycle) [us]; answers go nowhere.  Then the CPU time of one /diagnostics report of every muscle
@@ -530,7 +535,9 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
     deserialized by rclpy first as its executor does (``relay`` [us]).  ``cold`` and
     ``cold_relay`` [us]: the same per cycle with L1 and L2 flushed before each cycle (a
     :data:`FLUSH` read, not timed), as in a node whose core also runs the DDS threads and other
-    processes between two messages.
+    processes between two messages.  ``measured``: also model_node with ``residual.enabled``, a
+    measured force of every muscle after each cycle's inputs (``measured_cycle``,
+    ``measured_cold`` [us], ``measured_report`` [ms]; every force paired, else it stops).
     """
     params = SINGLE if muscles == 1 else multi_muscle_file(muscles, folder)
     # the inputs are built first, stamped then, and taken over up to ~0.2 s: an input age of an
@@ -547,17 +554,10 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
         ]
     )
     try:
-        node = Pinger('/unused', muscles, rclpy.get_default_context())  # builds the input messages
+        # the pinger builds the input messages
+        node = Pinger('/unused', muscles, rclpy.get_default_context(), measured=measured)
         model = ModelNode()
-        handlers = (
-            (partial(model._on_pressure, 0), partial(model._on_state, 0))
-            if muscles == 1
-            else (model._on_pressures, model._on_states)
-        )
-
-        def model_cycle(cycle: tuple[bytes, ...]) -> None:
-            handlers[0](cycle[0])
-            handlers[1](cycle[1])
+        model_cycle = node_cycle(model, muscles)
 
         def check_estimated(since: int, inputs: list[tuple[bytes, ...]]) -> None:
             """Stop unless every input of ``inputs`` gave an estimate after the first ``since``
@@ -593,6 +593,7 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
             start = time.process_time()
             model.publish_status(model.now())
             report += (time.process_time() - start) / REPORTS
+        costs = measured_cost(node, muscles) if measured else {}
         relay = Relay(parameter_overrides=[Parameter('muscles', value=muscles)])
         subscriptions = list(relay.subscriptions)  # the pressure's, then the length's
 
@@ -612,13 +613,72 @@ def callback_cost(muscles: int, folder: Path, cycles: int = 2000) -> dict[str, f
             made.destroy_node()
     finally:
         rclpy.shutdown()
-    return {
+    return costs | {
         'cycle': per_cycle * 1e6,
         'engine': own * 1e6,
         'report': report * 1e3,
         'relay': relayed * 1e6,
         'cold': cold['model'] * 1e6,
         'cold_relay': cold['relay'] * 1e6,
+    }
+
+
+def node_cycle(model: ModelNode, muscles: int) -> Callable[[tuple[bytes, ...]], None]:
+    """One cycle's messages (:meth:`Pinger.messages`, with a measured force third) handed to
+    ``model``'s callbacks as its executor would.
+    """
+    handlers = (
+        (partial(model._on_pressure, 0), partial(model._on_state, 0))
+        if muscles == 1
+        else (model._on_pressures, model._on_states)
+    )
+    if len(handlers) < 3 and model.residual is not None:
+        handlers += (
+            partial(model._on_measured_force, 0) if muscles == 1 else model._on_measured_forces,
+        )
+
+    def cycle(messages: tuple[bytes, ...]) -> None:
+        for handler, data in zip(handlers, messages):
+            handler(data)
+
+    return cycle
+
+
+def measured_cost(pinger: Pinger, muscles: int, cycles: int = 2000) -> dict[str, float]:
+    """:func:`callback_cost`'s figures of model_node with ``residual.enabled`` [us, ms]."""
+    model = ModelNode(parameter_overrides=[Parameter('residual.enabled', value=True)])
+    model_cycle = node_cycle(model, muscles)
+    measured = pinger._measured[1]
+
+    def inputs(count: int) -> list[tuple[bytes, ...]]:
+        cycles = []
+        for k in range(count):
+            stamp = model.now()
+            cycles.append(pinger.messages(k, stamp) + (measured(stamp),))
+        return cycles
+
+    hot = inputs(cycles)
+    start = time.process_time()
+    for cycle in hot:
+        model_cycle(cycle)
+    per_cycle = (time.process_time() - start) / cycles
+    cold = flushed(model_cycle, inputs(COLD_CYCLES))
+    report = 0.0
+    for _ in range(REPORTS):
+        for cycle in inputs(20):
+            model_cycle(cycle)
+        start = time.process_time()
+        model.publish_status(model.now())
+        report += (time.process_time() - start) / REPORTS
+    sent = cycles + 5 * COLD_CYCLES + 20 * REPORTS
+    paired = sum(c['paired'] for c in model.residual.counts)
+    if paired != sent * muscles:
+        raise SystemExit(f'callback cost: measured forces not paired: {model.residual.counts}')
+    model.destroy_node()
+    return {
+        'measured_cycle': per_cycle * 1e6,
+        'measured_cold': cold * 1e6,
+        'measured_report': report * 1e3,
     }
 
 
@@ -656,6 +716,7 @@ def print_rows(
             if args.measured
             else ''
         )
+        + (f'; {FITTING} beside a process that only spins (--busy)' if args.busy else '')
     )
     print(
         f'\n{node}: round trip at {args.rate:g} Hz, {args.duration:g} s per row, {what} (times '
@@ -680,11 +741,12 @@ def print_rows(
                 commands = responders(
                     n, executor, folder, profile, joints, args.pairing, args.measured, args.fitting
                 )
+                loop = '--busy-loop' if args.busy else '--fit-loop'
                 for name, cmd in commands.items():
                     code = args.code if name != 'relay' else None
                     once = name == node and args.pairing == 'approximate_time'
                     fits = (
-                        subprocess.Popen([sys.executable, __file__, '--fit-loop'])
+                        subprocess.Popen([sys.executable, __file__, loop])
                         if (name == FITTING)
                         else None
                     )
@@ -790,12 +852,18 @@ def main() -> int:
         "fits as model_node's worker does (SCHED_IDLE)",
     )
     parser.add_argument(
+        '--busy',
+        action='store_true',
+        help='with --fitting, the process beside the node spins in the same class instead of '
+        'fitting',
+    )
+    parser.add_argument(
         '--code',
         type=Path,
         help="run the model's node from this checkout (before/after); skips the callback costs",
     )
-    if sys.argv[1:] == ['--fit-loop']:
-        return fit_loop()
+    if sys.argv[1:] in (['--fit-loop'], ['--busy-loop']):
+        return fit_loop(busy=sys.argv[1] == '--busy-loop')
     if '--relay' in sys.argv:
         return run('relay', Relay, [a for a in sys.argv if a != '--relay'])
     if sys.argv[1:2] and sys.argv[1].startswith('--profiled-'):
@@ -819,7 +887,7 @@ def main() -> int:
                 'inputs):'
             )
         for n in muscles if not args.code else []:
-            cost = callback_cost(n, Path(tmp))
+            cost = callback_cost(n, Path(tmp), measured=args.measured)
             print(
                 f"{n:>3} muscles: {cost['cycle']:5.0f} us, of which the engine's two calls "
                 f'{cost["engine"]:.0f} us'
@@ -832,6 +900,12 @@ def main() -> int:
                 f'{cost["relay"]:.0f} us; L1 and L2 flushed before each cycle: {cost["cold"]:.0f} '
                 f'us, the relay {cost["cold_relay"]:.0f} us'
             )
+            if args.measured:
+                print(
+                    f'{"":>12} with residual.enabled and a measured force of each muscle: '
+                    f'{cost["measured_cycle"]:5.0f} us, flushed {cost["measured_cold"]:.0f} us; '
+                    f'a report {cost["measured_report"]:.2f} ms'
+                )
         if muscles:
             print_rows(False, muscles, args, Path(tmp), last)
         if joints:
