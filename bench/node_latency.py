@@ -567,11 +567,8 @@ def callback_cost(
             if counts.get('estimates', 0) - since < 2 * len(inputs) - 1:
                 raise SystemExit(f'callback cost: inputs refused: {counts}')
 
-        inputs = [node.messages(k, model.now()) for k in range(cycles)]
-        start = time.process_time()
-        for cycle in inputs:
-            model_cycle(cycle)
-        per_cycle = (time.process_time() - start) / cycles
+        inputs = stamped_cycles(node, model, cycles)
+        per_cycle = hot(model_cycle, inputs)
         check_estimated(0, inputs)
         engine, now = model.engine, model.now()
         pressures, rates = np.full(muscles, AMBIENT + 300e3), np.zeros(muscles)
@@ -586,13 +583,7 @@ def callback_cost(
                 engine.pressures(pressures, t, t)
                 engine.lengths(lengths[k], rates, t, t)
         own = (time.process_time() - start) / cycles
-        report = 0.0  # each report after new inputs: new counters, rates and delays to write
-        for _ in range(REPORTS):
-            for k in range(20):
-                model_cycle(node.messages(k, model.now()))
-            start = time.process_time()
-            model.publish_status(model.now())
-            report += (time.process_time() - start) / REPORTS
+        report = report_time(model, model_cycle, partial(stamped_cycles, node, model))
         costs = measured_cost(node, muscles) if measured else {}
         relay = Relay(parameter_overrides=[Parameter('muscles', value=muscles)])
         subscriptions = list(relay.subscriptions)  # the pressure's, then the length's
@@ -601,11 +592,8 @@ def callback_cost(
             for subscription, data in zip(subscriptions, cycle):
                 subscription.callback(deserialize_message(data, subscription.msg_type))
 
-        start = time.process_time()
-        for cycle in inputs:
-            relay_cycle(cycle)
-        relayed = (time.process_time() - start) / cycles
-        fresh = [node.messages(k, model.now()) for k in range(COLD_CYCLES)]
+        relayed = hot(relay_cycle, inputs)
+        fresh = stamped_cycles(node, model, COLD_CYCLES)
         since = model.engine.counts(0)['estimates']
         cold = {'model': flushed(model_cycle, fresh), 'relay': flushed(relay_cycle, fresh)}
         check_estimated(since, fresh * 5)  # flushed() runs the inputs 5 times
@@ -644,32 +632,54 @@ def node_cycle(model: ModelNode, muscles: int) -> Callable[[tuple[bytes, ...]], 
     return cycle
 
 
+def stamped_cycles(
+    pinger: Pinger, model: ModelNode, count: int, measured: bool = False
+) -> list[tuple[bytes, ...]]:
+    """``count`` cycles' messages stamped by ``model``'s clock as they are built, with a measured
+    force of every muscle third if ``measured``.
+    """
+    cycles = []
+    for k in range(count):
+        stamp = model.now()
+        messages = pinger.messages(k, stamp)
+        cycles.append(messages + (pinger._measured[1](stamp),) if measured else messages)
+    return cycles
+
+
+def hot(run: Callable[[tuple[bytes, ...]], None], inputs: list[tuple[bytes, ...]]) -> float:
+    """CPU time [s] per cycle of ``run`` over ``inputs``, one after the other."""
+    start = time.process_time()
+    for cycle in inputs:
+        run(cycle)
+    return (time.process_time() - start) / len(inputs)
+
+
+def report_time(
+    model: ModelNode,
+    run: Callable[[tuple[bytes, ...]], None],
+    inputs: Callable[[int], list[tuple[bytes, ...]]],
+) -> float:
+    """CPU time [s] of one /diagnostics report of ``model`` (publish_status), the mean of
+    :data:`REPORTS`, each after 20 new cycles of ``run``: new counters, rates and delays to write.
+    """
+    report = 0.0
+    for _ in range(REPORTS):
+        for cycle in inputs(20):
+            run(cycle)
+        start = time.process_time()
+        model.publish_status(model.now())
+        report += (time.process_time() - start) / REPORTS
+    return report
+
+
 def measured_cost(pinger: Pinger, muscles: int, cycles: int = 2000) -> dict[str, float]:
     """:func:`callback_cost`'s figures of model_node with ``residual.enabled`` [us, ms]."""
     model = ModelNode(parameter_overrides=[Parameter('residual.enabled', value=True)])
     model_cycle = node_cycle(model, muscles)
-    measured = pinger._measured[1]
-
-    def inputs(count: int) -> list[tuple[bytes, ...]]:
-        cycles = []
-        for k in range(count):
-            stamp = model.now()
-            cycles.append(pinger.messages(k, stamp) + (measured(stamp),))
-        return cycles
-
-    hot = inputs(cycles)
-    start = time.process_time()
-    for cycle in hot:
-        model_cycle(cycle)
-    per_cycle = (time.process_time() - start) / cycles
+    inputs = partial(stamped_cycles, pinger, model, measured=True)
+    per_cycle = hot(model_cycle, inputs(cycles))
     cold = flushed(model_cycle, inputs(COLD_CYCLES))
-    report = 0.0
-    for _ in range(REPORTS):
-        for cycle in inputs(20):
-            model_cycle(cycle)
-        start = time.process_time()
-        model.publish_status(model.now())
-        report += (time.process_time() - start) / REPORTS
+    report = report_time(model, model_cycle, inputs)
     sent = cycles + 5 * COLD_CYCLES + 20 * REPORTS
     paired = sum(c['paired'] for c in model.residual.counts)
     if paired != sent * muscles:
